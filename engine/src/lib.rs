@@ -1,0 +1,1 @@
+//! The Rogue-Gym game engine (work in progress).

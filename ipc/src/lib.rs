@@ -1,0 +1,1 @@
+//! Shared-memory transport for the Rogue-Gym pool (work in progress).

@@ -1,0 +1,2 @@
+//! The `rogue-gym` command-line tool (work in progress).
+fn main() {}

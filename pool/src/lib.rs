@@ -1,0 +1,1 @@
+//! The Rogue-Gym environment pool (work in progress).
