@@ -1,0 +1,119 @@
+"""The generalization evaluator: statistics, policy loading, output, and runs through the pool."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rogue_gym import evaluate as ev
+from rogue_gym.suites import get_suite
+
+# ------------------------------------------------------------------------------ bootstrap CI
+
+
+def test_bootstrap_constant_values_give_zero_width() -> None:
+    mean, lo, hi = ev.bootstrap_ci([7.0] * 50)
+    assert mean == lo == hi == 7.0
+
+
+def test_bootstrap_single_value() -> None:
+    assert ev.bootstrap_ci([3.5]) == (3.5, 3.5, 3.5)
+
+
+def test_bootstrap_empty_raises() -> None:
+    with pytest.raises(ValueError):
+        ev.bootstrap_ci([])
+
+
+def test_bootstrap_contains_mean_and_is_reproducible() -> None:
+    x = np.random.default_rng(1).exponential(20.0, size=200)
+    mean, lo, hi = ev.bootstrap_ci(x)
+    assert mean == pytest.approx(x.mean())
+    assert lo < mean < hi
+    assert ev.bootstrap_ci(x) == (mean, lo, hi)  # fixed RNG seed
+    assert ev.bootstrap_ci(x, seed=1) != (mean, lo, hi)
+
+
+def test_bootstrap_more_seeds_narrower_and_roughly_normal() -> None:
+    rng = np.random.default_rng(2)
+    small = rng.normal(10.0, 5.0, size=40)
+    large = rng.normal(10.0, 5.0, size=1000)
+    _, lo_s, hi_s = ev.bootstrap_ci(small)
+    _, lo_l, hi_l = ev.bootstrap_ci(large)
+    assert hi_l - lo_l < hi_s - lo_s
+    # 95% CI of a mean ~ +-1.96 sigma/sqrt(n)
+    expected = 2 * 1.96 * large.std(ddof=1) / np.sqrt(large.size)
+    assert hi_l - lo_l == pytest.approx(expected, rel=0.15)
+
+
+def test_bootstrap_higher_confidence_is_wider() -> None:
+    x = np.arange(30, dtype=float)
+    _, lo90, hi90 = ev.bootstrap_ci(x, confidence=0.90)
+    _, lo99, hi99 = ev.bootstrap_ci(x, confidence=0.99)
+    assert lo99 < lo90 and hi99 > hi90
+
+
+def test_agent_result_is_across_seeds_not_episodes() -> None:
+    # Seeds differ, episodes of one seed are identical: the CI must reflect the 3 seeds.
+    returns = np.array([[0.0] * 10, [10.0] * 10, [20.0] * 10])
+    a = ev.AgentResult.from_returns("x", returns, 0.95, 0)
+    per_seed = ev.bootstrap_ci([0.0, 10.0, 20.0])
+    assert (a.mean, a.ci_low, a.ci_high) == per_seed
+    assert a.seed_std == pytest.approx(10.0)
+
+
+# ------------------------------------------------------------------------------ policies
+
+
+def test_random_policy_is_seeded() -> None:
+    obs = np.zeros((8, 3), np.uint8)
+    a = ev.RandomPolicy(seed=5)
+    b = ev.RandomPolicy(seed=5)
+    xs = [a(obs) for _ in range(3)]
+    assert all(np.array_equal(x, b(obs)) for x in xs)
+    assert xs[0].shape == (8,) and xs[0].dtype == np.int64
+    assert min(x.min() for x in xs) >= 0 and max(x.max() for x in xs) < ev.NUM_ACTIONS
+    a.seed(5)
+    assert np.array_equal(a(obs), xs[0])
+
+
+def test_load_policy_specs(tmp_path: Path) -> None:
+    assert isinstance(ev.load_policy("random"), ev.RandomPolicy)
+    assert isinstance(ev.load_policy("rogue_gym.evaluate:RandomPolicy"), ev.RandomPolicy)
+    f = tmp_path / "mypol.py"
+    f.write_text("import numpy as np\ndef act(obs):\n    return np.full(len(obs), 3)\n")
+    pol = ev.load_policy(f"{f}:act")
+    assert list(pol(np.zeros((2, 1)))) == [3, 3]
+    with pytest.raises(ValueError):
+        ev.load_policy("not-a-spec")
+
+
+# ------------------------------------------------------------------------------ output
+
+
+def _fake_result() -> dict:
+    suite = get_suite("paper-10")
+    returns = np.array([[1.0, 3.0], [50.0, 52.0]])
+    agents = [ev.AgentResult.from_returns("pol", returns, 0.95, 0)]
+    agents.append(ev.AgentResult.from_returns("random", returns / 2, 0.95, 0))
+    return {
+        "suite": suite.canonical(),
+        "settings": {"seeds": [1000, 1001]},
+        "agents": [a.to_json() for a in agents],
+        "manifest": [{"seed": 1000, "rooms": 3}, {"seed": 1001, "rooms": 2}],
+        "_agents": agents,
+    }
+
+
+def test_write_results(tmp_path: Path) -> None:
+    paths = ev.write_results(_fake_result(), tmp_path / "o")
+    rows = list(csv.DictReader(paths[0].open()))
+    assert [r["seed"] for r in rows] == ["1000", "1001"]
+    assert float(rows[0]["policy_mean"]) == 2.0 and float(rows[1]["random_mean"]) == 25.5
+    assert rows[1]["rooms"] == "2"
+    doc = json.loads(paths[1].read_text())
+    assert "_agents" not in doc
+    assert doc["agents"][0]["per_seed_mean"] == [2.0, 51.0]
