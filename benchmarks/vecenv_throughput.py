@@ -103,9 +103,14 @@ def make_single_env(enc: str) -> Any:
     from rogue_gym.envs import RogueEnv
 
     obs, dtype = _encoding(enc)
-    kwargs: Dict[str, Any] = {"config_dict": dict(PAPER_CONFIG), "max_steps": MAX_STEPS, "obs": obs}
+    kwargs: Dict[str, Any] = {
+        "config_dict": dict(PAPER_CONFIG),
+        "max_steps": MAX_STEPS,
+        "stair_reward": STAIR_REWARD,
+        "obs": obs,
+    }
     if dtype is not None:
-        kwargs["obs_dtype"] = dtype
+        kwargs["dtype"] = dtype
     return RogueEnv(**kwargs)
 
 

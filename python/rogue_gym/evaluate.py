@@ -33,11 +33,11 @@ policy must be deterministic given that seed, and then the whole evaluation is: 
 episodes are a pure function of the seed schedule, independent of the number of workers.
 
 **Episode schedule.** With ``K`` test seeds and ``E`` episodes per seed, the evaluator hands
-the pool the list ``schedule[j] = seeds[j % K]`` (``M = K * E`` entries) with the sequential
-(round-robin) seed policy: environment ``i``'s ``e``-th episode plays ``schedule[i + e * N]``.
-Episodes whose index is ``>= M`` are played out (the pool steps all environments together) but
-discarded. Results therefore depend on ``(policy, policy seed, num_envs)`` but never on the
-number of workers.
+the pool the seed list with the sequential (round-robin) seed policy: environment ``i``'s
+``e``-th episode has schedule index ``j = i + e * N`` and plays ``seeds[j % K]``. The first
+``M = K * E`` indices cover every seed exactly ``E`` times; episodes with ``j >= M`` are played
+out (the pool steps all environments together) but discarded. Results therefore depend on
+``(policy, policy seed, num_envs)`` but never on the number of workers.
 """
 
 from __future__ import annotations
@@ -180,19 +180,19 @@ def _seed_policy(policy: Policy, seed: int) -> None:
 
 def _make_pool(
     suite: Suite,
-    schedule: List[int],
+    seeds: List[int],
     num_envs: int,
     num_workers: Optional[int],
     obs: str,
 ) -> Any:
-    """A gymnasium VectorEnv over the pool playing ``schedule`` round-robin (see module doc)."""
+    """A gymnasium VectorEnv over the pool playing ``seeds`` round-robin (see module doc)."""
     from . import make_vec  # imported late: the pure-Python parts work without the extension
 
     kwargs: Dict[str, Any] = {
         "config": suite.config,
         "max_steps": suite.max_steps,
         "stair_reward": suite.stair_reward,
-        "seeds": schedule,
+        "seeds": seeds,
         "seed_policy": "sequential",
         "obs": obs,
         "autoreset_mode": "same_step",
@@ -224,11 +224,10 @@ def run_episodes(
     if k == 0 or e_per <= 0:
         raise ValueError("need at least one seed and one episode per seed")
     total = k * e_per
-    schedule = [seeds[j % k] for j in range(total)]
     num_envs = max(1, min(int(num_envs), total))
     _seed_policy(policy, policy_seed)
     returns = np.full(total, np.nan, dtype=np.float64)
-    env = _make_pool(suite, schedule, num_envs, num_workers, obs)
+    env = _make_pool(suite, seeds, num_envs, num_workers, obs)
     bar = _progress(total, desc, progress)
     try:
         obs_batch, _ = env.reset()

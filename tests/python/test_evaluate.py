@@ -117,3 +117,61 @@ def test_write_results(tmp_path: Path) -> None:
     doc = json.loads(paths[1].read_text())
     assert "_agents" not in doc
     assert doc["agents"][0]["per_seed_mean"] == [2.0, 51.0]
+
+
+# ------------------------------------------------------------------------------ bookkeeping
+
+
+class _FakePool:
+    """A same-step-autoreset vector env following the pool's sequential seed schedule.
+
+    Episode of seed s lasts 2 + s % 5 steps and pays s + (action sum) on its last step.
+    """
+
+    def __init__(self, num_envs: int, seeds: list) -> None:
+        self.n, self.seeds = num_envs, seeds
+        self.episode = np.zeros(num_envs, np.int64)
+        self.t = np.zeros(num_envs, np.int64)
+        self.acc = np.zeros(num_envs)
+
+    def _seed(self, i: int) -> int:
+        return self.seeds[(i + int(self.episode[i]) * self.n) % len(self.seeds)]
+
+    def reset(self):
+        return np.zeros((self.n, 1)), {}
+
+    def step(self, actions):
+        rew = np.zeros(self.n)
+        done = np.zeros(self.n, bool)
+        for i in range(self.n):
+            s = self._seed(i)
+            self.t[i] += 1
+            self.acc[i] += actions[i]
+            if self.t[i] >= 2 + s % 5:
+                rew[i] = s + self.acc[i]
+                done[i] = True
+                self.t[i], self.acc[i] = 0, 0.0
+                self.episode[i] += 1
+        return np.zeros((self.n, 1)), rew, done, np.zeros(self.n, bool), {}
+
+    def close(self) -> None:
+        pass
+
+
+@pytest.mark.parametrize("num_envs", [1, 3, 7, 64])
+def test_run_episodes_attributes_episodes_to_seeds(monkeypatch, num_envs: int) -> None:
+    def fake(suite, schedule, n, workers, obs):
+        return _FakePool(n, schedule)
+
+    monkeypatch.setattr(ev, "_make_pool", fake)
+    seeds = [1000, 1001, 1002, 1003, 1004]
+    out = ev.run_episodes(
+        get_suite("paper-10"),
+        lambda o: np.zeros(len(o), np.int64),
+        seeds,
+        3,
+        num_envs=num_envs,
+        progress=False,
+    )
+    assert out.shape == (5, 3)
+    assert np.array_equal(out, np.repeat(np.array(seeds, float)[:, None], 3, axis=1))
