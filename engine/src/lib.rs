@@ -44,3 +44,5 @@ pub use config::{ConfigError, GameConfig};
 pub use game::{EpisodeConfig, EpisodeInfo, Game, StepResult};
 pub use obs::{Dtype, Encoding, ObsBufMut, ObsError, ObsSpec, Status, StatusFlags};
 pub use rng::splitmix64;
+pub mod summary;
+pub use summary::{FloorSummary, floor_summary};
