@@ -275,29 +275,17 @@ def _progress(total: int, desc: str, enabled: bool) -> Any:
 # --------------------------------------------------------------------------------------------
 # manifest (difficulty metadata per seed)
 
-#: Columns of the per-seed manifest, in order (besides ``seed``).
-MANIFEST_FIELDS = [
-    "rooms",
-    "normal_rooms",
-    "dark_rooms",
-    "maze_rooms",
-    "gone_rooms",
-    "hidden_doors",
-    "hidden_passages",
-    "gold_piles",
-    "gold_total",
-    "stairs_distance",
-    "stairs_distance_hidden",
-]
-
-
 def seed_manifest(suite: Suite, seeds: Sequence[int]) -> List[Dict[str, Any]]:
     """Difficulty metadata of level 1 of each seed, from the engine's floor summary.
 
-    One dict per seed with ``seed`` plus the keys returned by
-    ``rogue_gym._native.floor_summary(config_json, seed)`` (rooms, dark/maze/gone rooms,
-    hidden doors and passages, gold, shortest path from the start to the stairs; see
-    ``engine/src/summary.rs`` for exact definitions).
+    One dict per seed with the keys returned by
+    ``rogue_gym._native.floor_summary(config_json, seed)``: ``rooms`` (real rooms),
+    ``normal_rooms``, ``maze_rooms``, ``dark_rooms``, ``gone_rooms``, ``doors``,
+    ``hidden_doors`` (secret doors), ``passage_cells``, ``hidden_passages`` (hidden passage
+    cells), ``gold_piles``, ``gold_total``, ``stairs_distance`` (shortest walk in moves from
+    the start cell to the stairs under the movement rule, without searching; ``None`` when
+    the stairs need a search) and ``stairs_distance_unhidden`` (the same with every hidden
+    feature found). Exact definitions: ``engine/src/summary.rs``.
     """
     from . import _native
 
@@ -306,6 +294,7 @@ def seed_manifest(suite: Suite, seeds: Sequence[int]) -> List[Dict[str, Any]]:
     for s in seeds:
         row: Dict[str, Any] = {"seed": int(s)}
         row.update(_native.floor_summary(config_json, int(s)))
+        row.pop("level", None)
         rows.append(row)
     return rows
 
