@@ -64,7 +64,7 @@ impl EnvRecord {
 
 /// Words per record.
 pub const RECORD_WORDS: usize = std::mem::size_of::<EnvRecord>() / 8;
-const _: () = assert!(std::mem::size_of::<EnvRecord>() % 8 == 0);
+const _: () = assert!(std::mem::size_of::<EnvRecord>().is_multiple_of(8));
 const _: () = assert!(std::mem::align_of::<EnvRecord>() == 8);
 
 /// Geometry of a worker block.

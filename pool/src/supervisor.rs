@@ -531,7 +531,7 @@ impl Pool {
                 "num_envs and num_workers must be at least 1".into(),
             ));
         }
-        if cfg.num_envs % cfg.num_workers != 0 {
+        if !cfg.num_envs.is_multiple_of(cfg.num_workers) {
             return Err(PoolError::Config(format!(
                 "num_envs ({}) must be a multiple of num_workers ({}): each worker steps the same number of envs",
                 cfg.num_envs, cfg.num_workers
@@ -539,7 +539,7 @@ impl Pool {
         }
         let epw = cfg.num_envs / cfg.num_workers;
         if let Some(b) = cfg.batch_size
-            && (b == 0 || b % epw != 0 || b > cfg.num_envs)
+            && (b == 0 || !b.is_multiple_of(epw) || b > cfg.num_envs)
         {
             return Err(PoolError::Config(format!(
                 "batch_size ({b}) must be a positive multiple of the envs per worker ({epw}) and at most num_envs ({}): async batches are made of whole worker blocks",
@@ -855,7 +855,7 @@ impl Pool {
         }
         self.check_actions(actions, env_ids.iter().copied())?;
         let epw = self.core.epw;
-        if env_ids.len() % epw != 0 {
+        if !env_ids.len().is_multiple_of(epw) {
             return Err(PoolError::State(format!(
                 "send() got {} env ids; they must form whole worker blocks of {epw} envs",
                 env_ids.len()
@@ -864,7 +864,7 @@ impl Pool {
         let mut workers = Vec::with_capacity(env_ids.len() / epw);
         for chunk in env_ids.chunks(epw) {
             let k = chunk[0] / epw;
-            if chunk[0] % epw != 0
+            if !chunk[0].is_multiple_of(epw)
                 || k >= self.core.slots.len()
                 || chunk.iter().enumerate().any(|(j, &e)| e != k * epw + j)
             {

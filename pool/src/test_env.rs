@@ -128,7 +128,7 @@ impl Env for TestEnv {
         self.write_obs(obs)?;
         Ok(StepOutcome {
             reward: (s % 7) as f32 - 3.0,
-            terminated: s % 31 == 0,
+            terminated: s.is_multiple_of(31),
             truncated: self.t >= self.max_steps,
         })
     }

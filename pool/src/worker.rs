@@ -272,8 +272,8 @@ pub(crate) fn apply(
             s.ret += f64::from(out.reward);
             s.len += 1;
             rec.reward = out.reward;
-            rec.flags = u32::from(out.terminated) * FLAG_TERMINATED
-                | u32::from(out.truncated) * FLAG_TRUNCATED;
+            rec.flags = (u32::from(out.terminated) * FLAG_TERMINATED)
+                | (u32::from(out.truncated) * FLAG_TRUNCATED);
         }
         k => return Err(format!("unknown command kind {k}")),
     }
