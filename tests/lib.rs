@@ -1,1 +1,177 @@
 //! Shared helpers for the end-to-end tests in this folder.
+
+use std::path::PathBuf;
+use std::process::Child;
+
+use rogue_gym_pool::{
+    AutoresetMode, BatchOutput, Pool, PoolConfig, PoolError, WorkerCommand, seeds::splitmix,
+};
+
+/// Base directory of the pools created by the tests (short: unix socket paths < 108 bytes).
+pub fn test_base() -> PathBuf {
+    PathBuf::from("/tmp/rge2e")
+}
+
+/// The worker command of the e2e binary (`<exe> worker ...`).
+pub fn worker_cmd(exe: &str) -> WorkerCommand {
+    WorkerCommand {
+        program: PathBuf::from(exe),
+        args: vec!["worker".into()],
+    }
+}
+
+/// A pool config for the e2e tests.
+pub fn config(exe: &str, env: serde_json::Value, num_envs: usize, workers: usize) -> PoolConfig {
+    let mut c = PoolConfig::new(env, num_envs, workers, worker_cmd(exe));
+    c.base_dir = test_base();
+    c.seeds.base = 1234;
+    c
+}
+
+/// Deterministic action of env `env` at its `t`-th step.
+pub fn action(env: usize, t: u64, num_actions: usize) -> i64 {
+    (splitmix((env as u64) << 32 ^ t) % num_actions as u64) as i64
+}
+
+/// Per-env running digest of a trajectory (obs bytes, reward, flags, episode, seed).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Digests(pub Vec<u64>);
+
+impl Digests {
+    /// Empty digests for `n` envs.
+    pub fn new(n: usize) -> Self {
+        Digests(vec![0xcbf2_9ce4_8422_2325; n])
+    }
+    /// Fold one row in.
+    pub fn add(&mut self, env: usize, obs: &[u8], out: &BatchOutput, row: usize) {
+        let mut h = self.0[env];
+        let mut eat = |x: u64| h = splitmix(h ^ x);
+        for c in obs.chunks(8) {
+            let mut b = [0u8; 8];
+            b[..c.len()].copy_from_slice(c);
+            eat(u64::from_le_bytes(b));
+        }
+        eat(u64::from(out.reward[row].to_bits()));
+        eat(u64::from(out.terminated[row]) | u64::from(out.truncated[row]) << 1);
+        eat(out.episode[row]);
+        eat(out.seed[row]);
+        eat(out.episode_return[row].to_bits());
+        self.0[env] = h;
+    }
+    /// Fold a whole sync batch in.
+    pub fn add_batch(&mut self, obs: &[u8], obs_bytes: usize, out: &BatchOutput) {
+        for (row, &env) in out.env_ids.iter().enumerate() {
+            self.add(env, &obs[row * obs_bytes..(row + 1) * obs_bytes], out, row);
+        }
+    }
+}
+
+/// Run `steps` sync steps after a reset with the deterministic actions; per-env digests.
+pub fn run_sync(pool: &mut Pool, steps: u64) -> Result<Digests, PoolError> {
+    let n = pool.num_envs();
+    let ob = pool.obs_bytes();
+    let na = pool.spec().num_actions;
+    let mut obs = vec![0u8; n * ob];
+    let mut out = BatchOutput::default();
+    let mut d = Digests::new(n);
+    pool.reset(&mut obs, &mut out)?;
+    d.add_batch(&obs, ob, &out);
+    for t in 0..steps {
+        let actions: Vec<i64> = (0..n).map(|i| action(i, t, na)).collect();
+        pool.step(&actions, &mut obs, &mut out)?;
+        d.add_batch(&obs, ob, &out);
+    }
+    Ok(d)
+}
+
+/// The same trajectories through the async API (`async_reset`, then `recv`/`send` until every
+/// env did `steps` steps).
+pub fn run_async(pool: &mut Pool, steps: u64) -> Result<Digests, PoolError> {
+    let n = pool.num_envs();
+    let ob = pool.obs_bytes();
+    let na = pool.spec().num_actions;
+    let n_info = pool.spec().info_names.len();
+    let mut d = Digests::new(n);
+    let mut t = vec![0u64; n];
+    let mut out = BatchOutput::default();
+    pool.async_reset()?;
+    let mut outstanding = n;
+    while outstanding > 0 {
+        let batch = pool.recv()?;
+        batch.fill(n_info, &mut out);
+        let mut obs = vec![0u8; out.env_ids.len() * ob];
+        batch.copy_obs_into(&mut obs)?;
+        d.add_batch(&obs, ob, &out);
+        drop(batch);
+        outstanding -= out.env_ids.len();
+        let ids: Vec<usize> = out
+            .env_ids
+            .iter()
+            .copied()
+            .filter(|&e| t[e] < steps)
+            .collect();
+        if !ids.is_empty() {
+            let actions: Vec<i64> = ids.iter().map(|&e| action(e, t[e], na)).collect();
+            for &e in &ids {
+                t[e] += 1;
+            }
+            pool.send(&actions, &ids)?;
+            outstanding += ids.len();
+        }
+        // With a batch size below num_envs, the last blocks may be fewer than a batch.
+        if outstanding > 0 && outstanding < pool.batch_size() {
+            return Err(PoolError::State("test: uneven async drain".into()));
+        }
+    }
+    Ok(d)
+}
+
+/// Whether process `pid` is alive (exists and is not a zombie).
+pub fn alive(pid: u32) -> bool {
+    match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
+        Ok(s) => s
+            .rsplit_once(')')
+            .and_then(|(_, r)| r.split_whitespace().next())
+            .is_some_and(|state| state != "Z" && state != "X"),
+        Err(_) => false,
+    }
+}
+
+/// Kills a child process (and reaps it) when dropped, even if the test fails.
+pub struct ChildGuard(pub Option<Child>);
+
+impl Drop for ChildGuard {
+    fn drop(&mut self) {
+        if let Some(mut c) = self.0.take() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// Sends SIGKILL to the given pids when dropped (workers a test may leave behind on failure).
+pub struct PidGuard(pub Vec<u32>);
+
+impl Drop for PidGuard {
+    fn drop(&mut self) {
+        for &p in &self.0 {
+            if alive(p) {
+                let _ = nix::sys::signal::kill(
+                    nix::unistd::Pid::from_raw(p as i32),
+                    nix::sys::signal::Signal::SIGKILL,
+                );
+            }
+        }
+    }
+}
+
+/// Whether the pool's files are all gone.
+pub fn pool_files_gone(id: &rogue_gym_ipc::PoolId) -> bool {
+    rogue_gym_ipc::pool_shm_files(id).is_empty() && !id.root().exists() && !id.aux_dir().exists()
+}
+
+/// The SAME_STEP variant of a config.
+pub fn same_step(mut c: PoolConfig) -> PoolConfig {
+    c.autoreset = AutoresetMode::SameStep;
+    c
+}

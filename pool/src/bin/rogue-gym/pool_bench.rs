@@ -1,0 +1,277 @@
+//! `rogue-gym pool-bench`: env steps/s and batch latency of the pool, and the raw
+//! single-process loop over the same envs measured in the same run.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use rogue_gym_pool::{
+    BatchOutput, EnvRegistry, Pool, PoolConfig, SeedSchedule, WaitPolicy, WorkerCommand,
+};
+use serde_json::{Value, json};
+
+/// Sync (lockstep) or async (EnvPool-style send/recv) mode.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Mode {
+    /// `step(actions)` over all envs.
+    Sync,
+    /// `send`/`recv` with a batch of `--batch-size` envs.
+    Async,
+}
+
+/// Options of `pool-bench`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Number of envs.
+    #[arg(long, default_value_t = 64)]
+    envs: usize,
+    /// Number of worker processes.
+    #[arg(long, default_value_t = 2)]
+    workers: usize,
+    /// Pool mode.
+    #[arg(long, value_enum, default_value_t = Mode::Sync)]
+    mode: Mode,
+    /// Game config JSON file (rogue env); default: the paper's config.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Batches to time (each `--envs` env steps in sync mode).
+    #[arg(long, default_value_t = 2000)]
+    steps: u64,
+    /// Env: `rogue`, `test`, or a full JSON env spec.
+    #[arg(long, default_value = "rogue")]
+    env: String,
+    /// Async batch size (a multiple of envs/workers); default: half the envs.
+    #[arg(long)]
+    batch_size: Option<usize>,
+    /// Episode step limit.
+    #[arg(long, default_value_t = 500)]
+    max_steps: u32,
+    /// Supervisor yield-poll budget, µs.
+    #[arg(long, default_value_t = 50)]
+    poll_us: u64,
+    /// Worker yield-poll budget, µs.
+    #[arg(long, default_value_t = 50)]
+    worker_poll_us: u64,
+    /// Base seed.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+}
+
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+}
+
+fn env_spec(a: &Args) -> Result<Value, String> {
+    match a.env.as_str() {
+        "rogue" => {
+            let config = match &a.config {
+                Some(p) => {
+                    let s = std::fs::read_to_string(p)
+                        .map_err(|e| format!("cannot read {}: {e}", p.display()))?;
+                    serde_json::from_str::<Value>(&s)
+                        .map_err(|e| format!("{} is not JSON: {e}", p.display()))?
+                }
+                None => Value::Null,
+            };
+            Ok(json!({"kind": "rogue", "config": config, "max_steps": a.max_steps}))
+        }
+        "test" => Ok(json!({"kind": "test", "obs_shape": [17, 16, 32], "max_steps": a.max_steps})),
+        s if s.trim_start().starts_with('{') => {
+            serde_json::from_str(s).map_err(|e| format!("--env is not valid JSON: {e}"))
+        }
+        s => Err(format!(
+            "unknown --env {s:?}: use rogue, test, or a JSON env spec"
+        )),
+    }
+}
+
+fn pct(v: &mut [Duration], p: f64) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort();
+    let i = ((v.len() - 1) as f64 * p).round() as usize;
+    v[i].as_secs_f64() * 1e6
+}
+
+/// The raw loop: the same envs stepped in this process, one after another, with autoreset.
+fn raw_loop(spec: &Value, a: &Args, reg: &EnvRegistry) -> Result<f64, String> {
+    let mut envs = (0..a.envs)
+        .map(|_| reg.make(spec))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| e.to_string())?;
+    let s = envs[0].spec();
+    let ob = s.obs_bytes();
+    let na = s.num_actions as u64;
+    let seeds = SeedSchedule::from_base(a.seed);
+    // f32 observations need 4-byte alignment: allocate as u64 words.
+    let mut words = vec![0u64; (a.envs * ob).div_ceil(8)];
+    let buf = rogue_gym_ipc::words_as_bytes_mut(&mut words);
+    let mut episode = vec![0u64; a.envs];
+    for (i, e) in envs.iter_mut().enumerate() {
+        e.reset(
+            seeds.seed(i as u64, 0, a.envs as u64),
+            &mut buf[i * ob..(i + 1) * ob],
+        )
+        .map_err(|e| e.to_string())?;
+    }
+    let mut rng = Rng(0x9E37_79B9_7F4A_7C15 ^ a.seed);
+    let mut run = |n: u64, buf: &mut [u8]| -> Result<(), String> {
+        for _ in 0..n {
+            for (i, e) in envs.iter_mut().enumerate() {
+                let obs = &mut buf[i * ob..(i + 1) * ob];
+                let o = e
+                    .step((rng.next() % na) as usize, obs)
+                    .map_err(|e| e.to_string())?;
+                if o.terminated || o.truncated {
+                    episode[i] += 1;
+                    e.reset(seeds.seed(i as u64, episode[i], a.envs as u64), obs)
+                        .map_err(|e| e.to_string())?;
+                }
+            }
+        }
+        Ok(())
+    };
+    run((a.steps / 10).max(1), buf)?;
+    let t0 = Instant::now();
+    run(a.steps, buf)?;
+    Ok((a.envs as u64 * a.steps) as f64 / t0.elapsed().as_secs_f64())
+}
+
+fn pool_loop(spec: &Value, a: &Args, reg: &EnvRegistry) -> Result<(f64, f64, f64, usize), String> {
+    let worker = WorkerCommand::current_exe(&["worker"]).map_err(|e| e.to_string())?;
+    let mut cfg = PoolConfig::new(spec.clone(), a.envs, a.workers, worker);
+    cfg.seeds.base = a.seed;
+    cfg.wait = WaitPolicy {
+        poll_budget: Duration::from_micros(a.poll_us),
+        ..cfg.wait
+    };
+    cfg.worker_wait = WaitPolicy {
+        poll_budget: Duration::from_micros(a.worker_poll_us),
+        ..cfg.worker_wait
+    };
+    let epw = a.envs / a.workers.max(1);
+    if a.mode == Mode::Async {
+        let b = a.batch_size.unwrap_or(if a.workers >= 2 {
+            (a.workers / 2) * epw
+        } else {
+            a.envs
+        });
+        cfg.batch_size = Some(b);
+    }
+    let mut pool = Pool::new(cfg, reg).map_err(|e| e.to_string())?;
+    let n = a.envs;
+    let na = pool.spec().num_actions as u64;
+    let mut rng = Rng(0x2545_F491_4F6C_DD1D ^ a.seed);
+    let mut lat = Vec::with_capacity(a.steps as usize);
+    let warm = (a.steps / 10).max(1);
+    let mut env_steps = 0u64;
+    let t0;
+    match a.mode {
+        Mode::Sync => {
+            let mut obs = vec![0u8; n * pool.obs_bytes()];
+            let mut out = BatchOutput::default();
+            pool.reset(&mut obs, &mut out).map_err(|e| e.to_string())?;
+            let mut actions = vec![0i64; n];
+            let mut start = Instant::now();
+            for i in 0..warm + a.steps {
+                if i == warm {
+                    start = Instant::now();
+                    lat.clear();
+                }
+                for x in actions.iter_mut() {
+                    *x = (rng.next() % na) as i64;
+                }
+                let t = Instant::now();
+                pool.step(&actions, &mut obs, &mut out)
+                    .map_err(|e| e.to_string())?;
+                lat.push(t.elapsed());
+            }
+            env_steps = n as u64 * a.steps;
+            t0 = start;
+        }
+        Mode::Async => {
+            let n_info = pool.spec().info_names.len();
+            let mut out = BatchOutput::default();
+            pool.async_reset().map_err(|e| e.to_string())?;
+            let mut start = Instant::now();
+            let mut actions = Vec::new();
+            for i in 0..warm + a.steps {
+                if i == warm {
+                    start = Instant::now();
+                    lat.clear();
+                    env_steps = 0;
+                }
+                let t = Instant::now();
+                let batch = pool.recv().map_err(|e| e.to_string())?;
+                lat.push(t.elapsed());
+                // Zero-copy: read the records; observations stay in shared memory.
+                batch.fill(n_info, &mut out);
+                let ids = batch.env_ids();
+                drop(batch);
+                env_steps += ids.len() as u64;
+                actions.clear();
+                actions.extend(ids.iter().map(|_| (rng.next() % na) as i64));
+                pool.send(&actions, &ids).map_err(|e| e.to_string())?;
+            }
+            t0 = start;
+        }
+    }
+    let el = t0.elapsed().as_secs_f64();
+    let bs = pool.batch_size();
+    pool.close().map_err(|e| e.to_string())?;
+    Ok((
+        env_steps as f64 / el,
+        pct(&mut lat, 0.5),
+        pct(&mut lat, 0.99),
+        if a.mode == Mode::Sync { n } else { bs },
+    ))
+}
+
+/// Run the benchmark; returns the exit code.
+pub fn run(a: Args) -> i32 {
+    match bench(&a) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("pool-bench: {e}");
+            1
+        }
+    }
+}
+
+fn bench(a: &Args) -> Result<(), String> {
+    if a.envs == 0 || a.workers == 0 || !a.envs.is_multiple_of(a.workers) {
+        return Err(format!(
+            "--envs ({}) must be a positive multiple of --workers ({})",
+            a.envs, a.workers
+        ));
+    }
+    let reg = EnvRegistry::with_defaults();
+    let spec = env_spec(a)?;
+    let s = reg.make(&spec).map_err(|e| e.to_string())?.spec();
+    println!(
+        "pool-bench: env={} envs={} workers={} mode={:?} steps={} obs={:?} {} ({} B)",
+        a.env,
+        a.envs,
+        a.workers,
+        a.mode,
+        a.steps,
+        s.obs_shape,
+        s.dtype.numpy_name(),
+        s.obs_bytes()
+    );
+    let raw = raw_loop(&spec, a, &reg)?;
+    let (pool, p50, p99, bs) = pool_loop(&spec, a, &reg)?;
+    println!("raw single-process loop: {raw:>12.0} env-steps/s");
+    println!(
+        "pool ({:<5})            : {pool:>12.0} env-steps/s   batch of {bs}: p50 {p50:.1} us, p99 {p99:.1} us",
+        format!("{:?}", a.mode).to_lowercase()
+    );
+    println!("pool / raw             : {:>11.1} %", 100.0 * pool / raw);
+    Ok(())
+}

@@ -1,0 +1,380 @@
+"""The pool core shared by the gymnasium and SB3 facades.
+
+It owns the native pool (supervisor + worker processes), validates actions, and keeps the
+double-buffered batch arrays the sync ``step()`` gathers worker blocks into.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import weakref
+from typing import Any, Mapping, Optional, Sequence, Union
+
+import numpy as np
+
+from . import _native
+from ._config import ConfigLike, resolve_config, to_json
+from ._records import (
+    FLAG_FINAL_OBS,
+    FLAG_RESTARTED,
+    FLAG_TERMINATED,
+    FLAG_TRUNCATED,
+    RECORD_DTYPE,
+)
+from .envs.image import ObsSpec, StatusFlag, observation_space
+from .envs.rogue_env import ACTIONS
+
+__all__ = ["ActionHistory", "PoolCore", "SeedsLike", "screen_to_rgb"]
+
+SeedsLike = Union[None, Sequence[int], range, tuple]
+
+#: Info values of the rogue env kind that are flags (the rest are integers).
+_BOOL_INFO = {"died", "won"}
+
+_FAILURE_POLICIES = ("restart", "raise")
+
+
+def _seed_set(seeds: SeedsLike, config: Mapping[str, Any]) -> Optional[dict[str, Any]]:
+    """The pool's seed set from ``seeds`` (or the config's ``seed_range`` / ``seed``)."""
+    if seeds is None:
+        if config.get("seed_range") is not None:
+            lo, hi = (int(x) for x in config["seed_range"])
+            seeds = range(lo, hi)
+        elif config.get("seed") is not None:
+            seeds = [int(config["seed"])]
+        else:
+            return None
+    if isinstance(seeds, range):
+        if seeds.step != 1:
+            return {"list": [int(s) for s in seeds]}
+        if len(seeds) == 0:
+            raise ValueError("the seed range is empty")
+        return {"range": {"start": int(seeds.start), "end": int(seeds.stop)}}
+    if (
+        isinstance(seeds, tuple)
+        and len(seeds) == 2
+        and all(isinstance(x, (int, np.integer)) for x in seeds)
+    ):
+        lo, hi = int(seeds[0]), int(seeds[1])
+        if hi <= lo:
+            raise ValueError(f"seeds=(lo, hi) needs lo < hi, got {seeds}")
+        return {"range": {"start": lo, "end": hi}}
+    values = [int(s) for s in seeds]
+    if not values:
+        raise ValueError("seeds must not be empty")
+    if any(s < 0 or s >= 2**64 for s in values):
+        raise ValueError("seeds must lie in [0, 2**64)")
+    return {"list": values}
+
+
+class PoolCore:
+    """Native pool + batch buffers + record decoding. Internal: use the facades."""
+
+    def __init__(
+        self,
+        num_envs: int,
+        config: ConfigLike = None,
+        *,
+        num_workers: Optional[int] = None,
+        seed: Optional[int] = None,
+        seeds: SeedsLike = None,
+        seed_policy: str = "sample",
+        obs: str = "symbol_onehot",
+        dtype: str = "uint8",
+        status: Union[int, StatusFlag] = 0,
+        normalize_status: bool = False,
+        history: bool = False,
+        max_steps: int = 1000,
+        stair_reward: float = 50.0,
+        same_step: bool = False,
+        on_worker_failure: str = "restart",
+        step_timeout: Optional[float] = 60.0,
+        max_restarts: Optional[int] = 100,
+        worker_command: Optional[Sequence[str]] = None,
+    ) -> None:
+        num_envs = int(num_envs)
+        if num_envs <= 0:
+            raise ValueError(f"num_envs must be positive, got {num_envs}")
+        if num_workers is None:
+            num_workers = min(num_envs, os.cpu_count() or 1)
+            while num_envs % num_workers:
+                num_workers -= 1
+        num_workers = int(num_workers)
+        if not 0 < num_workers <= num_envs or num_envs % num_workers:
+            raise ValueError(
+                f"num_workers must divide num_envs (each worker hosts the same number of envs); "
+                f"got num_envs={num_envs}, num_workers={num_workers}"
+            )
+        if on_worker_failure not in _FAILURE_POLICIES:
+            raise ValueError(
+                f"on_worker_failure must be one of {_FAILURE_POLICIES}, got {on_worker_failure!r}"
+            )
+        if seed_policy not in ("sample", "sequential"):
+            raise ValueError(f"seed_policy must be 'sample' or 'sequential', got {seed_policy!r}")
+        if int(max_steps) <= 0:
+            raise ValueError(f"max_steps must be positive, got {max_steps}")
+        self.config = resolve_config(config)
+        self.spec = ObsSpec(obs, dtype, status, normalize_status, history).validated()
+        self.num_envs = num_envs
+        self.num_workers = num_workers
+        self.max_steps = int(max_steps)
+        self.stair_reward = float(stair_reward)
+        self.same_step = bool(same_step)
+        if seed is None:
+            seed = int(np.random.default_rng().integers(0, 2**63))
+        self.base_seed = int(seed)
+        pool_config = {
+            "num_envs": num_envs,
+            "num_workers": num_workers,
+            "env": {
+                "kind": "rogue",
+                "config": self.config,
+                "max_steps": self.max_steps,
+                "stair_reward": self.stair_reward,
+                "obs": self.spec.to_dict(),
+            },
+            "seeds": {
+                "base": self.base_seed,
+                "set": _seed_set(seeds, self.config),
+                "policy": seed_policy,
+            },
+            "autoreset": "same_step" if self.same_step else "next_step",
+            "on_worker_failure": on_worker_failure,
+            "step_timeout_s": None if step_timeout is None else float(step_timeout),
+            "max_restarts": max_restarts,
+        }
+        cmd = (
+            list(worker_command)
+            if worker_command is not None
+            else [sys.executable, "-m", "rogue_gym.worker"]
+        )
+        self._pool = _native.Pool(pool_config, cmd)
+        self._finalizer = weakref.finalize(self, _native.Pool.close, self._pool)
+        self.obs_shape = tuple(self._pool.obs_shape)
+        self.obs_dtype = np.dtype(self._pool.obs_dtype)
+        self.info_names: list[str] = list(self._pool.info_names)
+        self.symbols = int(self._pool.symbols)
+        self.single_observation_space = observation_space(self.spec, self.obs_shape, self.symbols)
+        batch_shape = (num_envs, *self.obs_shape)
+        # Double buffer: step t returns slot t % 2, so the array returned by the previous call
+        # stays intact while the next one is written.
+        self._bufs = [np.zeros(batch_shape, self.obs_dtype) for _ in range(2)]
+        self._final = np.zeros(batch_shape, self.obs_dtype) if self.same_step else None
+        self._recs = [np.zeros(num_envs, RECORD_DTYPE) for _ in range(2)]
+        self._slot = 0
+        self._actions = np.zeros(num_envs, np.uint64)
+        self._all = np.ones(num_envs, bool)
+
+    # ------------------------------------------------------------------------------------
+    @property
+    def closed(self) -> bool:
+        """Whether the pool was closed."""
+        return not self._finalizer.alive
+
+    def close(self) -> None:
+        """Stop all workers and remove the pool's files (idempotent)."""
+        self._finalizer()
+
+    @property
+    def worker_pids(self) -> list[int]:
+        """Process ids of the live workers, one per worker (in worker order)."""
+        return list(self._pool.worker_pids())
+
+    def envs_of_worker(self, worker: int) -> range:
+        """Indices of the envs hosted by ``worker``."""
+        epw = self.num_envs // self.num_workers
+        return range(worker * epw, (worker + 1) * epw)
+
+    def _check_open(self) -> None:
+        if self.closed:
+            raise RuntimeError("the environment pool is closed")
+
+    def validate_actions(self, actions: Any) -> np.ndarray:
+        """Check a batch of actions; returns them as ``uint64`` (one per env)."""
+        n = self.num_envs
+        if isinstance(actions, str):
+            if len(actions) != n:
+                raise ValueError(
+                    f"an action string needs one key per env: expected {n} keys, got {len(actions)}"
+                )
+            actions = [
+                ACTIONS.index(k) if k in ACTIONS else _native.action_from_key(k) for k in actions
+            ]
+        a = np.asarray(actions)
+        if a.shape != (n,):
+            if a.size == n and a.ndim == 2 and 1 in a.shape:
+                a = a.reshape(n)
+            else:
+                raise ValueError(
+                    f"expected actions of shape ({n},) (one per env), got shape {a.shape}"
+                )
+        if a.dtype.kind not in "iu":
+            if a.dtype.kind == "f" and np.all(np.mod(a, 1) == 0):
+                a = a.astype(np.int64)
+            else:
+                raise TypeError(
+                    f"expected integer actions in [0, {len(ACTIONS)}), got dtype {a.dtype}"
+                )
+        bad = (a < 0) | (a >= len(ACTIONS))
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise ValueError(
+                f"action {a[i]} of env {i} is out of range: expected an int in [0, {len(ACTIONS)})"
+            )
+        np.copyto(self._actions, a, casting="unsafe")
+        return self._actions
+
+    def reset(
+        self, seed: Optional[int] = None, mask: Optional[np.ndarray] = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Reset (all or the ``mask``ed envs); returns (obs batch, records) in the next slot."""
+        self._check_open()
+        if seed is not None:
+            seed = int(seed)
+            if not 0 <= seed < 2**64:
+                raise ValueError(f"seed must be in [0, 2**64), got {seed}")
+            self.base_seed = seed
+        if mask is not None:
+            mask = np.asarray(mask)
+            if mask.shape != (self.num_envs,) or mask.dtype != np.bool_:
+                raise ValueError(
+                    f"reset_mask must be a bool array of shape ({self.num_envs},), got {mask.dtype} {mask.shape}"
+                )
+        slot = self._slot = 1 - self._slot
+        obs, recs = self._bufs[slot], self._recs[slot]
+        if mask is not None and not mask.all():
+            # Envs outside the mask keep their current observation and record.
+            prev = 1 - slot
+            np.copyto(obs, self._bufs[prev])
+            np.copyto(recs, self._recs[prev])
+        self._pool.reset(obs, recs, seed, mask)
+        return obs, recs
+
+    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray]:
+        """Step every env; returns (obs batch, records) written into the next slot."""
+        self._check_open()
+        acts = self.validate_actions(actions)
+        slot = self._slot = 1 - self._slot
+        obs, recs = self._bufs[slot], self._recs[slot]
+        self._pool.step(acts, obs, recs, self._final)
+        return obs, recs
+
+    @property
+    def final_obs(self) -> Optional[np.ndarray]:
+        """(SAME_STEP) final observations of the last step, valid where the record says so."""
+        return self._final
+
+    # ------------------------------------------------------------------------------------
+    @staticmethod
+    def flags(recs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(terminated, truncated, restarted, has_final_obs) bool arrays of a record batch."""
+        f = recs["flags"]
+        return (
+            (f & FLAG_TERMINATED) != 0,
+            (f & FLAG_TRUNCATED) != 0,
+            (f & FLAG_RESTARTED) != 0,
+            (f & FLAG_FINAL_OBS) != 0,
+        )
+
+    def info_arrays(self, recs: np.ndarray) -> dict[str, np.ndarray]:
+        """The env-defined info values and episode counters as arrays (one entry per env)."""
+        out: dict[str, np.ndarray] = {
+            "seed": recs["seed"].copy(),
+            "episode_index": recs["episode"].astype(np.int64),
+            "episode_return": recs["episode_return"].copy(),
+            "episode_length": recs["episode_length"].astype(np.int64),
+        }
+        info = recs["info"]
+        for k, name in enumerate(self.info_names):
+            col = info[:, k]
+            out[name] = col != 0 if name in _BOOL_INFO else col.astype(np.int64)
+        return out
+
+    def info_dict(self, recs: np.ndarray, i: int) -> dict[str, Any]:
+        """The info values of env ``i`` as a plain dict."""
+        r = recs[i]
+        d: dict[str, Any] = {
+            "seed": int(r["seed"]),
+            "episode_index": int(r["episode"]),
+            "episode_return": float(r["episode_return"]),
+            "episode_length": int(r["episode_length"]),
+        }
+        for k, name in enumerate(self.info_names):
+            v = r["info"][k]
+            d[name] = bool(v) if name in _BOOL_INFO else int(v)
+        return d
+
+
+class ActionHistory:
+    """Per-env action keys since each env's episode start, to rebuild screens by replay.
+
+    Workers do not ship screens; a frame is rebuilt by replaying an env's current episode (its
+    seed and recorded actions) on an in-process engine. Cheap to record (a few vector ops per
+    step), O(episode length) to render.
+    """
+
+    def __init__(self, core: PoolCore) -> None:
+        self.core = core
+        self.actions = np.zeros((core.max_steps + 2, core.num_envs), np.uint8)
+        self.length = np.zeros(core.num_envs, np.int64)
+        self.seeds = np.zeros(core.num_envs, np.uint64)
+        self.stale = np.zeros(core.num_envs, bool)
+
+    def on_reset(self, recs: np.ndarray, envs: np.ndarray, seed_known: bool = True) -> None:
+        """``envs`` (bool mask) started new episodes, described by ``recs`` if ``seed_known``
+        (SAME_STEP ending steps describe the old episode: the seed is taken from the next step)."""
+        self.length[envs] = 0
+        if seed_known:
+            self.seeds[envs] = recs["seed"][envs]
+            self.stale[envs] = False
+        else:
+            self.stale |= envs
+
+    def on_step(self, actions: np.ndarray, stepped: np.ndarray, recs: np.ndarray) -> None:
+        """Record ``actions`` of the envs in the ``stepped`` mask (``recs``: this step's records)."""
+        if self.stale.any():
+            fix = self.stale & ((recs["flags"] & 3) == 0)
+            self.seeds[fix] = recs["seed"][fix]
+            self.stale &= ~fix
+        idx = np.flatnonzero(stepped)
+        pos = np.minimum(self.length[idx], self.actions.shape[0] - 1)
+        self.actions[pos, idx] = actions[idx]
+        self.length[idx] += 1
+
+    def screen(self, i: int) -> str:
+        """The current screen of env ``i``: map rows and status line."""
+        core = self.core
+        game = _native.Game(to_json(core.config), core.max_steps, core.stair_reward)
+        game.reset(int(self.seeds[i]))
+        for a in self.actions[: int(self.length[i]), i]:
+            game.step(int(a))
+        return "\n".join([*game.screen(), game.status_line()])
+
+
+def screen_to_rgb(screen: str) -> np.ndarray:
+    """A ``(rows, cols, 3)`` uint8 image of a text screen, one pixel per cell, colour by glyph."""
+    rows = screen.split("\n")
+    width = max(len(r) for r in rows)
+    codes = np.zeros((len(rows), width), np.uint8)
+    for y, row in enumerate(rows):
+        codes[y, : len(row)] = np.frombuffer(row.encode("ascii", "replace"), np.uint8)
+    palette = np.zeros((256, 3), np.uint8)
+    for ch, rgb in {
+        "@": (255, 255, 0),
+        "#": (120, 120, 120),
+        ".": (60, 60, 60),
+        "-": (200, 200, 200),
+        "|": (200, 200, 200),
+        "%": (0, 255, 0),
+        "+": (180, 120, 40),
+        "*": (255, 200, 0),
+        ":": (200, 80, 80),
+    }.items():
+        palette[ord(ch)] = rgb
+    for c in range(ord("A"), ord("Z") + 1):
+        palette[c] = (255, 0, 0)
+    for c in range(ord("!"), ord("~") + 1):
+        if not palette[c].any():
+            palette[c] = (150, 150, 255)
+    return palette[codes]

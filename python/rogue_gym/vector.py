@@ -1,0 +1,315 @@
+"""``RogueVectorEnv``: the pool as a ``gymnasium.vector.VectorEnv``, and :func:`make_vec`."""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar, Optional, Sequence, Union
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
+from gymnasium.vector.utils import batch_space
+
+from ._config import ConfigLike
+from ._core import ActionHistory, PoolCore, SeedsLike
+from .envs.image import StatusFlag
+from .envs.rogue_env import ACTIONS
+
+__all__ = ["RogueVectorEnv", "make_vec"]
+
+
+def _autoreset_mode(mode: Union[str, AutoresetMode]) -> AutoresetMode:
+    if isinstance(mode, AutoresetMode):
+        m = mode
+    else:
+        try:
+            m = AutoresetMode(str(mode).lower())
+        except ValueError:
+            m = None  # type: ignore[assignment]
+    if m not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+        raise ValueError(f"autoreset_mode must be NEXT_STEP or SAME_STEP, got {mode!r}")
+    return m
+
+
+class RogueVectorEnv(gym.vector.VectorEnv):
+    """``num_envs`` Rogue-Gym games stepped by worker processes over shared memory.
+
+    Semantics follow gymnasium's own vector envs:
+
+    * ``reset(seed=s)`` restarts every env's episode schedule from base seed ``s`` (env ``i``'s
+      ``e``-th episode plays ``schedule(s, i, e)``, the same for any ``num_workers``);
+      ``options={"reset_mask": mask}`` resets only the masked envs.
+    * ``step(actions)`` takes one int action per env (an array of shape ``(num_envs,)``, or a
+      string with one key per env) and returns ``(obs, rewards, terminations, truncations,
+      infos)``; rewards are float64, flags ``bool``; infos is a dict of arrays with ``_key``
+      masks (``seed``, ``episode_index``, ``episode_return``, ``episode_length``, ``floor``,
+      ``max_floor``, ``gold``, ``hp``, ``max_hp``, ``died``, ``won``; ``worker_restarted`` where a
+      worker was restarted).
+    * ``autoreset_mode``: ``NEXT_STEP`` (default; the step after an episode end ignores the
+      env's action and returns the reset observation with reward 0) or ``SAME_STEP`` (the ending
+      step returns the reset observation; ``infos["final_obs"]`` / ``infos["final_info"]`` hold
+      the last one).
+    * A crashed worker is restarted (``on_worker_failure="restart"``: its envs report
+      ``truncated=True`` and ``infos["worker_restarted"]``) or raises
+      :class:`rogue_gym.WorkerCrashedError` (``"raise"``).
+
+    **Array lifetimes.** The observation array returned by ``reset``/``step`` is one of two
+    batch buffers owned by the env and reused alternately: it stays valid until the second
+    following ``reset``/``step`` call (so the previous observation is still intact while you
+    hold the new one). Pass ``copy=True`` to get a fresh array each call. Rewards, flags and
+    infos are fresh arrays. ``infos["final_obs"]`` entries are copies.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {
+        "render_modes": ["ansi", "human"],
+        "autoreset_mode": AutoresetMode.NEXT_STEP,
+    }
+
+    def __init__(
+        self,
+        num_envs: int = 8,
+        config: ConfigLike = None,
+        *,
+        num_workers: Optional[int] = None,
+        seed: Optional[int] = None,
+        seeds: SeedsLike = None,
+        seed_policy: str = "sample",
+        obs: str = "symbol_onehot",
+        dtype: str = "uint8",
+        status: Union[int, StatusFlag] = 0,
+        normalize_status: bool = False,
+        history: bool = False,
+        max_steps: int = 1000,
+        stair_reward: float = 50.0,
+        autoreset_mode: Union[str, AutoresetMode] = AutoresetMode.NEXT_STEP,
+        on_worker_failure: str = "restart",
+        step_timeout: Optional[float] = 60.0,
+        max_restarts: Optional[int] = 100,
+        copy: bool = False,
+        render_mode: Optional[str] = None,
+        worker_command: Optional[Sequence[str]] = None,
+    ) -> None:
+        mode = _autoreset_mode(autoreset_mode)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}"
+            )
+        self._core = PoolCore(
+            num_envs,
+            config,
+            num_workers=num_workers,
+            seed=seed,
+            seeds=seeds,
+            seed_policy=seed_policy,
+            obs=obs,
+            dtype=dtype,
+            status=status,
+            normalize_status=normalize_status,
+            history=history,
+            max_steps=max_steps,
+            stair_reward=stair_reward,
+            same_step=mode == AutoresetMode.SAME_STEP,
+            on_worker_failure=on_worker_failure,
+            step_timeout=step_timeout,
+            max_restarts=max_restarts,
+            worker_command=worker_command,
+        )
+        self.metadata = {**type(self).metadata, "autoreset_mode": mode}
+        self.autoreset_mode = mode
+        self.num_envs = self._core.num_envs
+        self.single_observation_space = self._core.single_observation_space
+        self.single_action_space = spaces.Discrete(len(ACTIONS))
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.render_mode = render_mode
+        self.copy = bool(copy)
+        self._last_recs: Optional[np.ndarray] = None
+        self._history = ActionHistory(self._core) if render_mode is not None else None
+
+    # ------------------------------------------------------------------------------------
+    @property
+    def num_workers(self) -> int:
+        """Number of worker processes."""
+        return self._core.num_workers
+
+    @property
+    def worker_pids(self) -> list[int]:
+        """Process ids of the workers (worker ``k`` hosts envs ``envs_of_worker(k)``)."""
+        return self._core.worker_pids
+
+    def envs_of_worker(self, worker: int) -> range:
+        """Indices of the envs hosted by ``worker``."""
+        return self._core.envs_of_worker(worker)
+
+    @property
+    def config(self) -> dict[str, Any]:
+        """The game config of every env."""
+        return dict(self._core.config)
+
+    def _out(self, obs: np.ndarray) -> np.ndarray:
+        return obs.copy() if self.copy else obs
+
+    def _infos(self, recs: np.ndarray, restarted: np.ndarray) -> dict[str, Any]:
+        infos: dict[str, Any] = {}
+        mask = np.ones(self.num_envs, bool)
+        for key, arr in self._core.info_arrays(recs).items():
+            infos[key] = arr
+            infos[f"_{key}"] = mask
+        if restarted.any():
+            infos["worker_restarted"] = restarted.copy()
+            infos["_worker_restarted"] = restarted.copy()
+        return infos
+
+    def reset(
+        self,
+        *,
+        seed: Optional[Union[int, Sequence[int]]] = None,
+        options: Optional[dict[str, Any]] = None,
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Reset all envs (or those in ``options["reset_mask"]``); returns ``(obs, infos)``."""
+        if seed is not None and not isinstance(seed, (int, np.integer)):
+            raise TypeError(
+                f"seed must be an int (the base of every env's episode-seed schedule), got {type(seed).__name__}; "
+                "use make_vec(seeds=[...]) to choose the dungeons"
+            )
+        super().reset(seed=None if seed is None else int(seed))
+        mask = None if not options or options.get("reset_mask") is None else options["reset_mask"]
+        obs, recs = self._core.reset(seed, mask)
+        self._last_recs = recs
+        reset_envs = np.ones(self.num_envs, bool) if mask is None else np.asarray(mask, bool)
+        if self._history is not None:
+            self._history.on_reset(recs, reset_envs)
+        _, _, restarted, _ = PoolCore.flags(recs)
+        return self._out(obs), self._infos(recs, restarted & reset_envs)
+
+    def step(
+        self, actions: Any
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """Step every env; returns ``(obs, rewards, terminations, truncations, infos)``."""
+        if self._last_recs is None:
+            raise RuntimeError("call reset() before step()")
+        prev_done = self._prev_done()
+        obs, recs = self._core.step(actions)
+        self._last_recs = recs
+        terminated, truncated, restarted, has_final = PoolCore.flags(recs)
+        if self._history is not None:
+            self._history.on_step(self._core._actions, ~prev_done & ~restarted, recs)
+            self._history.on_reset(recs, prev_done | restarted)
+        rewards = recs["reward"].astype(np.float64)
+        infos = self._infos(recs, restarted)
+        if self.autoreset_mode == AutoresetMode.SAME_STEP and has_final.any():
+            final = self._core.final_obs
+            assert final is not None
+            final_obs = np.full(self.num_envs, None, dtype=object)
+            for i in np.flatnonzero(has_final):
+                final_obs[i] = final[i].copy()
+            infos["final_obs"] = final_obs
+            infos["_final_obs"] = has_final.copy()
+            infos["final_info"] = {k: v for k, v in infos.items() if not k.startswith("final")}
+            infos["_final_info"] = has_final.copy()
+            if self._history is not None:
+                self._history.on_reset(recs, has_final, seed_known=False)
+        return self._out(obs), rewards, terminated.copy(), truncated.copy(), infos
+
+    def _prev_done(self) -> np.ndarray:
+        if self._last_recs is None or self.autoreset_mode == AutoresetMode.SAME_STEP:
+            return np.zeros(self.num_envs, bool)
+        f = self._last_recs["flags"]
+        return (f & 3) != 0
+
+    # ------------------------------------------------------------------------------------
+    def render(self) -> Optional[tuple[str, ...]]:
+        """Render every env's screen: ``ansi`` returns a tuple of strings, ``human`` prints them.
+
+        Workers do not ship screens: the frames are rebuilt by replaying each env's current
+        episode (seed + recorded actions) on an in-process engine, so this is meant for
+        occasional inspection, not every step.
+        """
+        if self.render_mode is None:
+            gym.logger.warn(
+                "render() called without a render_mode; pass render_mode='ansi' or 'human'"
+            )
+            return None
+        frames = tuple(self.render_env(i) for i in range(self.num_envs))
+        if self.render_mode == "human":
+            for i, frame in enumerate(frames):
+                print(f"--- env {i}\n{frame}", flush=True)
+            return None
+        return frames
+
+    def render_env(self, i: int) -> str:
+        """The current screen of env ``i`` (map rows and status line), rebuilt by replay."""
+        if self._history is None:
+            raise RuntimeError(
+                "render needs render_mode='ansi' or 'human' (actions are only recorded then)"
+            )
+        if self._last_recs is None:
+            raise RuntimeError("call reset() before render()")
+        return self._history.screen(i)
+
+    # ------------------------------------------------------------------------------------
+    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
+        """Call ``name`` on every env; supports ``render`` and attribute reads (workers host Rust games)."""
+        if name == "render":
+            return tuple(self.render_env(i) for i in range(self.num_envs))
+        value = self.get_attr(name)
+        if callable(value[0]):
+            return tuple(v(*args, **kwargs) for v in value)
+        return value
+
+    def get_attr(self, name: str) -> tuple[Any, ...]:
+        """Read an attribute of every env (``render_mode``, ``config``, ``max_steps``,
+        ``stair_reward``, ``observation_space``, ``action_space``, ``episode_seed``, ``spec``)."""
+        n = self.num_envs
+        core = self._core
+        if name == "episode_seed":
+            if self._last_recs is None:
+                return (None,) * n
+            return tuple(int(s) for s in self._last_recs["seed"])
+        simple = {
+            "render_mode": self.render_mode,
+            "config": core.config,
+            "max_steps": core.max_steps,
+            "stair_reward": core.stair_reward,
+            "observation_space": self.single_observation_space,
+            "action_space": self.single_action_space,
+            "spec": None,
+            "metadata": self.metadata,
+        }
+        if name not in simple:
+            raise AttributeError(
+                f"the envs have no attribute {name!r} readable from Python (they run in workers)"
+            )
+        return (simple[name],) * n
+
+    def set_attr(self, name: str, values: Any) -> None:
+        """Setting attributes of envs running in workers is not supported."""
+        raise AttributeError(
+            f"cannot set {name!r}: the envs run in worker processes (configure them at construction)"
+        )
+
+    # ------------------------------------------------------------------------------------
+    def close_extras(self, **kwargs: Any) -> None:
+        """Stop all workers and remove the pool's shared-memory files."""
+        self._core.close()
+
+    def __del__(self) -> None:
+        core = getattr(self, "_core", None)
+        if core is not None:
+            core.close()
+
+    def __repr__(self) -> str:
+        return f"RogueVectorEnv(num_envs={self.num_envs}, num_workers={self.num_workers})"
+
+
+def make_vec(num_envs: int = 8, config: ConfigLike = None, **kwargs: Any) -> RogueVectorEnv:
+    """Create a :class:`RogueVectorEnv` (``num_envs`` games in worker processes).
+
+    Example::
+
+        envs = rogue_gym.make_vec(64, config="paper", num_workers=2, seed=0)
+        obs, infos = envs.reset()
+        obs, rewards, terminated, truncated, infos = envs.step(envs.action_space.sample())
+        envs.close()
+    """
+    return RogueVectorEnv(num_envs, config, **kwargs)
