@@ -8,6 +8,7 @@ use pyo3::prelude::*;
 
 mod game;
 mod spec;
+mod summary;
 
 /// Run a pool worker with the given arguments (everything after `python -m rogue_gym.worker`)
 /// and return its exit code. The GIL is released for the worker's whole life.
@@ -25,6 +26,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<game::PyGame>()?;
     m.add_function(wrap_pyfunction!(game::action_from_key, m)?)?;
     m.add_function(wrap_pyfunction!(worker_main, m)?)?;
+    m.add_function(wrap_pyfunction!(summary::floor_summary, m)?)?;
     m.add("ACTION_KEYS", ".hjklnbuy>s")?;
     m.add("NUM_ACTIONS", rogue_gym_engine::NUM_ACTIONS)?;
     Ok(())
