@@ -258,6 +258,25 @@ def tree_peak_rss_mib(pids: Sequence[int]) -> float:
     return kib / 1024.0
 
 
+def tree_pss_mib(pids: Sequence[int]) -> float:
+    """Sum of proportional set size (``Pss`` of ``smaps_rollup``) over ``pids``, MiB.
+
+    Shared pages are divided among the processes that map them, so unlike summed RSS this
+    does not count a forked interpreter's shared pages once per worker.
+    """
+    kib = 0
+    for pid in pids:
+        try:
+            with open(f"/proc/{pid}/smaps_rollup") as f:
+                for line in f:
+                    if line.startswith("Pss:"):
+                        kib += int(line.split()[1])
+                        break
+        except OSError:
+            continue
+    return kib / 1024.0
+
+
 # ============================================================================================
 # one cell (child process)
 
@@ -292,6 +311,7 @@ def run_cell(cell: Dict[str, Any]) -> Dict[str, Any]:
         pids = process_tree(os.getpid())
         cpu = tree_cpu_seconds(pids) - cpu0
         rss = tree_peak_rss_mib(pids)
+        pss = tree_pss_mib(pids)
     finally:
         drv.close()
     steps = i * drv.batch
@@ -302,6 +322,7 @@ def run_cell(cell: Dict[str, Any]) -> Dict[str, Any]:
         "p99_ms": float(np.percentile(lat_a, 99) * 1e3),
         "cpu_us_per_step": cpu / steps * 1e6,
         "peak_rss_mib": rss,
+        "pss_mib": pss,
         "processes": len(pids),
         "setup_s": setup_s,
         "batches": i,
@@ -417,6 +438,8 @@ def aggregate(runs: List[Dict[str, Any]]) -> Dict[Tuple[str, int, str], Dict[str
             "p99_ms": med("p99_ms"),
             "cpu_us_per_step": med("cpu_us_per_step"),
             "peak_rss_mib": med("peak_rss_mib"),
+            "pss_mib": med("pss_mib"),
+            "processes": med("processes"),
             "setup_s": med("setup_s"),
             "load": med("load_before"),
         }
@@ -482,12 +505,14 @@ def render_markdown(
         "",
         "steps/s: median [min-max] over repetitions; latency of one `step()` (async: one "
         "`recv`+`send`, half the envs); CPU = user+sys of the process tree per env step; "
-        "RSS = sum of peak RSS over the process tree (shared pages counted per process); "
-        "setup = construction + reset, excluded from the window.",
+        "RSS = sum of peak RSS (VmHWM) over the process tree (shared pages counted once per "
+        "process, so forked workers look bigger than they are); PSS = sum of proportional "
+        "set sizes at the end of the window (shared pages split among their users); procs = "
+        "processes in the tree; setup = construction + reset, excluded from the window.",
         "",
         "| encoding | envs | backend | steps/s | p50 ms | p99 ms | CPU µs/step | peak RSS MiB "
-        "| setup s | load | reps |",
-        "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| PSS MiB | procs | setup s | load | reps |",
+        "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for enc in encodings:
         for n in num_envs:
@@ -498,14 +523,15 @@ def render_markdown(
                 if a["status"] != "ok":
                     lines.append(
                         f"| {enc} | {n} | {b} | **{a['status']}** ({a.get('error', '')}) "
-                        "| | | | | | | 0 |"
+                        "| | | | | | | | | 0 |"
                     )
                     continue
                 lines.append(
                     f"| {enc} | {n} | {b} | {_fmt_int(a['steps_per_s'])} "
                     f"[{_fmt_int(a['min'])}-{_fmt_int(a['max'])}] | {a['p50_ms']:.3f} "
                     f"| {a['p99_ms']:.3f} | {a['cpu_us_per_step']:.1f} | {a['peak_rss_mib']:.0f} "
-                    f"| {a['setup_s']:.1f} | {a['load']:.2f} | {a['reps']} |"
+                    f"| {a['pss_mib']:.0f} | {a['processes']:.0f} | {a['setup_s']:.1f} "
+                    f"| {a['load']:.2f} | {a['reps']} |"
                 )
     lines.append("")
     return "\n".join(lines)
@@ -645,7 +671,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                 msg = (
                     f"{res['steps_per_s']:>11,.0f} steps/s  p50 {res['p50_ms']:.3f} ms  "
                     f"p99 {res['p99_ms']:.3f} ms  cpu {res['cpu_us_per_step']:.1f} us/step  "
-                    f"rss {res['peak_rss_mib']:.0f} MiB  setup {res['setup_s']:.1f} s"
+                    f"rss {res['peak_rss_mib']:.0f} pss {res['pss_mib']:.0f} MiB  "
+                    f"setup {res['setup_s']:.1f} s"
                 )
             else:
                 msg = f"{res['status'].upper()}: {res.get('error', '')}"

@@ -186,6 +186,8 @@ def _make_pool(
     obs: str,
 ) -> Any:
     """A gymnasium VectorEnv over the pool playing ``seeds`` round-robin (see module doc)."""
+    from gymnasium.vector import AutoresetMode
+
     from . import make_vec  # imported late: the pure-Python parts work without the extension
 
     kwargs: Dict[str, Any] = {
@@ -195,11 +197,62 @@ def _make_pool(
         "seeds": seeds,
         "seed_policy": "sequential",
         "obs": obs,
-        "autoreset_mode": "same_step",
+        "autoreset_mode": AutoresetMode.SAME_STEP,
     }
     if num_workers is not None:
         kwargs["num_workers"] = num_workers
     return make_vec(num_envs, **kwargs)
+
+
+class InProcessVec:
+    """The pool's evaluation semantics with ``RogueEnv`` games in this process (no workers).
+
+    Same seed schedule (sequential round-robin over ``seeds``) and same-step autoreset as the
+    pool, so given the same policy it yields the same returns: a cross-check of the pool, and
+    a fallback where worker processes are unwanted (``--backend inprocess``).
+    """
+
+    def __init__(self, suite: Suite, seeds: List[int], num_envs: int, obs: str) -> None:
+        from .envs import RogueEnv
+
+        self.seeds = list(seeds)
+        self.num_envs = num_envs
+        self.envs = [
+            RogueEnv(
+                config_dict=suite.config,
+                max_steps=suite.max_steps,
+                stair_reward=suite.stair_reward,
+                obs=obs,
+            )
+            for _ in range(num_envs)
+        ]
+        self.episode = [0] * num_envs
+
+    def _seed(self, i: int) -> int:
+        return self.seeds[(i + self.episode[i] * self.num_envs) % len(self.seeds)]
+
+    def reset(self) -> Tuple[np.ndarray, Dict[str, Any]]:
+        """Start every env's first scheduled episode."""
+        self.episode = [0] * self.num_envs
+        obs = [e.reset(options={"episode_seed": self._seed(i)})[0] for i, e in enumerate(self.envs)]
+        return np.stack(obs), {}
+
+    def step(self, actions: np.ndarray) -> Tuple[np.ndarray, ...]:
+        """Step every env; an ended episode is replaced by the next scheduled one at once."""
+        obs, rew = [], np.zeros(self.num_envs)
+        term = np.zeros(self.num_envs, bool)
+        trunc = np.zeros(self.num_envs, bool)
+        for i, env in enumerate(self.envs):
+            o, r, te, tr, _ = env.step(int(actions[i]))
+            rew[i], term[i], trunc[i] = r, te, tr
+            if te or tr:
+                self.episode[i] += 1
+                o, _ = env.reset(options={"episode_seed": self._seed(i)})
+            obs.append(o)
+        return np.stack(obs), rew, term, trunc, {}
+
+    def close(self) -> None:
+        """Nothing to release."""
 
 
 def run_episodes(
@@ -213,11 +266,13 @@ def run_episodes(
     policy_seed: int = 0,
     progress: bool = True,
     desc: str = "",
+    backend: str = "pool",
 ) -> np.ndarray:
     """Play ``episodes_per_seed`` episodes on each of ``seeds`` and return the returns.
 
     Returns a float64 array of shape ``(len(seeds), episodes_per_seed)``: row ``k`` holds the
-    returns of the episodes played on ``seeds[k]``, in schedule order.
+    returns of the episodes played on ``seeds[k]``, in schedule order. ``backend`` is
+    ``"pool"`` (worker processes, the default) or ``"inprocess"`` (:class:`InProcessVec`).
     """
     seeds = [int(s) for s in seeds]
     k, e_per = len(seeds), int(episodes_per_seed)
@@ -227,7 +282,12 @@ def run_episodes(
     num_envs = max(1, min(int(num_envs), total))
     _seed_policy(policy, policy_seed)
     returns = np.full(total, np.nan, dtype=np.float64)
-    env = _make_pool(suite, seeds, num_envs, num_workers, obs)
+    if backend == "pool":
+        env = _make_pool(suite, seeds, num_envs, num_workers, obs)
+    elif backend == "inprocess":
+        env = InProcessVec(suite, seeds, num_envs, obs)
+    else:
+        raise ValueError(f"backend must be 'pool' or 'inprocess', got {backend!r}")
     bar = _progress(total, desc, progress)
     try:
         obs_batch, _ = env.reset()
@@ -274,6 +334,7 @@ def _progress(total: int, desc: str, enabled: bool) -> Any:
 
 # --------------------------------------------------------------------------------------------
 # manifest (difficulty metadata per seed)
+
 
 def seed_manifest(suite: Suite, seeds: Sequence[int]) -> List[Dict[str, Any]]:
     """Difficulty metadata of level 1 of each seed, from the engine's floor summary.
@@ -362,6 +423,7 @@ def evaluate(
     with_random: bool = True,
     with_manifest: bool = True,
     progress: bool = True,
+    backend: str = "pool",
 ) -> Dict[str, Any]:
     """Evaluate a policy on ``suite``; returns the summary dict written to ``summary.json``.
 
@@ -384,6 +446,7 @@ def evaluate(
         obs=obs,
         policy_seed=policy_seed,
         progress=progress,
+        backend=backend,
     )
     t0 = time.perf_counter()
     agents = [
@@ -415,6 +478,7 @@ def evaluate(
             "num_envs": num_envs,
             "num_workers": num_workers,
             "obs": obs,
+            "backend": backend,
             "confidence": confidence,
             "bootstrap_seed": bootstrap_seed,
             "bootstrap_resamples": 10_000,
@@ -523,6 +587,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--manifest-only", action="store_true", help="write the seed manifest only")
     p.add_argument("--out", type=Path, default=None, help="output folder")
     p.add_argument("--no-progress", action="store_true")
+    p.add_argument(
+        "--backend",
+        choices=["pool", "inprocess"],
+        default="pool",
+        help="pool (worker processes) or inprocess (RogueEnv games here; same results)",
+    )
     return p
 
 
@@ -555,6 +625,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         bootstrap_seed=args.bootstrap_seed,
         with_random=not args.no_random,
         progress=not args.no_progress,
+        backend=args.backend,
     )
     tag = "random" if args.policy == "random" else _safe_name(args.policy)
     out = args.out or Path(f"rogue_gym_eval/{suite.name}-{tag}")
