@@ -175,3 +175,121 @@ def test_run_episodes_attributes_episodes_to_seeds(monkeypatch, num_envs: int) -
     )
     assert out.shape == (5, 3)
     assert np.array_equal(out, np.repeat(np.array(seeds, float)[:, None], 3, axis=1))
+
+
+# ------------------------------------------------------------------------------ real engine
+
+SUITE = get_suite("paper-40")
+SEEDS = [1000, 1001, 1002, 1003, 1004]
+
+
+def _pool_available() -> bool:
+    from rogue_gym import _native
+
+    return hasattr(_native, "Pool")
+
+
+needs_pool = pytest.mark.skipif(not _pool_available(), reason="the pool binding is not built")
+
+
+def _run(backend: str, num_workers=None, num_envs: int = 4, policy=None) -> np.ndarray:
+    return ev.run_episodes(
+        SUITE,
+        policy or ev.RandomPolicy(),
+        SEEDS,
+        2,
+        num_envs=num_envs,
+        num_workers=num_workers,
+        policy_seed=7,
+        progress=False,
+        backend=backend,
+    )
+
+
+def test_inprocess_is_deterministic() -> None:
+    a = _run("inprocess")
+    assert a.shape == (5, 2)
+    assert np.array_equal(a, _run("inprocess"))
+    assert not np.array_equal(
+        a,
+        ev.run_episodes(
+            SUITE,
+            ev.RandomPolicy(),
+            SEEDS,
+            2,
+            num_envs=4,
+            policy_seed=8,
+            progress=False,
+            backend="inprocess",
+        ),
+    )
+
+
+@needs_pool
+def test_pool_is_deterministic_and_independent_of_workers() -> None:
+    one = _run("pool", num_workers=1)
+    assert np.array_equal(one, _run("pool", num_workers=1))
+    assert np.array_equal(one, _run("pool", num_workers=2))
+
+
+@needs_pool
+def test_pool_matches_inprocess_engine() -> None:
+    assert np.array_equal(_run("pool", num_workers=2), _run("inprocess"))
+
+
+def test_seed_manifest_describes_each_seed() -> None:
+    rows = ev.seed_manifest(SUITE, SEEDS)
+    assert [r["seed"] for r in rows] == SEEDS
+    for r in rows:
+        assert r["rooms"] + r["gone_rooms"] == 4
+        assert r["dark_rooms"] <= r["rooms"] and r["hidden_doors"] <= r["doors"]
+        assert r["stairs_distance_unhidden"] is not None
+    assert rows == ev.seed_manifest(SUITE, SEEDS)
+    hard = ev.seed_manifest(get_suite("rogue-80x24-enemies"), [1000])
+    assert hard[0]["rooms"] + hard[0]["gone_rooms"] == 9
+
+
+def test_cli_manifest_only(tmp_path: Path, capsys) -> None:
+    rc = ev.main(
+        ["--suite", "paper-10", "--manifest-only", "--seeds-limit", "4", "--out", str(tmp_path)]
+    )
+    assert rc == 0
+    rows = list(csv.DictReader((tmp_path / "manifest.csv").open()))
+    assert [int(r["seed"]) for r in rows] == [1000, 1001, 1002, 1003]
+    assert len(json.loads((tmp_path / "manifest.json").read_text())) == 4
+    assert "stairs_distance" in capsys.readouterr().out
+
+
+def test_cli_policy_with_random_baseline(tmp_path: Path, capsys) -> None:
+    pol = tmp_path / "always_right.py"
+    pol.write_text("import numpy as np\ndef act(obs):\n    return np.full(len(obs), 4)\n")
+    backend = "pool" if _pool_available() else "inprocess"
+    args = [
+        "--suite",
+        "paper-40",
+        "--policy",
+        f"{pol}:act",
+        "--seeds-limit",
+        "3",
+        "--episodes-per-seed",
+        "2",
+        "--num-envs",
+        "4",
+        "--out",
+        str(tmp_path / "o"),
+        "--no-progress",
+        "--backend",
+        backend,
+    ]
+    assert ev.main(args) == 0
+    out = capsys.readouterr().out
+    assert "random:" in out and "bootstrap CI across 3 seeds" in out
+    doc = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert [a["name"] for a in doc["agents"]] == [f"{pol}:act", "random"]
+    assert doc["suite"]["digest"] == SUITE.digest()
+    assert np.asarray(doc["agents"][0]["returns"]).shape == (3, 2)
+    # A deterministic policy on one seed: every episode of that seed is the same.
+    assert all(len(set(r)) == 1 for r in doc["agents"][0]["returns"])
+    rows = list(csv.DictReader((tmp_path / "o" / "per_seed.csv").open()))
+    assert {"policy_mean", "random_mean", "rooms", "stairs_distance"} <= set(rows[0])
+    assert len(rows) == 3
