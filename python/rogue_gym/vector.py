@@ -23,10 +23,8 @@ def _autoreset_mode(mode: Union[str, AutoresetMode]) -> AutoresetMode:
     if isinstance(mode, AutoresetMode):
         m = mode
     else:
-        try:
-            m = AutoresetMode(str(mode).lower())
-        except ValueError:
-            m = None  # type: ignore[assignment]
+        key = str(mode).replace("_", "").replace("-", "").lower()
+        m = {"nextstep": AutoresetMode.NEXT_STEP, "samestep": AutoresetMode.SAME_STEP}.get(key)  # type: ignore[assignment]
     if m not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
         raise ValueError(f"autoreset_mode must be NEXT_STEP or SAME_STEP, got {mode!r}")
     return m

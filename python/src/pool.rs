@@ -7,7 +7,7 @@ use std::time::Duration;
 use numpy::ndarray::ArrayView1;
 use numpy::npyffi::flags::NPY_ARRAY_WRITEABLE;
 use numpy::{
-    PyArray1, PyArrayMethods, PyReadonlyArray1, PyUntypedArray, PyUntypedArrayDescrMethods,
+    PyArray1, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray1, PyUntypedArray,
     PyUntypedArrayMethods,
 };
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
@@ -116,7 +116,7 @@ fn raw_bytes(arr: &Bound<'_, PyUntypedArray>, what: &str, expected: usize) -> Py
     }
     let ptr = arr.as_array_ptr();
     // SAFETY: `ptr` is a live array object (we hold a reference to it).
-    let (data, flags) = unsafe { ((*ptr).data as *mut u8, (*ptr).flags) };
+    let (data, flags) = unsafe { ((*ptr).fields.data as *mut u8, (*ptr).fields.flags) };
     if flags & NPY_ARRAY_WRITEABLE == 0 {
         return Err(PyValueError::new_err(format!("{what} must be writeable")));
     }
