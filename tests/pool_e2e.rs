@@ -74,7 +74,7 @@ fn same_step_mode_is_deterministic_and_returns_final_obs() {
             if done {
                 seen_final = true;
                 assert_eq!(out.final_obs.len(), 4 * ob);
-                assert_eq!(out.episode_length[r] as usize <= 12, true);
+                assert!(out.episode_length[r] <= 12);
             }
         }
     }
@@ -126,6 +126,7 @@ fn killed_worker_is_restarted_and_other_envs_are_untouched() {
         let actions: Vec<i64> = (0..n).map(|i| action(i, t, 5)).collect();
         p.step(&actions, &mut obs, &mut out).unwrap();
         d.add_batch(&obs, ob, &out);
+        #[allow(clippy::needless_range_loop)]
         for r in 0..n {
             if out.restarted[r] {
                 restarted_rows += 1;

@@ -24,6 +24,8 @@
 //! Python interpreter and must not take SIGINT away from it. All ports use
 //! [`ipc_threadsafe::Service`], so supervisor-side ports and received samples are `Send`.
 
+#![warn(missing_docs)]
+
 use std::fs;
 use std::io::Write;
 use std::path::{Path as StdPath, PathBuf};

@@ -20,6 +20,8 @@
 //! * Cleanup: [`Pool::close`] (and `Drop`) removes every `/dev/shm` file and directory of the
 //!   pool; [`Pool::new`] sweeps pools left behind by dead processes.
 
+#![warn(missing_docs)]
+
 pub mod env;
 pub mod layout;
 pub mod rogue;

@@ -807,20 +807,26 @@ impl Pool {
     }
 
     fn gather_all(&mut self, obs_out: &mut [u8], out: &mut BatchOutput) -> Result<(), PoolError> {
-        self.wait_until(|c| {
-            c.slots
-                .iter()
-                .all(|s| matches!(s.state, SlotState::Ready(_)))
-        })?;
-        self.core.ready_order.clear();
+        // Copy each block as soon as it arrives, overlapping with the other workers' steps.
+        let w = self.core.slots.len();
+        let blk_bytes = self.core.epw * self.core.layout.obs_bytes;
+        let mut blocks: Vec<Option<Block>> = (0..w).map(|_| None).collect();
+        let mut got = 0;
+        while got < w {
+            self.wait_until(|c| !c.ready_order.is_empty())?;
+            while let Some(k) = self.core.ready_order.pop_front() {
+                let b = self.core.take_block(k)?;
+                obs_out[k * blk_bytes..(k + 1) * blk_bytes].copy_from_slice(b.obs());
+                blocks[k] = Some(b);
+                got += 1;
+            }
+        }
         out.clear();
         let n_info = self.core.spec.info_names.len();
-        let blk_bytes = self.core.epw * self.core.layout.obs_bytes;
-        for k in 0..self.core.slots.len() {
-            let b = self.core.take_block(k)?;
-            obs_out[k * blk_bytes..(k + 1) * blk_bytes].copy_from_slice(b.obs());
-            Batch { blocks: vec![b] }.fill_append(n_info, out);
-        }
+        let batch = Batch {
+            blocks: blocks.into_iter().flatten().collect(),
+        };
+        batch.fill_append(n_info, out);
         Ok(())
     }
 

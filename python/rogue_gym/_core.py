@@ -6,6 +6,7 @@ double-buffered batch arrays the sync ``step()`` gathers worker blocks into.
 
 from __future__ import annotations
 
+import json
 import os
 import sys
 import weakref
@@ -92,6 +93,7 @@ class PoolCore:
         step_timeout: Optional[float] = 60.0,
         max_restarts: Optional[int] = 100,
         worker_command: Optional[Sequence[str]] = None,
+        batch_size: Optional[int] = None,
     ) -> None:
         num_envs = int(num_envs)
         if num_envs <= 0:
@@ -124,9 +126,16 @@ class PoolCore:
         if seed is None:
             seed = int(np.random.default_rng().integers(0, 2**63))
         self.base_seed = int(seed)
-        pool_config = {
+        # A local game validates the config (ValueError naming the key) and gives the spaces.
+        probe = _native.Game(to_json(self.config), self.max_steps, self.stair_reward)
+        self.obs_shape = tuple(probe.obs_shape(self.spec))
+        self.obs_dtype = np.dtype(self.spec.dtype)
+        self.symbols = int(probe.symbols)
+        self.single_observation_space = observation_space(self.spec, self.obs_shape, self.symbols)
+        self._settings: dict[str, Any] = {
             "num_envs": num_envs,
             "num_workers": num_workers,
+            "batch_size": batch_size,
             "env": {
                 "kind": "rogue",
                 "config": self.config,
@@ -142,44 +151,75 @@ class PoolCore:
             "autoreset": "same_step" if self.same_step else "next_step",
             "on_worker_failure": on_worker_failure,
             "step_timeout_s": None if step_timeout is None else float(step_timeout),
-            "max_restarts": max_restarts,
+            "max_restarts": None if max_restarts is None else int(max_restarts),
         }
-        cmd = (
+        self._cmd = (
             list(worker_command)
             if worker_command is not None
             else [sys.executable, "-m", "rogue_gym.worker"]
         )
-        self._pool = _native.Pool(pool_config, cmd)
-        self._finalizer = weakref.finalize(self, _native.Pool.close, self._pool)
-        self.obs_shape = tuple(self._pool.obs_shape)
-        self.obs_dtype = np.dtype(self._pool.obs_dtype)
-        self.info_names: list[str] = list(self._pool.info_names)
-        self.symbols = int(self._pool.symbols)
-        self.single_observation_space = observation_space(self.spec, self.obs_shape, self.symbols)
+        self._pool: Any = None
+        self._fresh = False  # the pool has not been reset since it started
+        self._closed = False
+        self._finalizer: Optional[weakref.finalize] = None
         batch_shape = (num_envs, *self.obs_shape)
-        # Double buffer: step t returns slot t % 2, so the array returned by the previous call
-        # stays intact while the next one is written.
+        # Double buffer: each call writes the slot the previous call did not return, so the
+        # array returned by the previous call stays intact while the next one is written.
         self._bufs = [np.zeros(batch_shape, self.obs_dtype) for _ in range(2)]
         self._final = np.zeros(batch_shape, self.obs_dtype) if self.same_step else None
         self._recs = [np.zeros(num_envs, RECORD_DTYPE) for _ in range(2)]
         self._slot = 0
-        self._actions = np.zeros(num_envs, np.uint64)
-        self._all = np.ones(num_envs, bool)
+        self._actions = np.zeros(num_envs, np.int64)
+        self.info_names: list[str] = []
+        self.name = ""
+        self.start()
+
+    def start(self, seed: Optional[int] = None) -> None:
+        """(Re)start the workers, with base seed ``seed`` if given (episode counters restart)."""
+        if self._closed:
+            raise RuntimeError("the environment pool is closed")
+        if seed is not None:
+            self.base_seed = int(seed)
+            self._settings["seeds"]["base"] = self.base_seed
+        self._stop()
+        pool = _native.Pool(json.dumps(self._settings), self._cmd)
+        self._pool = pool
+        self._finalizer = weakref.finalize(self, _native.Pool.close, pool)
+        self._fresh = True
+        if tuple(pool.obs_shape) != self.obs_shape or np.dtype(pool.obs_dtype) != self.obs_dtype:
+            raise RuntimeError(
+                f"pool observation {pool.obs_dtype}{tuple(pool.obs_shape)} differs from the engine's {self.obs_dtype}{self.obs_shape}"
+            )
+        self.info_names = list(pool.info_names)
+        #: The pool's name: the prefix of its /dev/shm files.
+        self.name: str = pool.name()
+
+    def _stop(self) -> None:
+        if self._finalizer is not None:
+            self._finalizer()
+        self._pool = None
 
     # ------------------------------------------------------------------------------------
     @property
     def closed(self) -> bool:
         """Whether the pool was closed."""
-        return not self._finalizer.alive
+        return self._closed
 
     def close(self) -> None:
         """Stop all workers and remove the pool's files (idempotent)."""
-        self._finalizer()
+        self._closed = True
+        self._stop()
 
     @property
     def worker_pids(self) -> list[int]:
         """Process ids of the live workers, one per worker (in worker order)."""
-        return list(self._pool.worker_pids())
+        return [] if self._pool is None else list(self._pool.worker_pids())
+
+    @property
+    def native(self) -> Any:
+        """The native pool (``rogue_gym._native.Pool``)."""
+        self._check_open()
+        return self._pool
 
     def envs_of_worker(self, worker: int) -> range:
         """Indices of the envs hosted by ``worker``."""
@@ -187,7 +227,7 @@ class PoolCore:
         return range(worker * epw, (worker + 1) * epw)
 
     def _check_open(self) -> None:
-        if self.closed:
+        if self._closed or self._pool is None:
             raise RuntimeError("the environment pool is closed")
 
     def validate_actions(self, actions: Any) -> np.ndarray:
@@ -228,27 +268,35 @@ class PoolCore:
     def reset(
         self, seed: Optional[int] = None, mask: Optional[np.ndarray] = None
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Reset (all or the ``mask``ed envs); returns (obs batch, records) in the next slot."""
+        """Reset every env; returns (obs batch, records) written into the next slot.
+
+        With ``seed``, the episode schedule restarts from base seed ``seed`` (env ``i``'s episode
+        ``e`` plays the same dungeon whatever the worker count), which restarts the workers
+        unless they were never reset. ``mask`` must select every env (partial resets are not
+        supported by the pool yet).
+        """
         self._check_open()
-        if seed is not None:
-            seed = int(seed)
-            if not 0 <= seed < 2**64:
-                raise ValueError(f"seed must be in [0, 2**64), got {seed}")
-            self.base_seed = seed
         if mask is not None:
             mask = np.asarray(mask)
             if mask.shape != (self.num_envs,) or mask.dtype != np.bool_:
                 raise ValueError(
                     f"reset_mask must be a bool array of shape ({self.num_envs},), got {mask.dtype} {mask.shape}"
                 )
+            if not mask.all():
+                raise NotImplementedError(
+                    "partial resets (reset_mask with False entries) are not supported by the pool yet: "
+                    "reset all envs, or rely on autoreset"
+                )
+        if seed is not None:
+            seed = int(seed)
+            if not 0 <= seed < 2**64:
+                raise ValueError(f"seed must be in [0, 2**64), got {seed}")
+            if not (self._fresh and seed == self.base_seed):
+                self.start(seed)
         slot = self._slot = 1 - self._slot
         obs, recs = self._bufs[slot], self._recs[slot]
-        if mask is not None and not mask.all():
-            # Envs outside the mask keep their current observation and record.
-            prev = 1 - slot
-            np.copyto(obs, self._bufs[prev])
-            np.copyto(recs, self._recs[prev])
-        self._pool.reset(obs, recs, seed, mask)
+        self._pool.reset(obs, recs)
+        self._fresh = False
         return obs, recs
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -258,6 +306,7 @@ class PoolCore:
         slot = self._slot = 1 - self._slot
         obs, recs = self._bufs[slot], self._recs[slot]
         self._pool.step(acts, obs, recs, self._final)
+        self._fresh = False
         return obs, recs
 
     @property

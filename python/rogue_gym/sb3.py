@@ -43,7 +43,7 @@ class RogueVecEnv(VecEnv):
     def __init__(
         self,
         num_envs: int = 8,
-        config: ConfigLike = None,
+        config: ConfigLike = "paper",
         *,
         num_workers: Optional[int] = None,
         seed: Optional[int] = None,
@@ -54,13 +54,14 @@ class RogueVecEnv(VecEnv):
         status: Union[int, StatusFlag] = 0,
         normalize_status: bool = False,
         history: bool = False,
-        max_steps: int = 1000,
+        max_steps: int = 500,
         stair_reward: float = 50.0,
         on_worker_failure: str = "restart",
         step_timeout: Optional[float] = 60.0,
         max_restarts: Optional[int] = 100,
         render_mode: Optional[str] = None,
         worker_command: Optional[Sequence[str]] = None,
+        batch_size: Optional[int] = None,
     ) -> None:
         if render_mode not in (None, "ansi", "rgb_array"):
             raise ValueError(
@@ -86,6 +87,7 @@ class RogueVecEnv(VecEnv):
             step_timeout=step_timeout,
             max_restarts=max_restarts,
             worker_command=worker_command,
+            batch_size=batch_size,
         )
         super().__init__(
             self._core.num_envs, self._core.single_observation_space, spaces.Discrete(len(ACTIONS))

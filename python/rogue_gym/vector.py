@@ -12,6 +12,7 @@ from gymnasium.vector.utils import batch_space
 
 from ._config import ConfigLike
 from ._core import ActionHistory, PoolCore, SeedsLike
+from ._records import RECORD_DTYPE
 from .envs.image import StatusFlag
 from .envs.rogue_env import ACTIONS
 
@@ -22,10 +23,8 @@ def _autoreset_mode(mode: Union[str, AutoresetMode]) -> AutoresetMode:
     if isinstance(mode, AutoresetMode):
         m = mode
     else:
-        try:
-            m = AutoresetMode(str(mode).lower())
-        except ValueError:
-            m = None  # type: ignore[assignment]
+        key = str(mode).replace("_", "").replace("-", "").lower()
+        m = {"nextstep": AutoresetMode.NEXT_STEP, "samestep": AutoresetMode.SAME_STEP}.get(key)  # type: ignore[assignment]
     if m not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
         raise ValueError(f"autoreset_mode must be NEXT_STEP or SAME_STEP, got {mode!r}")
     return m
@@ -68,7 +67,7 @@ class RogueVectorEnv(gym.vector.VectorEnv):
     def __init__(
         self,
         num_envs: int = 8,
-        config: ConfigLike = None,
+        config: ConfigLike = "paper",
         *,
         num_workers: Optional[int] = None,
         seed: Optional[int] = None,
@@ -79,7 +78,7 @@ class RogueVectorEnv(gym.vector.VectorEnv):
         status: Union[int, StatusFlag] = 0,
         normalize_status: bool = False,
         history: bool = False,
-        max_steps: int = 1000,
+        max_steps: int = 500,
         stair_reward: float = 50.0,
         autoreset_mode: Union[str, AutoresetMode] = AutoresetMode.NEXT_STEP,
         on_worker_failure: str = "restart",
@@ -88,6 +87,7 @@ class RogueVectorEnv(gym.vector.VectorEnv):
         copy: bool = False,
         render_mode: Optional[str] = None,
         worker_command: Optional[Sequence[str]] = None,
+        batch_size: Optional[int] = None,
     ) -> None:
         mode = _autoreset_mode(autoreset_mode)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -113,6 +113,7 @@ class RogueVectorEnv(gym.vector.VectorEnv):
             step_timeout=step_timeout,
             max_restarts=max_restarts,
             worker_command=worker_command,
+            batch_size=batch_size,
         )
         self.metadata = {**type(self).metadata, "autoreset_mode": mode}
         self.autoreset_mode = mode
@@ -218,6 +219,65 @@ class RogueVectorEnv(gym.vector.VectorEnv):
         return (f & 3) != 0
 
     # ------------------------------------------------------------------------------------
+    # EnvPool-style async API
+    def async_reset(self) -> None:
+        """Start resetting every env; collect the first observations with :meth:`recv`."""
+        self._core.native.async_reset()
+        self._async_ids: Optional[np.ndarray] = None
+        self._last_recs = None
+
+    def send(self, actions: Any, env_id: Optional[Any] = None) -> None:
+        """Send ``actions[r]`` to env ``env_id[r]`` (default: the envs of the last :meth:`recv`).
+
+        ``env_id`` must consist of whole worker blocks (as returned by ``recv``).
+        """
+        ids = getattr(self, "_async_ids", None) if env_id is None else np.asarray(env_id, np.int64)
+        if ids is None:
+            raise RuntimeError("send() needs env_id, or a previous recv() whose envs it answers")
+        a = np.asarray(actions)
+        if a.shape != ids.shape:
+            raise ValueError(
+                f"expected {ids.shape[0]} actions (one per env id), got shape {a.shape}"
+            )
+        if a.dtype.kind not in "iu":
+            raise TypeError(f"expected integer actions in [0, {len(ACTIONS)}), got dtype {a.dtype}")
+        self._core.native.send(np.ascontiguousarray(a, np.int64), [int(i) for i in ids])
+
+    def recv(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """Wait for the next ``batch_size`` envs; returns ``(obs, rewards, terminations,
+        truncations, infos)`` with ``infos["env_id"]`` naming the envs of the rows.
+
+        **Zero-copy**: when the batch is one worker block (``batch_size`` = envs per worker),
+        ``obs`` is a read-only view of the worker's shared-memory sample; its ``base`` owns the
+        sample, which stays valid and unchanged for as long as the array (or any view of it)
+        lives, even after the env is closed. Keep at most a few (``max_borrowed - 1`` = 3) such
+        arrays per worker alive, or ``recv`` fails. Larger batches are gathered into a new array.
+        """
+        core = self._core
+        blocks = core.native.recv()
+        obs_parts, recs_parts, ids = [], [], []
+        for start, raw, rec_bytes in blocks:
+            recs = np.frombuffer(rec_bytes, RECORD_DTYPE)
+            n = recs.shape[0]
+            obs_parts.append(raw.view(core.obs_dtype).reshape((n, *core.obs_shape)))
+            recs_parts.append(recs)
+            ids.append(np.arange(start, start + n))
+        obs = obs_parts[0] if len(obs_parts) == 1 else np.concatenate(obs_parts)
+        recs = recs_parts[0] if len(recs_parts) == 1 else np.concatenate(recs_parts)
+        env_id = np.concatenate(ids)
+        self._async_ids = env_id
+        terminated, truncated, restarted, _ = PoolCore.flags(recs)
+        infos = self._infos_rows(recs, restarted)
+        infos["env_id"] = env_id
+        return obs, recs["reward"].astype(np.float64), terminated, truncated, infos
+
+    def _infos_rows(self, recs: np.ndarray, restarted: np.ndarray) -> dict[str, Any]:
+        infos: dict[str, Any] = dict(self._core.info_arrays(recs))
+        if restarted.any():
+            infos["worker_restarted"] = restarted.copy()
+        return infos
+
+    # ------------------------------------------------------------------------------------
     def render(self) -> Optional[tuple[str, ...]]:
         """Render every env's screen: ``ansi`` returns a tuple of strings, ``human`` prints them.
 
@@ -302,7 +362,7 @@ class RogueVectorEnv(gym.vector.VectorEnv):
         return f"RogueVectorEnv(num_envs={self.num_envs}, num_workers={self.num_workers})"
 
 
-def make_vec(num_envs: int = 8, config: ConfigLike = None, **kwargs: Any) -> RogueVectorEnv:
+def make_vec(num_envs: int = 8, config: ConfigLike = "paper", **kwargs: Any) -> RogueVectorEnv:
     """Create a :class:`RogueVectorEnv` (``num_envs`` games in worker processes).
 
     Example::

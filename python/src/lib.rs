@@ -7,6 +7,7 @@
 use pyo3::prelude::*;
 
 mod game;
+mod pool;
 mod spec;
 mod summary;
 
@@ -24,6 +25,9 @@ fn worker_main(py: Python<'_>, argv: Vec<String>) -> i32 {
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<game::PyGame>()?;
+    m.add_class::<pool::PyPool>()?;
+    m.add_class::<pool::BlockHolder>()?;
+    m.add("RECORD_BYTES", pool::RECORD_BYTES)?;
     m.add_function(wrap_pyfunction!(game::action_from_key, m)?)?;
     m.add_function(wrap_pyfunction!(worker_main, m)?)?;
     m.add_function(wrap_pyfunction!(summary::floor_summary, m)?)?;

@@ -1,0 +1,461 @@
+//! `rogue_gym._native.Pool`: the environment pool (supervisor in this process, workers spawned
+//! as `python -m rogue_gym.worker`), with zero-copy views of worker blocks for the async API.
+
+use std::sync::Mutex;
+use std::time::Duration;
+
+use numpy::ndarray::ArrayView1;
+use numpy::npyffi::flags::NPY_ARRAY_WRITEABLE;
+use numpy::{
+    PyArray1, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray1, PyUntypedArray,
+    PyUntypedArrayMethods,
+};
+use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict, PyList};
+use rogue_gym_pool::layout::{FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED};
+use rogue_gym_pool::{
+    AutoresetMode, Batch, BatchOutput, Block, EnvRecord, EnvRegistry, FailurePolicy, Pool,
+    PoolConfig, PoolError, SeedSchedule, WorkerCommand, WorkerFailure,
+};
+use serde::Deserialize;
+use serde_json::Value;
+
+/// Bytes of one [`EnvRecord`] (the Python side mirrors it as a structured dtype).
+pub const RECORD_BYTES: usize = std::mem::size_of::<EnvRecord>();
+
+/// The pool settings the Python package sends (JSON).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PyPoolSettings {
+    env: Value,
+    num_envs: usize,
+    num_workers: usize,
+    #[serde(default)]
+    batch_size: Option<usize>,
+    #[serde(default)]
+    seeds: SeedSchedule,
+    #[serde(default)]
+    autoreset: AutoresetMode,
+    #[serde(default)]
+    on_worker_failure: FailurePolicy,
+    #[serde(default)]
+    step_timeout_s: Option<f64>,
+    #[serde(default)]
+    start_timeout_s: Option<f64>,
+    #[serde(default)]
+    max_restarts: Option<u32>,
+    #[serde(default)]
+    max_borrowed: Option<usize>,
+    #[serde(default)]
+    base_dir: Option<String>,
+}
+
+fn duration(what: &str, secs: f64) -> PyResult<Duration> {
+    Duration::try_from_secs_f64(secs)
+        .map_err(|_| PyValueError::new_err(format!("{what} must be a non-negative number of seconds, got {secs}")))
+}
+
+/// Map a pool error to the matching Python exception (never a panic).
+pub fn pool_error(py: Python<'_>, e: PoolError) -> PyErr {
+    match e {
+        PoolError::WorkerFailed(f) => crashed(py, &format!("{f}; call reset() to continue"), &f),
+        PoolError::RestartBudgetExceeded { max_restarts, last } => crashed(
+            py,
+            &format!("restart budget exhausted ({max_restarts} restarts); last failure: {last}"),
+            &last,
+        ),
+        e @ (PoolError::Config(_)
+        | PoolError::Env(_)
+        | PoolError::BadAction { .. }
+        | PoolError::BadActionsLength { .. }
+        | PoolError::BadBuffer { .. }) => PyValueError::new_err(e.to_string()),
+        e => PyRuntimeError::new_err(e.to_string()),
+    }
+}
+
+/// Build a `rogue_gym.errors.WorkerCrashedError` for a failure report.
+fn crashed(py: Python<'_>, msg: &str, f: &WorkerFailure) -> PyErr {
+    let build = || -> PyResult<PyErr> {
+        let cls = py.import("rogue_gym.errors")?.getattr("WorkerCrashedError")?;
+        let kw = PyDict::new(py);
+        kw.set_item("env", f.env_ids.start)?;
+        kw.set_item("envs", f.env_ids.clone().collect::<Vec<_>>())?;
+        kw.set_item("worker", f.worker)?;
+        kw.set_item("pid", f.pid)?;
+        kw.set_item("signal", f.signal)?;
+        kw.set_item("exit_code", f.exit_code)?;
+        kw.set_item("stderr_tail", &f.stderr_tail)?;
+        let err = cls.call((msg,), Some(&kw))?;
+        Ok(PyErr::from_value(err))
+    };
+    build().unwrap_or_else(|e| e)
+}
+
+/// A raw mutable byte buffer handed to code running without the GIL.
+struct RawBuf(*mut u8, usize);
+// SAFETY: the buffer belongs to a numpy array the caller keeps alive for the whole call; the
+// pointer is only dereferenced inside that call.
+unsafe impl Send for RawBuf {}
+
+impl RawBuf {
+    /// # Safety
+    /// The array behind the pointer must stay alive and unaliased while the slice is used.
+    unsafe fn slice<'a>(&self) -> &'a mut [u8] {
+        if self.1 == 0 {
+            return &mut [];
+        }
+        unsafe { std::slice::from_raw_parts_mut(self.0, self.1) }
+    }
+}
+
+/// The writable, C-contiguous bytes of a numpy array, checked against an expected size.
+fn raw_bytes(arr: &Bound<'_, PyUntypedArray>, what: &str, expected: usize) -> PyResult<RawBuf> {
+    if !arr.is_c_contiguous() {
+        return Err(PyValueError::new_err(format!("{what} must be C-contiguous")));
+    }
+    let ptr = arr.as_array_ptr();
+    // SAFETY: `ptr` is a live array object (we hold a reference to it).
+    let (data, flags) = unsafe { ((*ptr).fields.data as *mut u8, (*ptr).fields.flags) };
+    if flags & NPY_ARRAY_WRITEABLE == 0 {
+        return Err(PyValueError::new_err(format!("{what} must be writeable")));
+    }
+    let nbytes = arr.len() * arr.dtype().itemsize();
+    if nbytes != expected {
+        return Err(PyValueError::new_err(format!(
+            "{what} has {nbytes} bytes (shape {:?}, dtype {}), expected {expected}",
+            arr.shape(),
+            arr.dtype()
+        )));
+    }
+    Ok(RawBuf(data, nbytes))
+}
+
+fn record_flags(out: &BatchOutput, r: usize) -> u32 {
+    let mut f = 0;
+    if out.terminated[r] {
+        f |= FLAG_TERMINATED;
+    }
+    if out.truncated[r] {
+        f |= FLAG_TRUNCATED;
+    }
+    if out.restarted[r] {
+        f |= FLAG_RESTARTED;
+    }
+    if out.has_final_obs[r] {
+        f |= FLAG_FINAL_OBS;
+    }
+    f
+}
+
+/// Write the rows of `out` as [`EnvRecord`]s at their env ids into `recs`.
+fn write_records(out: &BatchOutput, n_info: usize, recs: &mut [u8]) {
+    for (r, &env) in out.env_ids.iter().enumerate() {
+        let mut rec = EnvRecord {
+            reward: out.reward[r],
+            flags: record_flags(out, r),
+            episode_return: out.episode_return[r],
+            episode: out.episode[r],
+            seed: out.seed[r],
+            episode_length: out.episode_length[r],
+            ..Default::default()
+        };
+        rec.info[..n_info].copy_from_slice(&out.info[r * n_info..(r + 1) * n_info]);
+        let dst = &mut recs[env * RECORD_BYTES..(env + 1) * RECORD_BYTES];
+        // SAFETY: EnvRecord is #[repr(C)] plain data of exactly RECORD_BYTES bytes.
+        let src = unsafe {
+            std::slice::from_raw_parts((&rec as *const EnvRecord).cast::<u8>(), RECORD_BYTES)
+        };
+        dst.copy_from_slice(src);
+    }
+}
+
+/// Copy the valid final observations of `out` to their env rows of `fin`.
+fn write_final(out: &BatchOutput, obs_bytes: usize, fin: &mut [u8]) {
+    if out.final_obs.is_empty() {
+        return;
+    }
+    for (r, &env) in out.env_ids.iter().enumerate() {
+        if out.has_final_obs[r] {
+            fin[env * obs_bytes..(env + 1) * obs_bytes]
+                .copy_from_slice(&out.final_obs[r * obs_bytes..(r + 1) * obs_bytes]);
+        }
+    }
+}
+
+/// Owner of one worker block (an iceoryx2 sample) behind zero-copy numpy views.
+///
+/// The views returned by `Pool.recv()` have this object as their base: the shared-memory
+/// sample stays mapped and unchanged for as long as any view (or this object) lives, even after
+/// the pool is closed. There is no way to release it early (a dangling view is impossible).
+#[pyclass(module = "rogue_gym._native", name = "BlockHolder", frozen)]
+pub struct BlockHolder {
+    block: Mutex<Block>,
+}
+
+#[pymethods]
+impl BlockHolder {
+    /// The worker that produced the block.
+    #[getter]
+    fn worker(&self) -> usize {
+        self.block.lock().map(|b| b.worker()).unwrap_or(usize::MAX)
+    }
+}
+
+/// The environment pool: `num_envs` envs stepped by `num_workers` worker processes.
+///
+/// `Pool(settings_json, worker_command)`; `worker_command` is the program and its leading
+/// arguments, e.g. `[sys.executable, "-m", "rogue_gym.worker"]`. Every method raises a Python
+/// exception on failure (`ValueError` for bad input, `rogue_gym.WorkerCrashedError` for a
+/// failed worker under policy "raise", `RuntimeError` otherwise).
+#[pyclass(module = "rogue_gym._native", name = "Pool")]
+pub struct PyPool {
+    pool: Mutex<Option<Pool>>,
+    out: Mutex<BatchOutput>,
+    num_envs: usize,
+    num_workers: usize,
+    obs_bytes: usize,
+    n_info: usize,
+    obs_shape: Vec<usize>,
+    dtype: &'static str,
+    info_names: Vec<String>,
+}
+
+impl PyPool {
+    fn with_pool<R: Send>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&mut Pool, &mut BatchOutput) -> Result<R, PoolError> + Send,
+    ) -> PyResult<R> {
+        let res = py.detach(|| {
+            let mut guard = self.pool.lock().map_err(|_| PoolError::State("the pool lock is poisoned".into()))?;
+            let pool = guard.as_mut().ok_or(PoolError::Closed)?;
+            let mut out = self.out.lock().map_err(|_| PoolError::State("the pool lock is poisoned".into()))?;
+            f(pool, &mut out)
+        });
+        res.map_err(|e| pool_error(py, e))
+    }
+
+    fn fill_outputs(
+        &self,
+        py: Python<'_>,
+        recs: &Bound<'_, PyUntypedArray>,
+        fin: Option<&Bound<'_, PyUntypedArray>>,
+    ) -> PyResult<()> {
+        let recs = raw_bytes(recs, "record array", self.num_envs * RECORD_BYTES)?;
+        let fin = fin
+            .map(|f| raw_bytes(f, "final observation buffer", self.num_envs * self.obs_bytes))
+            .transpose()?;
+        let out = self.out.lock().map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        let _ = py;
+        // SAFETY: both arrays are alive for this call and not otherwise borrowed by us.
+        unsafe {
+            write_records(&out, self.n_info, recs.slice());
+            if let Some(f) = fin {
+                write_final(&out, self.obs_bytes, f.slice());
+            }
+        }
+        Ok(())
+    }
+}
+
+fn actions_vec(actions: &Bound<'_, PyAny>) -> PyResult<Vec<i64>> {
+    let arr: PyReadonlyArray1<'_, i64> = actions.extract().map_err(|_| {
+        PyTypeError::new_err("actions must be a 1-D int64 numpy array (one action per env)")
+    })?;
+    Ok(arr.as_slice().map(<[i64]>::to_vec).unwrap_or_else(|_| arr.as_array().to_vec()))
+}
+
+#[pymethods]
+impl PyPool {
+    /// Start a pool (spawns the workers and waits until they are ready; GIL released).
+    #[new]
+    fn new(py: Python<'_>, settings_json: &str, worker_command: Vec<String>) -> PyResult<Self> {
+        let s: PyPoolSettings = serde_json::from_str(settings_json)
+            .map_err(|e| PyValueError::new_err(format!("invalid pool settings: {e}")))?;
+        let (program, args) = worker_command
+            .split_first()
+            .ok_or_else(|| PyValueError::new_err("worker_command must name a program"))?;
+        let worker = WorkerCommand {
+            program: program.into(),
+            args: args.to_vec(),
+        };
+        let mut cfg = PoolConfig::new(s.env, s.num_envs, s.num_workers, worker);
+        cfg.batch_size = s.batch_size;
+        cfg.seeds = s.seeds;
+        cfg.autoreset = s.autoreset;
+        cfg.on_worker_failure = s.on_worker_failure;
+        cfg.step_timeout = s.step_timeout_s.map(|t| duration("step_timeout", t)).transpose()?;
+        if let Some(t) = s.start_timeout_s {
+            cfg.start_timeout = duration("start_timeout", t)?;
+        }
+        if let Some(m) = s.max_restarts {
+            cfg.max_restarts = m;
+        }
+        if let Some(m) = s.max_borrowed {
+            cfg.max_borrowed = m;
+        }
+        if let Some(d) = s.base_dir {
+            cfg.base_dir = d.into();
+        }
+        let pool = py
+            .detach(|| Pool::new(cfg, &EnvRegistry::with_defaults()))
+            .map_err(|e| pool_error(py, e))?;
+        let spec = pool.spec().clone();
+        Ok(PyPool {
+            num_envs: pool.num_envs(),
+            num_workers: pool.num_workers(),
+            obs_bytes: pool.obs_bytes(),
+            n_info: spec.info_names.len(),
+            obs_shape: spec.obs_shape.clone(),
+            dtype: spec.dtype.numpy_name(),
+            info_names: spec.info_names.clone(),
+            pool: Mutex::new(Some(pool)),
+            out: Mutex::new(BatchOutput::default()),
+        })
+    }
+
+    /// Sync reset of every env: observations into `obs_out` (`num_envs x obs`, C-contiguous),
+    /// records into `recs_out` (`num_envs` records).
+    fn reset(&self, py: Python<'_>, obs_out: &Bound<'_, PyUntypedArray>, recs_out: &Bound<'_, PyUntypedArray>) -> PyResult<()> {
+        let obs = raw_bytes(obs_out, "observation buffer", self.num_envs * self.obs_bytes)?;
+        // SAFETY: obs_out is alive for the call; the pool writes it while Python waits.
+        self.with_pool(py, move |p, out| p.reset(unsafe { obs.slice() }, out))?;
+        self.fill_outputs(py, recs_out, None)
+    }
+
+    /// Sync step: `actions` (int64, one per env); observations into `obs_out`, records into
+    /// `recs_out` and (SAME_STEP) final observations into `final_out`.
+    #[pyo3(signature = (actions, obs_out, recs_out, final_out = None))]
+    fn step(
+        &self,
+        py: Python<'_>,
+        actions: &Bound<'_, PyAny>,
+        obs_out: &Bound<'_, PyUntypedArray>,
+        recs_out: &Bound<'_, PyUntypedArray>,
+        final_out: Option<&Bound<'_, PyUntypedArray>>,
+    ) -> PyResult<()> {
+        let acts = actions_vec(actions)?;
+        let obs = raw_bytes(obs_out, "observation buffer", self.num_envs * self.obs_bytes)?;
+        // SAFETY: as in `reset`.
+        self.with_pool(py, move |p, out| p.step(&acts, unsafe { obs.slice() }, out))?;
+        self.fill_outputs(py, recs_out, final_out)
+    }
+
+    /// Async: reset every env; collect the results with `recv()`.
+    fn async_reset(&self, py: Python<'_>) -> PyResult<()> {
+        self.with_pool(py, |p, _| p.async_reset())
+    }
+
+    /// Async: send `actions` (int64) to `env_ids` (whole worker blocks, each in order).
+    fn send(&self, py: Python<'_>, actions: &Bound<'_, PyAny>, env_ids: Vec<usize>) -> PyResult<()> {
+        let acts = actions_vec(actions)?;
+        self.with_pool(py, move |p, _| p.send(&acts, &env_ids))
+    }
+
+    /// Async: wait for the next batch; returns a list of `(env_start, obs_bytes_view, records)`
+    /// per worker block, in arrival order. `obs_bytes_view` is a read-only zero-copy uint8 view
+    /// of the block's observations in shared memory (its base owns the sample); `records` are
+    /// the block's records as bytes.
+    fn recv<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let batch: Batch = self.with_pool(py, |p, _| p.recv())?;
+        let list = PyList::empty(py);
+        for block in batch.blocks {
+            let start = block.env_ids().start;
+            let n = block.env_ids().len();
+            let mut recs = vec![0u8; n * RECORD_BYTES];
+            for j in 0..n {
+                let rec = block.record(j);
+                // SAFETY: EnvRecord is #[repr(C)] plain data.
+                let src = unsafe {
+                    std::slice::from_raw_parts((&rec as *const EnvRecord).cast::<u8>(), RECORD_BYTES)
+                };
+                recs[j * RECORD_BYTES..(j + 1) * RECORD_BYTES].copy_from_slice(src);
+            }
+            let (ptr, len) = {
+                let o = block.obs();
+                (o.as_ptr(), o.len())
+            };
+            let holder = Bound::new(py, BlockHolder { block: Mutex::new(block) })?;
+            // SAFETY: the bytes live in the sample owned by `holder`, which becomes the array's
+            // base, so they outlive the view; the sample is never written while held.
+            let view = unsafe { ArrayView1::from_shape_ptr(len, ptr) };
+            let arr = unsafe { PyArray1::<u8>::borrow_from_array(&view, holder.into_any()) };
+            drop(arr.try_readwrite()?.make_nonwriteable());
+            list.append((start, arr, PyBytes::new(py, &recs)))?;
+        }
+        Ok(list)
+    }
+
+    /// Current worker process ids (index = worker).
+    fn worker_pids(&self) -> PyResult<Vec<u32>> {
+        let guard = self.pool.lock().map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        Ok(guard.as_ref().map(Pool::worker_pids).unwrap_or_default())
+    }
+
+    /// Worker restarts so far.
+    fn restarts(&self) -> PyResult<u32> {
+        let guard = self.pool.lock().map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        Ok(guard.as_ref().map(Pool::restarts).unwrap_or(0))
+    }
+
+    /// The pool's name (the prefix of its shared-memory files).
+    fn name(&self) -> PyResult<String> {
+        let guard = self.pool.lock().map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        Ok(guard.as_ref().map(|p| p.id().name().to_string()).unwrap_or_default())
+    }
+
+    /// Stop the workers and remove the pool's files (idempotent; GIL released).
+    fn close(&self, py: Python<'_>) -> PyResult<()> {
+        let taken = {
+            let mut guard = self.pool.lock().map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+            guard.take()
+        };
+        if let Some(mut p) = taken {
+            py.detach(move || p.close()).map_err(|e| pool_error(py, e))?;
+        }
+        Ok(())
+    }
+
+    /// Whether `close()` was called.
+    #[getter]
+    fn closed(&self) -> bool {
+        self.pool.lock().map(|g| g.is_none()).unwrap_or(true)
+    }
+
+    /// Number of envs.
+    #[getter]
+    fn num_envs(&self) -> usize {
+        self.num_envs
+    }
+
+    /// Number of worker processes.
+    #[getter]
+    fn num_workers(&self) -> usize {
+        self.num_workers
+    }
+
+    /// Observation shape of one env.
+    #[getter]
+    fn obs_shape(&self) -> Vec<usize> {
+        self.obs_shape.clone()
+    }
+
+    /// Observation dtype name (`uint8` or `float32`).
+    #[getter]
+    fn obs_dtype(&self) -> &'static str {
+        self.dtype
+    }
+
+    /// Bytes of one observation.
+    #[getter]
+    fn obs_bytes(&self) -> usize {
+        self.obs_bytes
+    }
+
+    /// Names of the env's info values (columns of the records' `info`).
+    #[getter]
+    fn info_names(&self) -> Vec<String> {
+        self.info_names.clone()
+    }
+}

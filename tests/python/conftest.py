@@ -1,0 +1,88 @@
+"""Shared fixtures: envs that are always closed, and leak checks for pools."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Iterator
+from typing import Any, Callable
+
+import pytest
+import rogue_gym
+
+PAPER = rogue_gym.PAPER_CONFIG
+
+
+def pid_alive(pid: int) -> bool:
+    """Whether process ``pid`` exists and is not a zombie."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            state = f.read().rsplit(")", 1)[1].split()[0]
+    except FileNotFoundError:
+        return False
+    return state != "Z"
+
+
+def pool_files(name: str) -> list[str]:
+    """Files of pool ``name`` left in /dev/shm and /tmp/rgp."""
+    out = [f"/dev/shm/{f}" for f in os.listdir("/dev/shm") if f.startswith(f"{name}_")]
+    base = "/tmp/rgp"
+    if os.path.isdir(base):
+        out += [f"{base}/{f}" for f in os.listdir(base) if f == name or f.startswith(f"{name}.")]
+    return out
+
+
+def wait_until(cond: Callable[[], bool], timeout: float = 5.0) -> bool:
+    """Poll ``cond`` until it holds or ``timeout`` seconds pass."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if cond():
+            return True
+        time.sleep(0.02)
+    return cond()
+
+
+@pytest.fixture
+def make_vec() -> Iterator[Callable[..., Any]]:
+    """``make_vec(**kw)`` building pools that are closed (and checked for leaks) at teardown."""
+    made: list[Any] = []
+
+    def factory(num_envs: int = 4, **kw: Any) -> Any:
+        kw.setdefault("config", PAPER)
+        kw.setdefault("num_workers", 2)
+        kw.setdefault("seed", 0)
+        env = rogue_gym.make_vec(num_envs, **kw)
+        made.append(env)
+        return env
+
+    yield factory
+    for env in made:
+        core = env._core
+        pids = core.worker_pids
+        name = core.name
+        env.close()
+        assert wait_until(lambda pids=pids: not any(pid_alive(p) for p in pids)), (
+            "workers left running"
+        )
+        assert pool_files(name) == [], "pool files left behind"
+
+
+@pytest.fixture
+def make_sb3() -> Iterator[Callable[..., Any]]:
+    """``make_sb3(**kw)`` building SB3 pools that are closed at teardown."""
+    pytest.importorskip("stable_baselines3")
+    from rogue_gym.sb3 import RogueVecEnv
+
+    made: list[Any] = []
+
+    def factory(num_envs: int = 4, **kw: Any) -> Any:
+        kw.setdefault("config", PAPER)
+        kw.setdefault("num_workers", 2)
+        kw.setdefault("seed", 0)
+        env = RogueVecEnv(num_envs, **kw)
+        made.append(env)
+        return env
+
+    yield factory
+    for env in made:
+        env.close()

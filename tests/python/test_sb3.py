@@ -1,0 +1,103 @@
+"""The pool as a Stable-Baselines3 VecEnv: API, episode ends, rollout buffers, PPO."""
+
+from __future__ import annotations
+
+import os
+import signal
+
+import numpy as np
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+from stable_baselines3.common.vec_env import VecEnv
+
+
+def test_is_a_vec_env_with_sb3_api(make_sb3) -> None:
+    env = make_sb3(4, obs="symbol_index", max_steps=20)
+    assert isinstance(env, VecEnv)
+    assert env.observation_space.shape == (16, 32)
+    assert env.seed(7) == [7, 8, 9, 10]
+    obs = env.reset()
+    assert obs.shape == (4, 16, 32)
+    assert len(env.reset_infos) == 4 and "seed" in env.reset_infos[0]
+    env.step_async(np.zeros(4, np.int64))
+    obs, rewards, dones, infos = env.step_wait()
+    assert rewards.dtype == np.float32 and dones.dtype == np.bool_ and len(infos) == 4
+    assert env.get_attr("max_steps") == [20] * 4
+    assert env.get_attr("render_mode") == [None] * 4
+    assert env.env_is_wrapped(object) == [False] * 4
+    with pytest.raises(AttributeError):
+        env.set_attr("max_steps", 3)
+    with pytest.raises(AttributeError):
+        env.env_method("nope")
+
+
+def test_seed_then_reset_is_reproducible(make_sb3) -> None:
+    env = make_sb3(4, max_steps=20)
+    env.seed(3)
+    a = env.reset().copy()
+    env.step(np.ones(4, np.int64))
+    env.seed(3)
+    b = env.reset()
+    assert np.array_equal(a, b)
+
+
+def test_terminal_observation_and_time_limit(make_sb3) -> None:
+    env = make_sb3(4, max_steps=5)
+    obs = env.reset()
+    for _ in range(5):
+        last = obs.copy()
+        obs, rewards, dones, infos = env.step(np.zeros(4, np.int64))
+    assert dones.all()
+    for i, info in enumerate(infos):
+        assert info["TimeLimit.truncated"] is True
+        assert np.array_equal(info["terminal_observation"], last[i])  # no-ops: same screen
+        assert info["episode"]["l"] == 5
+    assert all(inf.get("episode_index") == 0 for inf in infos)
+
+
+def test_rollout_double_buffering(make_sb3) -> None:
+    """SB3 keeps the previous obs while stepping: it must not change under it."""
+    env = make_sb3(4, max_steps=7)
+    last = env.reset()
+    snapshot = last.copy()
+    rng = np.random.default_rng(0)
+    for _ in range(30):
+        new, _, _, _ = env.step(rng.integers(0, 11, 4))
+        assert np.array_equal(last, snapshot)
+        last, snapshot = new, new.copy()
+
+
+def test_worker_restart_reports_truncation(make_sb3) -> None:
+    env = make_sb3(4, num_workers=2, max_steps=100)
+    env.reset()
+    env.step(np.zeros(4, np.int64))
+    os.kill(env.worker_pids[0], signal.SIGKILL)
+    seen = False
+    for _ in range(20):
+        obs, rewards, dones, infos = env.step(np.zeros(4, np.int64))
+        if any(inf.get("worker_restarted") for inf in infos):
+            seen = True
+            for i in (0, 1):
+                assert (
+                    dones[i]
+                    and infos[i]["TimeLimit.truncated"]
+                    and "terminal_observation" in infos[i]
+                )
+            break
+    assert seen
+
+
+def test_ppo_learns_a_few_steps(make_sb3) -> None:
+    import torch
+    from stable_baselines3 import PPO
+
+    torch.set_num_threads(1)
+    env = make_sb3(4, obs="symbol_index", max_steps=50)
+    model = PPO(
+        "MlpPolicy", env, n_steps=32, batch_size=64, n_epochs=1, seed=0, device="cpu", verbose=0
+    )
+    model.learn(total_timesteps=512)
+    assert model.num_timesteps >= 512
+    assert len(model.ep_info_buffer) > 0  # episodes reported through infos["episode"]

@@ -1,0 +1,305 @@
+"""The pool as a gymnasium VectorEnv: semantics, determinism, crashes, cleanup, zero-copy."""
+
+from __future__ import annotations
+
+import gc
+import os
+import signal
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import rogue_gym
+from gymnasium.vector import AutoresetMode
+from gymnasium.wrappers.vector import RecordEpisodeStatistics
+from rogue_gym import WorkerCrashedError
+from rogue_gym.envs import RogueEnv
+
+from conftest import PAPER, pid_alive, pool_files, wait_until
+
+INFO_KEYS = {
+    "seed",
+    "episode_index",
+    "episode_return",
+    "episode_length",
+    "floor",
+    "max_floor",
+    "gold",
+    "hp",
+    "died",
+    "won",
+}
+
+
+def _actions(n: int, steps: int, seed: int = 0) -> np.ndarray:
+    return np.random.default_rng(seed).integers(0, 11, size=(steps, n))
+
+
+def test_spaces_reset_step(make_vec) -> None:
+    env = make_vec(4, max_steps=50)
+    assert isinstance(env, gym.vector.VectorEnv)
+    assert env.single_observation_space.shape == (17, 16, 32)
+    assert env.observation_space.shape == (4, 17, 16, 32)
+    assert env.single_action_space == gym.spaces.Discrete(11)
+    assert env.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+    obs, infos = env.reset(seed=1)
+    assert obs.dtype == np.uint8 and obs in env.observation_space
+    assert set(infos) >= INFO_KEYS and all(infos[f"_{k}"].all() for k in INFO_KEYS)
+    obs, rew, term, trunc, infos = env.step(env.action_space.sample())
+    assert rew.dtype == np.float64 and rew.shape == (4,)
+    assert term.dtype == np.bool_ and trunc.dtype == np.bool_
+    assert obs in env.observation_space
+    assert (infos["episode_length"] == 1).all()
+
+
+def test_next_step_autoreset(make_vec) -> None:
+    env = make_vec(4, max_steps=5)
+    env.reset(seed=3)
+    for _ in range(4):
+        *_, trunc, infos = env.step(np.zeros(4, np.int64))
+        assert not trunc.any()
+    obs, rew, term, trunc, infos = env.step(np.zeros(4, np.int64))
+    assert trunc.all() and not term.any()
+    first_seeds = infos["seed"].copy()
+    obs, rew, term, trunc, infos = env.step(np.full(4, 4, np.int64))  # actions ignored: reset step
+    assert (rew == 0).all() and not term.any() and not trunc.any()
+    assert (infos["episode_length"] == 0).all() and (infos["episode_index"] == 1).all()
+    assert not np.array_equal(first_seeds, infos["seed"])
+
+
+def test_same_step_autoreset_final_obs(make_vec) -> None:
+    env = make_vec(4, max_steps=3, autoreset_mode="same_step")
+    assert env.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
+    obs0, _ = env.reset(seed=0)
+    last = None
+    for _ in range(3):
+        last = obs0.copy()
+        obs0, rew, term, trunc, infos = env.step(np.zeros(4, np.int64))
+    assert trunc.all()
+    assert infos["_final_obs"].all() and infos["final_info"]["episode_length"].tolist() == [3] * 4
+    # No-op steps: the final observation equals the one before it; the returned one is new.
+    assert all(np.array_equal(infos["final_obs"][i], last[i]) for i in range(4))
+
+
+def test_record_episode_statistics_wrapper(make_vec) -> None:
+    env = RecordEpisodeStatistics(make_vec(4, max_steps=10))
+    env.reset(seed=0)
+    episodes = 0
+    for a in _actions(4, 25):
+        *_, infos = env.step(a)
+        if "episode" in infos:
+            episodes += int(infos["_episode"].sum())
+            assert (infos["episode"]["l"][infos["_episode"]] == 10).all()
+    assert episodes == 8
+
+
+@pytest.mark.parametrize("mode", ["next_step", "same_step"])
+def test_same_trajectories_for_one_and_two_workers(make_vec, mode) -> None:
+    acts = _actions(4, 60, seed=1)
+    runs = []
+    for workers in (1, 2):
+        env = make_vec(4, num_workers=workers, max_steps=25, seed=42, autoreset_mode=mode)
+        obs, infos = env.reset()
+        trace = [obs.copy(), infos["seed"].copy()]
+        for a in acts:
+            obs, rew, term, trunc, infos = env.step(a)
+            trace += [obs.copy(), rew, term, trunc, infos["seed"].copy()]
+        runs.append(trace)
+    assert all(np.array_equal(x, y) for x, y in zip(*runs))
+
+
+def test_pool_matches_single_env(make_vec) -> None:
+    env = make_vec(2, num_workers=1, max_steps=100, seed=9)
+    obs, infos = env.reset()
+    single = RogueEnv(
+        config_dict=PAPER, max_steps=100, obs="symbol_onehot", dtype="uint8", stair_reward=50.0
+    )
+    s_obs, _ = single.reset(seed=int(infos["seed"][1]))
+    assert np.array_equal(obs[1], s_obs)
+    for a in _actions(2, 40, seed=5):
+        obs, rew, *_ = env.step(a)
+        s_obs, s_rew, *_ = single.step(int(a[1]))
+        assert np.array_equal(obs[1], s_obs) and rew[1] == s_rew
+
+
+def test_reset_with_seed_reproduces(make_vec) -> None:
+    env = make_vec(4, max_steps=50)
+    a, ia = env.reset(seed=5)
+    a = a.copy()
+    for act in _actions(4, 10):
+        env.step(act)
+    b, ib = env.reset(seed=5)
+    assert np.array_equal(a, b) and np.array_equal(ia["seed"], ib["seed"])
+    c, ic = env.reset()
+    assert not np.array_equal(ia["seed"], ic["seed"])  # next episodes
+    with pytest.raises(NotImplementedError, match="partial"):
+        env.reset(options={"reset_mask": np.array([True, False, True, True])})
+    env.reset(options={"reset_mask": np.ones(4, bool)})
+
+
+def test_seed_list_and_sequential_policy(make_vec) -> None:
+    env = make_vec(4, seeds=range(1000, 1004), seed_policy="sequential", max_steps=5)
+    _, infos = env.reset()
+    assert sorted(infos["seed"].tolist()) == [1000, 1001, 1002, 1003]
+
+
+def test_double_buffer_keeps_previous_observation(make_vec) -> None:
+    env = make_vec(4, max_steps=50)
+    prev, _ = env.reset(seed=0)
+    prev_copy = prev.copy()
+    for a in _actions(4, 20):
+        obs, *_ = env.step(a)
+        assert obs is not prev
+        assert np.array_equal(prev, prev_copy), "step t+1 overwrote the array returned at step t"
+        prev, prev_copy = obs, obs.copy()
+
+
+@pytest.mark.parametrize(
+    ("actions", "exc", "match"),
+    [
+        (np.zeros(3, np.int64), ValueError, r"shape \(4,\)"),
+        (np.zeros((4, 2), np.int64), ValueError, r"shape \(4,\)"),
+        (np.full(4, 0.5), TypeError, "integer actions"),
+        (np.array([0, 1, 11, 2]), ValueError, "action 11 of env 2"),
+        (np.array([0, -1, 1, 2]), ValueError, "action -1 of env 1"),
+        (["a", "b", "c", "d"], TypeError, "integer actions"),
+    ],
+)
+def test_bad_actions(make_vec, actions, exc, match) -> None:
+    env = make_vec(4)
+    env.reset(seed=0)
+    with pytest.raises(exc, match=match):
+        env.step(actions)
+    env.step(np.zeros(4, np.int64))  # still usable
+
+
+def test_key_string_actions(make_vec) -> None:
+    env = make_vec(4)
+    env.reset(seed=0)
+    env.step("hjkl")
+
+
+def test_bad_config_names_the_key() -> None:
+    with pytest.raises(ValueError, match="widht"):
+        rogue_gym.make_vec(2, config={"widht": 40})
+    with pytest.raises(ValueError, match="num_workers"):
+        rogue_gym.make_vec(3, num_workers=2)
+    with pytest.raises(ValueError, match="on_worker_failure"):
+        rogue_gym.make_vec(2, on_worker_failure="ignore")
+
+
+def test_killed_worker_is_restarted(make_vec) -> None:
+    env = make_vec(4, num_workers=2, max_steps=200)
+    env.reset(seed=0)
+    for a in _actions(4, 5):
+        env.step(a)
+    pids = env.worker_pids
+    os.kill(pids[1], signal.SIGKILL)
+    restarted = np.zeros(4, bool)
+    for a in _actions(4, 20, seed=2):
+        obs, rew, term, trunc, infos = env.step(a)
+        if "worker_restarted" in infos:
+            restarted |= infos["worker_restarted"]
+            assert trunc[infos["worker_restarted"]].all()
+    assert restarted.tolist() == [False, False, True, True]
+    assert env.worker_pids[0] == pids[0] and env.worker_pids[1] != pids[1]
+    assert wait_until(lambda: not pid_alive(pids[1]))
+
+
+def test_killed_worker_raises_with_details(make_vec) -> None:
+    env = make_vec(4, num_workers=2, on_worker_failure="raise")
+    env.reset(seed=0)
+    pid = env.worker_pids[0]
+    os.kill(pid, signal.SIGKILL)
+    with pytest.raises(WorkerCrashedError) as info:
+        for a in _actions(4, 50):
+            env.step(a)
+    err = info.value
+    assert err.pid == pid and err.signal == signal.SIGKILL and err.env == 0 and err.envs == (0, 1)
+    assert str(pid) in str(err)
+    env.reset(seed=0)  # usable again
+    env.step(np.zeros(4, np.int64))
+
+
+def test_close_and_gc_leave_nothing_behind() -> None:
+    env = rogue_gym.make_vec(4, num_workers=2, seed=0)
+    env.reset()
+    pids, name = env.worker_pids, env._core.name
+    assert pool_files(name)
+    env.close()
+    env.close()  # idempotent
+    assert wait_until(lambda: not any(pid_alive(p) for p in pids))
+    assert pool_files(name) == []
+    with pytest.raises(RuntimeError, match="closed"):
+        env.step(np.zeros(4, np.int64))
+
+    env = rogue_gym.make_vec(2, num_workers=2, seed=0)
+    env.reset()
+    pids, name = env.worker_pids, env._core.name
+    del env
+    gc.collect()
+    assert wait_until(lambda: not any(pid_alive(p) for p in pids))
+    assert pool_files(name) == []
+
+
+def _shm_ranges() -> list[tuple[int, int, str]]:
+    out = []
+    with open("/proc/self/maps") as f:
+        for line in f:
+            parts = line.split()
+            if len(parts) >= 6 and parts[5].startswith("/dev/shm/"):
+                lo, hi = (int(x, 16) for x in parts[0].split("-"))
+                out.append((lo, hi, parts[5]))
+    return out
+
+
+def test_async_recv_is_a_zero_copy_read_only_view(make_vec) -> None:
+    env = make_vec(4, num_workers=2, batch_size=2, max_steps=50)
+    env.async_reset()
+    seen = set()
+    for _ in range(6):
+        obs, rew, term, trunc, infos = env.recv()
+        assert obs.shape == (2, 17, 16, 32) and not obs.flags.writeable
+        with pytest.raises(ValueError, match="read-only"):
+            obs[0, 0, 0, 0] = 1
+        ptr = obs.__array_interface__["data"][0]
+        assert any(
+            lo <= ptr < hi and name.split("/")[-1].startswith(env._core.name)
+            for lo, hi, name in _shm_ranges()
+        )
+        ids = infos["env_id"]
+        seen.update(ids.tolist())
+        env.send(np.zeros(2, np.int64), ids)
+    assert seen == {0, 1, 2, 3}
+    kept = obs
+    del obs
+    assert kept.base is not None  # the holder keeps the sample mapped
+
+
+def test_make_vec_through_gymnasium() -> None:
+    env = gym.make_vec("RogueGym-v0", num_envs=2, num_workers=1, seed=0, max_steps=10)
+    try:
+        assert isinstance(env, rogue_gym.RogueVectorEnv)
+        env.reset()
+        env.step(np.zeros(2, np.int64))
+    finally:
+        env.close()
+
+
+def test_render_call_get_attr(make_vec) -> None:
+    env = make_vec(2, num_workers=1, render_mode="ansi", max_steps=30)
+    env.reset(seed=4)
+    acts = _actions(2, 12, seed=3)
+    for a in acts:
+        env.step(a)
+    frames = env.render()
+    assert len(frames) == 2 and all("Level:" in f for f in frames)
+    single = RogueEnv(config_dict=PAPER, max_steps=30, render_mode="ansi", stair_reward=50.0)
+    single.reset(seed=env.get_attr("episode_seed")[0])
+    for a in acts:
+        single.step(int(a[0]))
+    assert frames[0] == single.render()
+    assert env.get_attr("max_steps") == (30, 30)
+    assert env.call("render") == frames
+    with pytest.raises(AttributeError):
+        env.get_attr("nonexistent")
