@@ -114,19 +114,24 @@ def make_single_env(enc: str) -> Any:
     return RogueEnv(**kwargs)
 
 
-def make_pool(num_envs: int, enc: str, num_workers: Optional[int]) -> Any:
-    """Our pool's gymnasium VectorEnv facade."""
+def make_pool(
+    num_envs: int, enc: str, num_workers: Optional[int], batch_size: Optional[int] = None
+) -> Any:
+    """Our pool's gymnasium VectorEnv facade (``batch_size`` for the async API)."""
     import rogue_gym
 
     obs, dtype = _encoding(enc)
     kwargs: Dict[str, Any] = {
         "config": dict(PAPER_CONFIG),
         "max_steps": MAX_STEPS,
+        "stair_reward": STAIR_REWARD,
         "obs": obs,
         "seed": 0,
     }
+    if batch_size is not None:
+        kwargs["batch_size"] = batch_size
     if dtype is not None:
-        kwargs["obs_dtype"] = dtype
+        kwargs["dtype"] = dtype
     if num_workers is not None:
         kwargs["num_workers"] = num_workers
     return rogue_gym.make_vec(num_envs, **kwargs)
@@ -145,9 +150,12 @@ class Driver:
             self.env.reset(seed=0)
             self.step = self._gym_step
         elif backend == "pool-async":
-            self.env = make_pool(num_envs, enc, num_workers)
-            self.batch = max(1, num_envs // 2)
-            self.env.async_reset(batch_size=self.batch)
+            # Two workers, each one block of num_envs/2 envs: recv() returns one worker's
+            # block (a zero-copy view) while the other worker steps.
+            workers = num_workers or 2
+            self.batch = max(1, num_envs // workers)
+            self.env = make_pool(num_envs, enc, workers, batch_size=self.batch)
+            self.env.async_reset()
             self.step = self._async_step
         elif backend == "gym-sync":
             import gymnasium as gym
@@ -193,7 +201,7 @@ class Driver:
     def _async_step(self, actions: Any) -> None:
         _obs, _rew, _term, _trunc, info = self.env.recv()
         env_id = info["env_id"]
-        self.env.send(actions[: len(env_id)], env_id)
+        self.env.send(actions[env_id], env_id)
 
     def close(self) -> None:
         self.env.close()
