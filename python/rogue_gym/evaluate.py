@@ -329,7 +329,16 @@ def _progress(total: int, desc: str, enabled: bool) -> Any:
         from tqdm import tqdm
     except ImportError:  # pragma: no cover - tqdm is a dev dependency
         return _NoBar()
-    return tqdm(total=total, desc=desc, unit="ep", dynamic_ncols=True, file=sys.stderr)
+    # Redraw at most every 0.1 s on a terminal, every 5 s into a log file.
+    interval = 0.1 if sys.stderr.isatty() else 5.0
+    return tqdm(
+        total=total,
+        desc=desc,
+        unit="ep",
+        dynamic_ncols=True,
+        file=sys.stderr,
+        mininterval=interval,
+    )
 
 
 # --------------------------------------------------------------------------------------------
