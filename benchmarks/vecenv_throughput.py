@@ -324,7 +324,11 @@ def run_cell(cell: Dict[str, Any]) -> Dict[str, Any]:
         drv.close()
     steps = i * drv.batch
     lat_a = np.asarray(lat)
+    workers = getattr(drv.env, "num_workers", None)
+    if workers is None:
+        workers = n if cell["backend"] in ("gym-async-shm", "sb3-subproc") else 0
     return {
+        "workers": int(workers),
         "steps_per_s": steps / wall,
         "p50_ms": float(np.percentile(lat_a, 50) * 1e3),
         "p99_ms": float(np.percentile(lat_a, 99) * 1e3),
@@ -475,7 +479,7 @@ def render_markdown(
         f"(median per-cell load in the table). Command: `{meta['command']}`. "
         f"Mode: {meta['mode']}, {meta['reps']} repetition(s), {meta['seconds']} s window after "
         f"{meta['warmup']} warm-up batches, cell order shuffled per repetition. "
-        f"Date {meta['date']}.",
+        f"Date {meta['date']}, commit {meta.get('commit', '?')}.",
         "",
     ]
     head_n = (
@@ -587,15 +591,50 @@ def render_plot(
         ax.set_xlabel("num_envs")
         ax.grid(True, which="both", alpha=0.3)
     axes[0][0].set_ylabel("env steps/s (median, min-max)")
-    axes[0][-1].legend(fontsize=8, loc="best")
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=9, frameon=False)
     fig.suptitle("Rogue-Gym paper config, random actions: vector-env throughput")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
 def _csv_list(text: str, cast: Any = str) -> List[Any]:
     return [cast(x) for x in text.split(",") if x]
+
+
+def _sweep_axes(runs: List[Dict[str, Any]]) -> Tuple[List[str], List[int], List[str]]:
+    backends = [b for b in BACKENDS if any(r["backend"] == b for r in runs)]
+    num_envs = sorted({int(r["num_envs"]) for r in runs})
+    encodings = [e for e in ENCODINGS if any(r["encoding"] == e for r in runs)]
+    return backends, num_envs, encodings
+
+
+def rerender(json_path: Path, out: Path) -> int:
+    """Write ``throughput.md`` and ``throughput.png`` under ``out`` from a saved JSON."""
+    doc = json.loads(json_path.read_text())
+    backends, num_envs, encodings = _sweep_axes(doc["runs"])
+    agg = aggregate(doc["runs"])
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "throughput.md").write_text(
+        render_markdown(agg, backends, num_envs, encodings, doc["meta"])
+    )
+    render_plot(agg, backends, num_envs, encodings, out / "throughput.png")
+    print(f"wrote {out / 'throughput.md'}, throughput.png")
+    return 0
+
+
+def _git_commit() -> str:
+    try:
+        return subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            cwd=Path(__file__).resolve().parent,
+            timeout=10,
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "?"
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
@@ -606,16 +645,24 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--num-envs", type=functools.partial(_csv_list, cast=int), default=None)
     p.add_argument("--obs", type=_csv_list, default=None, help=f"subset of {ENCODINGS}")
     p.add_argument("--reps", type=int, default=None, help="repetitions (full 5, short 1)")
-    p.add_argument("--seconds", type=float, default=None, help="timed window (full 3, short 1)")
+    p.add_argument("--seconds", type=float, default=None, help="timed window (full 2, short 1)")
     p.add_argument("--warmup", type=int, default=None, help="warm-up batches (full 50, short 5)")
     p.add_argument("--num-workers", type=int, default=None, help="pool workers (default: pool's)")
     p.add_argument("--cell-timeout", type=float, default=None, help="s per cell (full 240)")
     p.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "results")
     p.add_argument("--seed", type=int, default=0, help="seed of the cell-order shuffles")
+    p.add_argument(
+        "--from-json",
+        type=Path,
+        default=None,
+        help="re-render throughput.md/.png under --out from a saved throughput.json (no runs)",
+    )
     p.add_argument("--_cell", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args._cell:
         return _cell_main(args._cell)
+    if args.from_json:
+        return rerender(args.from_json, args.out)
 
     short = args.short
     backends = args.backends
@@ -628,7 +675,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if e not in ENCODINGS:
             p.error(f"unknown encoding {e}; known {ENCODINGS}")
     reps = args.reps or (1 if short else 5)
-    seconds = args.seconds or (1.0 if short else 3.0)
+    seconds = args.seconds or (1.0 if short else 2.0)
     warmup = args.warmup if args.warmup is not None else (5 if short else 50)
     timeout = args.cell_timeout or (60.0 if short else 240.0)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -643,6 +690,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         "cell_timeout": timeout,
         "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
         "machine": machine_info(),
+        "commit": _git_commit(),
         "action_seed": ACTION_SEED,
     }
     print(

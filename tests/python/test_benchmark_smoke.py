@@ -46,3 +46,9 @@ def test_short_benchmark_writes_table_and_plot(tmp_path: Path) -> None:
         assert rows[backend]["status"] == "ok", rows[backend]
         assert rows[backend]["steps_per_s"] > 0
     assert "ratio pool-sync / gym-async-shm" in md
+    # The table and plot can be re-rendered from the saved JSON alone.
+    again = tmp_path / "again"
+    cmd = [sys.executable, str(SCRIPT), "--from-json", str(tmp_path / "throughput.json")]
+    subprocess.run([*cmd, "--out", str(again)], check=True, capture_output=True, timeout=120)
+    assert (again / "throughput.md").read_text() == md
+    assert (again / "throughput.png").stat().st_size > 1000
