@@ -303,3 +303,36 @@ def test_render_call_get_attr(make_vec) -> None:
     assert env.call("render") == frames
     with pytest.raises(AttributeError):
         env.get_attr("nonexistent")
+
+
+def test_ctrl_c_interrupts_a_stepping_loop(make_vec) -> None:
+    """SIGINT reaches Python while the pool steps (iceoryx2 must not take the handler)."""
+    import threading
+    import time
+
+    env = make_vec(4, max_steps=100)
+    env.reset(seed=0)
+    timer = threading.Timer(0.3, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    steps = 0
+    with pytest.raises(KeyboardInterrupt):
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline:
+            env.step(np.zeros(4, np.int64))
+            steps += 1
+    timer.cancel()
+    assert steps > 0
+    env.step(np.zeros(4, np.int64))  # still usable after the interrupt
+
+
+def test_worker_module_rejects_bad_arguments() -> None:
+    import subprocess
+    import sys
+
+    r = subprocess.run(
+        [sys.executable, "-m", "rogue_gym.worker", "--bogus"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert r.returncode == 2 and "usage" in r.stderr
