@@ -4,6 +4,8 @@
 //!
 //! Every Rust error is mapped to a Python exception; nothing panics across the FFI boundary.
 
+#![warn(missing_docs)]
+
 use pyo3::prelude::*;
 
 mod game;
