@@ -724,6 +724,9 @@ pub struct WaitPolicy {
     pub poll_budget: Duration,
     /// Longest single blocking wait on the listener.
     pub block_slice: Duration,
+    /// Poll with `sched_yield` between checks (`true`), or spin with a CPU pause hint
+    /// (`false`; never gives the CPU away, but is still bounded by `poll_budget`).
+    pub yield_cpu: bool,
 }
 
 impl Default for WaitPolicy {
@@ -731,6 +734,7 @@ impl Default for WaitPolicy {
         WaitPolicy {
             poll_budget: Duration::from_micros(50),
             block_slice: Duration::from_millis(10),
+            yield_cpu: true,
         }
     }
 }
@@ -770,7 +774,13 @@ pub fn hybrid_wait<E: From<IpcError>>(
     }
     let start = Instant::now();
     while start.elapsed() < policy.poll_budget {
-        std::thread::yield_now();
+        if policy.yield_cpu {
+            std::thread::yield_now();
+        } else {
+            for _ in 0..64 {
+                std::hint::spin_loop();
+            }
+        }
         if f(WaitCall::Poll)? {
             return Ok(WaitOutcome::Done);
         }

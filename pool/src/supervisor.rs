@@ -117,10 +117,12 @@ impl PoolConfig {
             wait: WaitPolicy {
                 poll_budget: Duration::from_micros(50),
                 block_slice: Duration::from_millis(10),
+                yield_cpu: true,
             },
             worker_wait: WaitPolicy {
                 poll_budget: Duration::from_micros(50),
                 block_slice: Duration::from_millis(100),
+                yield_cpu: true,
             },
             base_dir: PathBuf::from(rogue_gym_ipc::DEFAULT_BASE_DIR),
         }
@@ -577,6 +579,7 @@ impl Pool {
             max_borrowed: cfg.max_borrowed,
             poll_budget_us: cfg.worker_wait.poll_budget.as_micros() as u64,
             block_slice_ms: cfg.worker_wait.block_slice.as_millis() as u64,
+            poll_yield: cfg.worker_wait.yield_cpu,
         };
         let config_path = id.aux_dir().join("worker.json");
         let num_envs = cfg.num_envs;

@@ -69,6 +69,13 @@ pub struct WorkerConfig {
     pub poll_budget_us: u64,
     /// Longest blocking wait slice of the worker, ms (parent liveness is checked between).
     pub block_slice_ms: u64,
+    /// Whether the worker's poll yields the CPU (see `WaitPolicy::yield_cpu`).
+    #[serde(default = "default_true")]
+    pub poll_yield: bool,
+}
+
+fn default_true() -> bool {
+    true
 }
 
 impl WorkerConfig {
@@ -327,6 +334,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
     let policy = WaitPolicy {
         poll_budget: Duration::from_micros(cfg.poll_budget_us),
         block_slice: Duration::from_millis(cfg.block_slice_ms.max(1)),
+        yield_cpu: cfg.poll_yield,
     };
     let header = |seq, kind| BlockHeader {
         seq,

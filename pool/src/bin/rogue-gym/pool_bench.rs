@@ -51,6 +51,12 @@ pub struct Args {
     /// Worker yield-poll budget, µs.
     #[arg(long, default_value_t = 50)]
     worker_poll_us: u64,
+    /// Supervisor polls by spinning instead of yielding.
+    #[arg(long)]
+    spin: bool,
+    /// Workers poll by spinning instead of yielding.
+    #[arg(long)]
+    worker_spin: bool,
     /// Base seed.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -149,10 +155,12 @@ fn pool_loop(spec: &Value, a: &Args, reg: &EnvRegistry) -> Result<(f64, f64, f64
     cfg.seeds.base = a.seed;
     cfg.wait = WaitPolicy {
         poll_budget: Duration::from_micros(a.poll_us),
+        yield_cpu: !a.spin,
         ..cfg.wait
     };
     cfg.worker_wait = WaitPolicy {
         poll_budget: Duration::from_micros(a.worker_poll_us),
+        yield_cpu: !a.worker_spin,
         ..cfg.worker_wait
     };
     let epw = a.envs / a.workers.max(1);
