@@ -893,6 +893,50 @@ mod tests {
         assert!(!id.root().exists() && !id.aux_dir().exists());
     }
 
+    /// CPU time (utime + stime, clock ticks) of the calling thread.
+    fn thread_cpu_ticks() -> u64 {
+        let s = fs::read_to_string("/proc/thread-self/stat").unwrap();
+        let rest = &s[s.rfind(')').unwrap() + 2..];
+        let f: Vec<&str> = rest.split_whitespace().collect();
+        f[11].parse::<u64>().unwrap() + f[12].parse::<u64>().unwrap()
+    }
+
+    #[test]
+    fn idle_wait_blocks_instead_of_spinning() {
+        let base = std::env::temp_dir().join("rgp-ipc-idle-test");
+        let id = PoolId::new_unique(&base).unwrap();
+        id.create_dirs().unwrap();
+        let s = ChannelSettings {
+            num_workers: 1,
+            max_borrowed: 2,
+        };
+        {
+            let node = id.node("sup").unwrap();
+            let bl = BlockListener::new(&node, &s).unwrap();
+            let before = thread_cpu_ticks();
+            let t0 = Instant::now();
+            let mut idles = 0;
+            let out = hybrid_wait::<IpcError>(
+                bl.listener(),
+                &WaitPolicy::default(),
+                Some(Instant::now() + Duration::from_millis(400)),
+                |c| {
+                    if c == WaitCall::Idle {
+                        idles += 1;
+                    }
+                    Ok(false)
+                },
+            )
+            .unwrap();
+            assert_eq!(out, WaitOutcome::TimedOut);
+            assert!(t0.elapsed() >= Duration::from_millis(400));
+            assert!(idles >= 10, "idle hook runs every block slice ({idles})");
+            // 400 ms of waiting cost (much) less than 100 ms of CPU (ticks are 10 ms).
+            assert!(thread_cpu_ticks() - before < 10);
+        }
+        remove_pool_files(&id).unwrap();
+    }
+
     #[test]
     fn sweep_removes_pools_of_dead_owners_only() {
         let base = std::env::temp_dir().join("rgp-ipc-sweep-test");
