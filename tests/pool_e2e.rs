@@ -43,6 +43,14 @@ fn trajectories_identical_for_1_2_4_workers_and_sync_async() {
         }
     }
     let reference = reference.unwrap();
+    for workers in [1, 2, 4] {
+        let mut p = pool(config(EXE, test_env(), 8, workers));
+        let d = run_sync_shared(&mut p, steps).unwrap();
+        assert_eq!(
+            d, reference,
+            "shared-slot sync with {workers} workers differs"
+        );
+    }
     for (workers, batch) in [(4, 4), (2, 4), (4, 8)] {
         let mut c = config(EXE, test_env(), 8, workers);
         c.batch_size = Some(batch);
@@ -101,6 +109,15 @@ fn seed_sets_sequential_policy_through_the_pool() {
 
 #[test]
 fn killed_worker_is_restarted_and_other_envs_are_untouched() {
+    killed_worker_case(false);
+}
+
+#[test]
+fn killed_worker_is_restarted_in_shared_slot_mode() {
+    killed_worker_case(true);
+}
+
+fn killed_worker_case(shared: bool) {
     let steps = 30u64;
     let mut clean = pool(config(EXE, test_env(), 8, 2));
     let reference = run_sync(&mut clean, steps).unwrap();
@@ -113,7 +130,12 @@ fn killed_worker_is_restarted_and_other_envs_are_untouched() {
     let mut obs = vec![0u8; n * ob];
     let mut out = BatchOutput::default();
     let mut d = Digests::new(n);
-    p.reset(&mut obs, &mut out).unwrap();
+    if shared {
+        let slot = p.reset_shared(&mut out).unwrap();
+        obs.copy_from_slice(p.shared_obs(slot));
+    } else {
+        p.reset(&mut obs, &mut out).unwrap();
+    }
     d.add_batch(&obs, ob, &out);
     let victim = p.worker_pids()[0];
     let mut restarted_rows = 0;
@@ -124,7 +146,12 @@ fn killed_worker_is_restarted_and_other_envs_are_untouched() {
             signal(victim, Signal::SIGKILL);
         }
         let actions: Vec<i64> = (0..n).map(|i| action(i, t, 5)).collect();
-        p.step(&actions, &mut obs, &mut out).unwrap();
+        if shared {
+            let slot = p.step_shared(&actions, &mut out).unwrap();
+            obs.copy_from_slice(p.shared_obs(slot));
+        } else {
+            p.step(&actions, &mut obs, &mut out).unwrap();
+        }
         d.add_batch(&obs, ob, &out);
         #[allow(clippy::needless_range_loop)]
         for r in 0..n {

@@ -16,6 +16,8 @@ pub enum Mode {
     Sync,
     /// `send`/`recv` with a batch of `--batch-size` envs.
     Async,
+    /// Sync `step_shared`: workers write into the pool's shared batch slots (no copy).
+    Shared,
 }
 
 /// Options of `pool-bench`.
@@ -181,7 +183,8 @@ fn pool_loop(spec: &Value, a: &Args, reg: &EnvRegistry) -> Result<(f64, f64, f64
     let mut env_steps = 0u64;
     let t0;
     match a.mode {
-        Mode::Sync => {
+        Mode::Sync | Mode::Shared => {
+            let shared = a.mode == Mode::Shared;
             let mut obs = vec![0u8; n * pool.obs_bytes()];
             let mut out = BatchOutput::default();
             pool.reset(&mut obs, &mut out).map_err(|e| e.to_string())?;
@@ -196,8 +199,13 @@ fn pool_loop(spec: &Value, a: &Args, reg: &EnvRegistry) -> Result<(f64, f64, f64
                     *x = (rng.next() % na) as i64;
                 }
                 let t = Instant::now();
-                pool.step(&actions, &mut obs, &mut out)
-                    .map_err(|e| e.to_string())?;
+                if shared {
+                    pool.step_shared(&actions, &mut out)
+                        .map_err(|e| e.to_string())?;
+                } else {
+                    pool.step(&actions, &mut obs, &mut out)
+                        .map_err(|e| e.to_string())?;
+                }
                 lat.push(t.elapsed());
             }
             env_steps = n as u64 * a.steps;
@@ -237,7 +245,7 @@ fn pool_loop(spec: &Value, a: &Args, reg: &EnvRegistry) -> Result<(f64, f64, f64
         env_steps as f64 / el,
         pct(&mut lat, 0.5),
         pct(&mut lat, 0.99),
-        if a.mode == Mode::Sync { n } else { bs },
+        if a.mode == Mode::Async { bs } else { n },
     ))
 }
 
@@ -277,7 +285,7 @@ fn bench(a: &Args) -> Result<(), String> {
     let (pool, p50, p99, bs) = pool_loop(&spec, a, &reg)?;
     println!("raw single-process loop: {raw:>12.0} env-steps/s");
     println!(
-        "pool ({:<5})            : {pool:>12.0} env-steps/s   batch of {bs}: p50 {p50:.1} us, p99 {p99:.1} us",
+        "pool ({:<6})           : {pool:>12.0} env-steps/s   batch of {bs}: p50 {p50:.1} us, p99 {p99:.1} us",
         format!("{:?}", a.mode).to_lowercase()
     );
     println!("pool / raw             : {:>11.1} %", 100.0 * pool / raw);
