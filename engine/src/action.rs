@@ -103,12 +103,11 @@ impl Command {
         if let Some(a) = Action::from_key(c) {
             return Some(Command::Act(a));
         }
-        if c.is_ascii_uppercase() {
-            if let Some(a) = Action::from_key(c.to_ascii_lowercase()) {
-                if a.dir().is_some() {
-                    return Some(Command::Run(a));
-                }
-            }
+        if c.is_ascii_uppercase()
+            && let Some(a) = Action::from_key(c.to_ascii_lowercase())
+            && a.dir().is_some()
+        {
+            return Some(Command::Run(a));
         }
         None
     }

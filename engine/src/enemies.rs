@@ -153,11 +153,11 @@ impl Game {
             head += 1;
             let d = self.dist[c];
             for dir in Dir::ALL {
-                if let Some(t) = self.can_move(c, dir) {
-                    if self.dist[t] == u16::MAX {
-                        self.dist[t] = d + 1;
-                        self.queue.push(t as u32);
-                    }
+                if let Some(t) = self.can_move(c, dir)
+                    && self.dist[t] == u16::MAX
+                {
+                    self.dist[t] = d + 1;
+                    self.queue.push(t as u32);
                 }
             }
         }

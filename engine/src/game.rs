@@ -258,6 +258,7 @@ impl Game {
             return self.result(0.0);
         }
         self.reward = 0.0;
+        self.message.clear();
         self.act(action);
         self.end_step()
     }

@@ -24,6 +24,8 @@
 //! draws from its own ChaCha8 stream derived from the seed (floor k's layout from (seed, k)),
 //! there is no `HashMap` iteration and no float in the game logic.
 
+#![warn(missing_docs)]
+
 pub mod action;
 pub mod config;
 mod dungeon;

@@ -71,16 +71,16 @@ impl ConfigError {
         let path = err.path().to_string();
         let inner = err.into_inner();
         let msg = inner.to_string();
-        if let Some(rest) = msg.strip_prefix("unknown field `") {
-            if let Some(end) = rest.find('`') {
-                let key = rest[..end].to_string();
-                // serde_path_to_error's path ends with the unknown key itself.
-                let parent = match path.rfind('.') {
-                    Some(i) => path[..i].to_string(),
-                    None => String::new(),
-                };
-                return ConfigError::UnknownKey { key, path: parent };
-            }
+        if let Some(rest) = msg.strip_prefix("unknown field `")
+            && let Some(end) = rest.find('`')
+        {
+            let key = rest[..end].to_string();
+            // serde_path_to_error's path ends with the unknown key itself.
+            let parent = match path.rfind('.') {
+                Some(i) => path[..i].to_string(),
+                None => String::new(),
+            };
+            return ConfigError::UnknownKey { key, path: parent };
         }
         ConfigError::Parse { path, message: msg }
     }

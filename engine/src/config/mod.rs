@@ -641,14 +641,14 @@ impl GameConfig {
                 "out of range: must be 16..=48",
             ));
         }
-        if let Some([lo, hi]) = self.seed_range {
-            if lo >= hi {
-                return Err(ConfigError::invalid(
-                    "seed_range",
-                    format!("[{lo}, {hi}]"),
-                    "must be [lo, hi) with lo < hi",
-                ));
-            }
+        if let Some([lo, hi]) = self.seed_range
+            && lo >= hi
+        {
+            return Err(ConfigError::invalid(
+                "seed_range",
+                format!("[{lo}, {hi}]"),
+                "must be [lo, hi) with lo < hi",
+            ));
         }
         let d = &self.dungeon;
         if d.style != "rogue" {
@@ -745,14 +745,14 @@ impl GameConfig {
             ));
         }
         for (i, a) in self.item.armor.armors.iter().enumerate() {
-            if let ArmorPreset::Builtin(idx) = a {
-                if *idx >= 8 {
-                    return Err(ConfigError::invalid(
-                        &format!("item.armor.armors[{i}]"),
-                        idx,
-                        "builtin armour index must be 0..8",
-                    ));
-                }
+            if let ArmorPreset::Builtin(idx) = a
+                && *idx >= 8
+            {
+                return Err(ConfigError::invalid(
+                    &format!("item.armor.armors[{i}]"),
+                    idx,
+                    "builtin armour index must be 0..8",
+                ));
             }
         }
         for (i, w) in self.item.weapon.weapons.iter().enumerate() {

@@ -80,12 +80,12 @@ impl Generator {
             if floor.rooms[id].kind == RoomKind::Gone {
                 continue;
             }
-            if let Some(cell) = self.random_empty_cell(floor, &mut rng, id) {
-                if item_rng.one_in(g.rate_inv) {
-                    let span = g.base.saturating_add(g.per_level.saturating_mul(level));
-                    floor.gold[cell] = g.minimum + item_rng.below(span);
-                    floor.rooms[id].has_gold = floor.gold[cell] > 0;
-                }
+            if let Some(cell) = self.random_empty_cell(floor, &mut rng, id)
+                && item_rng.one_in(g.rate_inv)
+            {
+                let span = g.base.saturating_add(g.per_level.saturating_mul(level));
+                floor.gold[cell] = g.minimum + item_rng.below(span);
+                floor.rooms[id].has_gold = floor.gold[cell] > 0;
             }
         }
         // Stairs, then the amulet (from amulet_level on): uniform room, then uniform cell.

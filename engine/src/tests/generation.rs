@@ -1,5 +1,6 @@
 //! Generation invariants and statistics against engine-spec §18 (the original, measured over
 //! 20k floors). Each test generates >= 2,000 floors; tolerances are stated next to each check.
+#![allow(clippy::needless_range_loop)]
 
 use crate::config::EnemiesConfig;
 use crate::dungeon::{RoomKind, Surface, flag};
@@ -50,11 +51,11 @@ fn bfs_to_stairs(g: &Game) -> Option<u32> {
             return Some(dist[c]);
         }
         for d in Dir::ALL {
-            if let Some(t) = g.can_move(c, d) {
-                if dist[t] == u32::MAX {
-                    dist[t] = dist[c] + 1;
-                    queue.push_back(t);
-                }
+            if let Some(t) = g.can_move(c, d)
+                && dist[t] == u32::MAX
+            {
+                dist[t] = dist[c] + 1;
+                queue.push_back(t);
             }
         }
     }
@@ -111,7 +112,7 @@ fn check_and_count(g: &Game, stats: &mut Stats) {
             RoomKind::Normal => {
                 assert!(r.rect.w() >= min.x && r.rect.h() >= min.y);
                 assert!(
-                    r.rect.x1 <= r.slot.x1 - 1 && r.rect.y1 <= r.slot.y1 - 1,
+                    r.rect.x1 < r.slot.x1 && r.rect.y1 < r.slot.y1,
                     "gap to the next slot"
                 );
                 assert!((r.rect.w() - 2) * (r.rect.h() - 2) >= 4);
