@@ -23,7 +23,7 @@ pub enum ConfigError {
         message: String,
     },
     /// A value that parses but is not allowed.
-    #[error("`{key}` = {value} is invalid: {reason}")]
+    #[error("`{key}` = {value} {}", phrase(.reason))]
     Invalid {
         /// Dotted key, e.g. `dungeon.maze_rate_inv`.
         key: String,
@@ -42,6 +42,15 @@ pub enum ConfigError {
         /// Explanation.
         reason: String,
     },
+}
+
+/// "must be ..." and "is ..." reasons read on directly; others follow "is invalid:".
+fn phrase(reason: &str) -> String {
+    if reason.starts_with("must") || reason.starts_with("is ") {
+        reason.to_string()
+    } else {
+        format!("is invalid: {reason}")
+    }
 }
 
 fn at_path(path: &str) -> String {

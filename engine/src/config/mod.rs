@@ -631,14 +631,14 @@ impl GameConfig {
             return Err(ConfigError::invalid(
                 "width",
                 self.width,
-                "out of range: must be 32..=160",
+                "is out of range: must be 32..=160",
             ));
         }
         if !(16..=48).contains(&self.height) {
             return Err(ConfigError::invalid(
                 "height",
                 self.height,
-                "out of range: must be 16..=48",
+                "is out of range: must be 16..=48",
             ));
         }
         if let Some([lo, hi]) = self.seed_range
@@ -691,7 +691,7 @@ impl GameConfig {
                 "dungeon.min_room_size.x",
                 d.min_room_size.x,
                 format!(
-                    "rooms too small for their slots: must be < slot width {sw} (= width {} / room_num_x {})",
+                    "is too large: the room slots are too small for it: must be < the slot width {sw} (= width {} / room_num_x {})",
                     self.width, d.room_num_x
                 ),
             ));
@@ -701,7 +701,7 @@ impl GameConfig {
                 "dungeon.min_room_size.y",
                 d.min_room_size.y,
                 format!(
-                    "rooms too small for their slots: must be < the smallest slot height {min_sh} (height {} / room_num_y {}, minus border rows)",
+                    "is too large: the room slots are too small for it: must be < the smallest slot height {min_sh} (height {} / room_num_y {}, minus border rows)",
                     self.height, d.room_num_y
                 ),
             ));

@@ -1,5 +1,6 @@
 //! `rogue-gym play`: the game in the terminal (crossterm raw mode). vi keys `hjklyubn` move,
-//! `HJKLYUBN` run, `s` searches, `>` descends, `.` rests, `q` quits. Messages are shown on row
+//! `HJKLYUBN` run, `s` searches, `>` descends, `.` rests, `q` quits (a config `keymap`
+//! replaces these keys; Esc always quits). Messages are shown on row
 //! 0 and the status line at the bottom, as in the original. `--save LOG` writes the action log
 //! (config, seed, keys) on quit.
 
@@ -8,7 +9,8 @@ use std::path::PathBuf;
 
 use crossterm::event::{self, Event, KeyCode, KeyEventKind, KeyModifiers};
 use crossterm::{cursor, execute, queue, style, terminal};
-use rogue_gym_engine::{Command, EpisodeConfig, Game, GameConfig};
+use rogue_gym_engine::config::{InputCode, KeyAction, KeyDirection, SysCode};
+use rogue_gym_engine::{Action, Command, EpisodeConfig, Game, GameConfig};
 
 use crate::replay::ActionLog;
 
@@ -107,7 +109,8 @@ pub(crate) fn run(args: Args) -> Result<(), String> {
             }
             let c = match k.code {
                 KeyCode::Char('c') if k.modifiers.contains(KeyModifiers::CONTROL) => break,
-                KeyCode::Char('q') | KeyCode::Esc => break,
+                KeyCode::Char('q') if config.keymap.is_none() => break,
+                KeyCode::Esc => break,
                 KeyCode::Char(c) => c,
                 KeyCode::Left => 'h',
                 KeyCode::Right => 'l',
@@ -115,13 +118,17 @@ pub(crate) fn run(args: Args) -> Result<(), String> {
                 KeyCode::Down => 'j',
                 _ => continue,
             };
+            let cmd = match key_command(&config, c) {
+                Some(KeyResult::Quit) => break,
+                Some(KeyResult::Cmd(cmd)) => cmd,
+                None => continue,
+            };
             if game.is_over() {
                 continue;
             }
-            if let Some(cmd) = Command::from_key(c) {
-                game.step_command(cmd);
-                keys.push(c.to_string());
-            }
+            game.step_command(cmd);
+            // The log stores the command's canonical key, so replay needs no keymap.
+            keys.push(cmd.key().to_string());
         }
     }
     println!("{}", game.status_line());
@@ -137,4 +144,41 @@ pub(crate) fn run(args: Args) -> Result<(), String> {
         println!("saved {} actions to {}", log.actions.len(), path.display());
     }
     Ok(())
+}
+
+/// What a key does in play.
+enum KeyResult {
+    Cmd(Command),
+    Quit,
+}
+
+/// Maps a key through the config's keymap when it has one, else the built-in vi keys.
+fn key_command(config: &GameConfig, c: char) -> Option<KeyResult> {
+    let Some(keymap) = &config.keymap else {
+        return Command::from_key(c).map(KeyResult::Cmd);
+    };
+    let act = match keymap.get(&c.to_string())? {
+        InputCode::Act(a) | InputCode::Both { act: a, .. } => *a,
+        InputCode::Sys(SysCode::Quit) => return Some(KeyResult::Quit),
+        InputCode::Sys(_) => return None,
+    };
+    let dir_action = |d: KeyDirection| match d {
+        KeyDirection::Up => Action::Up,
+        KeyDirection::Down => Action::Down,
+        KeyDirection::Left => Action::Left,
+        KeyDirection::Right => Action::Right,
+        KeyDirection::LeftUp => Action::LeftUp,
+        KeyDirection::RightUp => Action::RightUp,
+        KeyDirection::LeftDown => Action::LeftDown,
+        KeyDirection::RightDown => Action::RightDown,
+    };
+    let cmd = match act {
+        KeyAction::Move(d) => Command::Act(dir_action(d)),
+        KeyAction::MoveUntil(d) => Command::Run(dir_action(d)),
+        KeyAction::DownStair => Command::Act(Action::DownStair),
+        KeyAction::Search => Command::Act(Action::Search),
+        KeyAction::NoOp => Command::Act(Action::NoOp),
+        KeyAction::UpStair => return None,
+    };
+    Some(KeyResult::Cmd(cmd))
 }
