@@ -207,7 +207,7 @@ impl Game {
         for item in &p.init_items {
             match item {
                 InitItem::Noinit(n) if n.kind.eq_ignore_ascii_case("gold") => {
-                    player.gold += n.how_many
+                    player.gold = player.gold.saturating_add(n.how_many)
                 }
                 InitItem::Armor(a) if !armor => {
                     armor = true;

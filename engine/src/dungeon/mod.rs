@@ -84,7 +84,7 @@ impl Generator {
                 && item_rng.one_in(g.rate_inv)
             {
                 let span = g.base.saturating_add(g.per_level.saturating_mul(level));
-                floor.gold[cell] = g.minimum + item_rng.below(span);
+                floor.gold[cell] = g.minimum.saturating_add(item_rng.below(span));
                 floor.rooms[id].has_gold = floor.gold[cell] > 0;
             }
         }
