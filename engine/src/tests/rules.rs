@@ -365,3 +365,42 @@ fn deep_floors_have_the_amulet_and_never_panic() {
     }
     assert!(deepest >= 30, "deepest floor {deepest}");
 }
+
+#[test]
+fn corridors_are_revealed_orthogonally() {
+    let rows = ["-----", "|...|", "|..@+##", "|...| ##", "-----  #"];
+    let mut g = Game::from_layout(&quiet(), EpisodeConfig::default(), &rows, false);
+    g.step(Action::Right); // onto the door (4,3)
+    assert_eq!(g.tile_at(5, 3), b'#');
+    assert_eq!(g.tile_at(6, 3), b' ', "two cells away");
+    g.step(Action::Right); // (5,3)
+    assert_eq!(g.tile_at(6, 3), b'#');
+    assert_eq!(g.tile_at(6, 4), b' ', "diagonal corridor cell stays unseen");
+    g.step(Action::Right); // (6,3)
+    assert_eq!(g.tile_at(6, 4), b'#');
+    // Seen corridor cells stay visible.
+    assert_eq!(g.tile_at(5, 3), b'#');
+}
+
+#[test]
+fn run_stops_at_a_door() {
+    let rows = ["--------", "|......|", "|@.....+##", "|......|", "--------"];
+    let mut g = Game::from_layout(&quiet(), EpisodeConfig::default(), &rows, false);
+    g.step_command(Command::Run(Action::Right));
+    assert_eq!(g.player_position(), (7, 3), "the run stops on the door");
+    assert_eq!(g.info().steps, 6);
+}
+
+#[test]
+fn hide_dungeon_false_shows_the_floor() {
+    let cfg = GameConfig {
+        hide_dungeon: false,
+        ..GameConfig::paper()
+    };
+    let mut g = Game::new(&cfg, EpisodeConfig::default()).unwrap();
+    g.reset(4);
+    let stairs = g.floor.xy(g.floor.stairs);
+    assert_eq!(g.tile_at(stairs.0, stairs.1), b'%');
+    let walls = g.ascii.iter().filter(|&&t| t == b'-' || t == b'|').count();
+    assert!(walls > 20);
+}
