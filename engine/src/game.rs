@@ -469,6 +469,11 @@ impl Game {
         obs::shape(spec, self.height(), self.width(), self.symbols)
     }
 
+    /// The number of elements of the observation for `spec` (the product of its shape).
+    pub fn observation_len(&self, spec: &ObsSpec) -> usize {
+        self.observation_shape(spec).iter().product()
+    }
+
     /// Writes the observation into `out` (length = product of the shape, dtype = spec's).
     pub fn write_obs(&self, spec: &ObsSpec, out: ObsBufMut<'_>) -> Result<(), ObsError> {
         let src = ObsSource {
