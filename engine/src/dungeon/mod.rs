@@ -89,7 +89,16 @@ impl Generator {
             }
         }
         // Stairs, then the amulet (from amulet_level on): uniform room, then uniform cell.
-        if let Some(cell) = self.random_room_cell(floor, &mut rng) {
+        // Fallback (tiny rooms all taken by gold): any floor or passage cell, gold allowed.
+        let stairs = self.random_room_cell(floor, &mut rng).or_else(|| {
+            self.cells.clear();
+            let cells = (0..floor.surface.len())
+                .filter(|&i| matches!(floor.surface[i], Surface::Floor | Surface::Passage));
+            self.cells.extend(cells.map(|i| i as u32));
+            let n = self.cells.len() as u32;
+            (n > 0).then(|| self.cells[rng.below(n) as usize] as usize)
+        });
+        if let Some(cell) = stairs {
             floor.surface[cell] = Surface::Stair;
             floor.stairs = cell;
         }
