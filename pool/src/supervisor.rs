@@ -463,7 +463,7 @@ struct Core {
     settings: ChannelSettings,
     slots: Vec<WorkerSlot>,
     node: Option<rogue_gym_ipc::iceoryx2::node::Node<Svc>>,
-    batch: Option<rogue_gym_ipc::SharedBuffer>,
+    batch: Option<std::sync::Arc<rogue_gym_ipc::SharedBuffer>>,
     slot_bytes: usize,
     next_slot: usize,
     ready_order: VecDeque<usize>,
@@ -624,11 +624,11 @@ impl Pool {
         fs::write(&c.config_path, json)
             .map_err(|e| PoolError::Io(format!("cannot write {}: {e}", c.config_path.display())))?;
         c.slot_bytes = slot_bytes(c.cfg.num_envs, c.layout.obs_bytes);
-        c.batch = Some(rogue_gym_ipc::SharedBuffer::create(
+        c.batch = Some(std::sync::Arc::new(rogue_gym_ipc::SharedBuffer::create(
             &c.id,
             BATCH_BUFFER,
             BATCH_SLOTS * c.slot_bytes,
-        )?);
+        )?));
         let node = c.id.node("sup")?;
         self.listener = Some(BlockListener::new(&node, &c.settings)?);
         for k in 0..c.cfg.num_workers {
@@ -890,8 +890,20 @@ impl Pool {
         }
     }
 
-    /// Raw pointer to shared batch slot `slot` (for zero-copy views in other languages, e.g. a
-    /// numpy array whose base object keeps the pool alive). Null after `close`.
+    /// The shared batch buffer itself: slot `s` starts at byte `s * shared_slot_bytes()`.
+    /// Holding this `Arc` keeps the mapping valid even after [`Pool::close`] (e.g. as the base
+    /// object of numpy views); `None` after close.
+    pub fn shared_buffer(&self) -> Option<std::sync::Arc<rogue_gym_ipc::SharedBuffer>> {
+        self.core.batch.clone()
+    }
+
+    /// Distance in bytes between two shared batch slots.
+    pub fn shared_slot_bytes(&self) -> usize {
+        self.core.slot_bytes
+    }
+
+    /// Raw pointer to shared batch slot `slot` (for zero-copy views in other languages; keep
+    /// [`Pool::shared_buffer`] alive with the view). Null after `close`.
     pub fn shared_obs_ptr(&self, slot: usize) -> *const u8 {
         match &self.core.batch {
             Some(b) if slot < BATCH_SLOTS => {
