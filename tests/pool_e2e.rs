@@ -417,3 +417,20 @@ fn killed_supervisor_leaves_no_worker_and_its_files_are_swept() {
     assert!(swept.contains(&name), "{swept:?}");
     assert!(pool_files_gone(&id));
 }
+
+#[test]
+fn shared_slots_stay_mapped_through_their_arc_after_close() {
+    let mut p = pool(config(EXE, test_env(), 4, 2));
+    let mut out = BatchOutput::default();
+    let slot = p.reset_shared(&mut out).unwrap();
+    let snapshot = p.shared_obs(slot).to_vec();
+    let buf = p.shared_buffer().unwrap();
+    let offset = slot * p.shared_slot_bytes();
+    let id = p.id().clone();
+    p.close().unwrap();
+    assert!(pool_files_gone(&id));
+    assert!(p.shared_obs_ptr(slot).is_null());
+    // SAFETY: the Arc keeps the mapping alive; the range lies inside it.
+    let view = unsafe { std::slice::from_raw_parts(buf.as_ptr().add(offset), snapshot.len()) };
+    assert_eq!(view, &snapshot[..]);
+}
