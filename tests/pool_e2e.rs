@@ -434,3 +434,35 @@ fn shared_slots_stay_mapped_through_their_arc_after_close() {
     let view = unsafe { std::slice::from_raw_parts(buf.as_ptr().add(offset), snapshot.len()) };
     assert_eq!(view, &snapshot[..]);
 }
+
+#[test]
+fn async_mode_reports_a_restarted_block() {
+    let mut c = config(EXE, test_env(), 4, 2);
+    c.batch_size = Some(2);
+    let mut p = pool(c);
+    let _guard = PidGuard(p.worker_pids());
+    p.async_reset().unwrap();
+    let b0 = p.recv().unwrap();
+    let b1 = p.recv().unwrap();
+    let ids0 = b0.env_ids();
+    let ids1 = b1.env_ids();
+    drop((b0, b1));
+    let victim_worker = ids0[0] / 2;
+    signal(p.worker_pids()[victim_worker], Signal::SIGKILL);
+    p.send(&[1, 1], &ids0).unwrap();
+    p.send(&[1, 1], &ids1).unwrap();
+    let mut restarted = Vec::new();
+    for _ in 0..2 {
+        let b = p.recv().unwrap();
+        let blk = &b.blocks[0];
+        for j in 0..2 {
+            let r = blk.record(j);
+            if r.restarted() {
+                assert!(r.truncated() && !r.terminated());
+                restarted.push(blk.env_ids().start + j);
+            }
+        }
+    }
+    assert_eq!(restarted, ids0);
+    assert_eq!(p.restarts(), 1);
+}
