@@ -23,8 +23,29 @@ fn pool(c: PoolConfig) -> Pool {
     Pool::new(c, &EnvRegistry::with_defaults()).expect("pool starts")
 }
 
+/// Send a signal and wait until it took effect (killed: dead or zombie; stopped: state T), so
+/// the worker cannot answer one more command in between.
 fn signal(pid: u32, s: Signal) {
     kill(Pid::from_raw(pid as i32), s).expect("signal worker");
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(5) {
+        let state = std::fs::read_to_string(format!("/proc/{pid}/stat"))
+            .ok()
+            .and_then(|st| {
+                st.rsplit_once(')')
+                    .and_then(|(_, r)| r.split_whitespace().next().map(str::to_string))
+            });
+        let done = match (s, state.as_deref()) {
+            (_, None) => true,
+            (Signal::SIGSTOP, Some(st)) => st == "T" || st == "t",
+            (_, Some(st)) => st == "Z" || st == "X",
+        };
+        if done {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    panic!("signal {s} to {pid} did not take effect");
 }
 
 #[test]
