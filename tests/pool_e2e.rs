@@ -437,6 +437,7 @@ fn killed_supervisor_leaves_no_worker_and_its_files_are_swept() {
     let swept = rogue_gym_ipc::sweep_stale_pools(&base);
     assert!(swept.contains(&name), "{swept:?}");
     assert!(pool_files_gone(&id));
+    let _ = std::fs::remove_dir(&base);
 }
 
 #[test]

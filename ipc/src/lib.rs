@@ -1015,6 +1015,7 @@ mod tests {
         remove_pool_files(&id).unwrap();
         assert!(pool_shm_files(&id).is_empty());
         assert!(!id.root().exists() && !id.aux_dir().exists());
+        let _ = fs::remove_dir(&base);
     }
 
     /// CPU time (utime + stime, clock ticks) of the calling thread.
@@ -1059,6 +1060,7 @@ mod tests {
             assert!(thread_cpu_ticks() - before < 10);
         }
         remove_pool_files(&id).unwrap();
+        let _ = fs::remove_dir(&base);
     }
 
     #[test]
@@ -1075,5 +1077,6 @@ mod tests {
         assert!(!dead.aux_dir().exists());
         assert!(live.aux_dir().exists());
         remove_pool_files(&live).unwrap();
+        let _ = fs::remove_dir(&base);
     }
 }
