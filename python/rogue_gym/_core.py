@@ -163,9 +163,10 @@ class PoolCore:
         self._closed = False
         self._finalizer: Optional[weakref.finalize] = None
         batch_shape = (num_envs, *self.obs_shape)
-        # Double buffer: each call writes the slot the previous call did not return, so the
-        # array returned by the previous call stays intact while the next one is written.
-        self._bufs = [np.zeros(batch_shape, self.obs_dtype) for _ in range(2)]
+        # Double buffer: the workers write each step's observations straight into one of two
+        # shared-memory batch slots, alternately, so the batch returned by the previous call
+        # stays intact while the next one is written. (Set by start().)
+        self._bufs: list[np.ndarray] = []
         self._final = np.zeros(batch_shape, self.obs_dtype) if self.same_step else None
         self._recs = [np.zeros(num_envs, RECORD_DTYPE) for _ in range(2)]
         self._slot = 0
@@ -191,6 +192,8 @@ class PoolCore:
                 f"pool observation {pool.obs_dtype}{tuple(pool.obs_shape)} differs from the engine's {self.obs_dtype}{self.obs_shape}"
             )
         self.info_names = list(pool.info_names)
+        shape = (self.num_envs, *self.obs_shape)
+        self._bufs = [v.view(self.obs_dtype).reshape(shape) for v in pool.shared_views()]
         #: The pool's name: the prefix of its /dev/shm files.
         self.name: str = pool.name()
 
@@ -293,21 +296,23 @@ class PoolCore:
                 raise ValueError(f"seed must be in [0, 2**64), got {seed}")
             if not (self._fresh and seed == self.base_seed):
                 self.start(seed)
-        slot = self._slot = 1 - self._slot
-        obs, recs = self._bufs[slot], self._recs[slot]
-        self._pool.reset(obs, recs)
+        recs = self._recs[1 - self._slot]
+        slot = self._slot = self._pool.reset_shared(recs)
+        if self._recs[slot] is not recs:
+            self._recs.reverse()
         self._fresh = False
-        return obs, recs
+        return self._bufs[slot], recs
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray]:
         """Step every env; returns (obs batch, records) written into the next slot."""
         self._check_open()
         acts = self.validate_actions(actions)
-        slot = self._slot = 1 - self._slot
-        obs, recs = self._bufs[slot], self._recs[slot]
-        self._pool.step(acts, obs, recs, self._final)
+        recs = self._recs[1 - self._slot]
+        slot = self._slot = self._pool.step_shared(acts, recs, self._final)
+        if self._recs[slot] is not recs:
+            self._recs.reverse()
         self._fresh = False
-        return obs, recs
+        return self._bufs[slot], recs
 
     @property
     def final_obs(self) -> Optional[np.ndarray]:

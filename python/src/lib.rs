@@ -28,6 +28,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<game::PyGame>()?;
     m.add_class::<pool::PyPool>()?;
     m.add_class::<pool::BlockHolder>()?;
+    m.add_class::<pool::SharedBatchHolder>()?;
     m.add("RECORD_BYTES", pool::RECORD_BYTES)?;
     m.add_function(wrap_pyfunction!(game::action_from_key, m)?)?;
     m.add_function(wrap_pyfunction!(worker_main, m)?)?;

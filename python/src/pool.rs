@@ -202,6 +202,14 @@ impl BlockHolder {
     }
 }
 
+/// Owner of the pool's shared batch buffer (two observation slots written by the workers)
+/// behind the zero-copy views returned by `Pool.shared_views()`. The mapping stays valid for
+/// as long as a view (or this object) lives, even after the pool is closed.
+#[pyclass(module = "rogue_gym._native", name = "SharedBatchHolder", frozen)]
+pub struct SharedBatchHolder {
+    _buffer: std::sync::Arc<rogue_gym_ipc::SharedBuffer>,
+}
+
 /// The environment pool: `num_envs` envs stepped by `num_workers` worker processes.
 ///
 /// `Pool(settings_json, worker_command)`; `worker_command` is the program and its leading
@@ -340,6 +348,59 @@ impl PyPool {
         // SAFETY: as in `reset`.
         self.with_pool(py, move |p, out| p.step(&acts, unsafe { obs.slice() }, out))?;
         self.fill_outputs(py, recs_out, final_out)
+    }
+
+    /// Sync reset straight into the next shared batch slot (no copy); records into `recs_out`.
+    /// Returns the slot index (see `shared_views()`).
+    fn reset_shared(&self, py: Python<'_>, recs_out: &Bound<'_, PyUntypedArray>) -> PyResult<usize> {
+        let slot = self.with_pool(py, |p, out| p.reset_shared(out))?;
+        self.fill_outputs(py, recs_out, None)?;
+        Ok(slot)
+    }
+
+    /// Sync step straight into the next shared batch slot (no copy): `actions` (int64, one per
+    /// env); records into `recs_out`, (SAME_STEP) final observations into `final_out`. Returns
+    /// the slot index. Slots alternate: slot `s` stays unchanged until the second following
+    /// `*_shared` call.
+    #[pyo3(signature = (actions, recs_out, final_out = None))]
+    fn step_shared(
+        &self,
+        py: Python<'_>,
+        actions: &Bound<'_, PyAny>,
+        recs_out: &Bound<'_, PyUntypedArray>,
+        final_out: Option<&Bound<'_, PyUntypedArray>>,
+    ) -> PyResult<usize> {
+        let acts = actions_vec(actions)?;
+        let slot = self.with_pool(py, move |p, out| p.step_shared(&acts, out))?;
+        self.fill_outputs(py, recs_out, final_out)?;
+        Ok(slot)
+    }
+
+    /// Zero-copy uint8 views of the shared batch slots (`num_envs x obs_bytes` bytes each), in
+    /// slot order. Their base owns the mapping, so they stay valid after `close()`.
+    fn shared_views<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let guard = self.pool.lock().map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        let pool = guard.as_ref().ok_or_else(|| PyRuntimeError::new_err("the pool is closed"))?;
+        let buffer = pool
+            .shared_buffer()
+            .ok_or_else(|| PyRuntimeError::new_err("the pool has no shared batch buffer"))?;
+        let len = self.num_envs * self.obs_bytes;
+        let list = PyList::empty(py);
+        let mut slot = 0;
+        loop {
+            let ptr = pool.shared_obs_ptr(slot);
+            if ptr.is_null() {
+                break;
+            }
+            let holder = Bound::new(py, SharedBatchHolder { _buffer: buffer.clone() })?;
+            // SAFETY: the slot lies inside the mapping owned (via the Arc) by `holder`, the
+            // array's base; workers write it only during a `*_shared` call.
+            let view = unsafe { ArrayView1::from_shape_ptr(len, ptr) };
+            let arr = unsafe { PyArray1::<u8>::borrow_from_array(&view, holder.into_any()) };
+            list.append(arr)?;
+            slot += 1;
+        }
+        Ok(list)
     }
 
     /// Async: reset every env; collect the results with `recv()`.

@@ -146,6 +146,9 @@ def test_seed_list_and_sequential_policy(make_vec) -> None:
 def test_double_buffer_keeps_previous_observation(make_vec) -> None:
     env = make_vec(4, max_steps=50)
     prev, _ = env.reset(seed=0)
+    # The sync batch is written by the workers straight into shared memory (no copy).
+    ptr = prev.__array_interface__["data"][0]
+    assert any(lo <= ptr < hi for lo, hi, _ in _shm_ranges())
     prev_copy = prev.copy()
     for a in _actions(4, 20):
         obs, *_ = env.step(a)
