@@ -1,7 +1,8 @@
 """The pool core shared by the gymnasium and SB3 facades.
 
-It owns the native pool (supervisor + worker processes), validates actions, and keeps the
-double-buffered batch arrays the sync ``step()`` gathers worker blocks into.
+It owns the native pool (supervisor + worker processes), validates actions, and holds the
+zero-copy views of the pool's two shared-memory batch slots that the sync ``step()`` returns
+alternately (double buffering: the workers write the slot not returned last time).
 """
 
 from __future__ import annotations

@@ -34,10 +34,11 @@ class RogueVecEnv(VecEnv):
     * ``seed(s)`` applies at the next ``reset()``: env ``i``'s episodes follow the schedule of base
       seed ``s`` (SB3's ``s + i`` convention is replaced by the pool's per-env schedule).
 
-    **Array lifetimes.** The observation array returned by ``reset``/``step_wait`` is one of two
-    batch buffers reused alternately: it stays intact until the second following call, which is
-    what SB3's rollout collection needs (it keeps the previous observation while stepping). Copy
-    it if you keep observations longer. Rewards, dones and infos are fresh.
+    **Array lifetimes.** The observation array returned by ``reset``/``step_wait`` is a view of
+    one of the pool's two shared-memory batch slots, written by the workers alternately: it
+    stays intact until the second following call, which is what SB3's rollout collection needs
+    (it keeps the previous observation while stepping). Copy it if you keep observations
+    longer. Rewards, dones and infos are fresh.
     """
 
     def __init__(

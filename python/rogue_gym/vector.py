@@ -52,10 +52,11 @@ class RogueVectorEnv(gym.vector.VectorEnv):
       ``truncated=True`` and ``infos["worker_restarted"]``) or raises
       :class:`rogue_gym.WorkerCrashedError` (``"raise"``).
 
-    **Array lifetimes.** The observation array returned by ``reset``/``step`` is one of two
-    batch buffers owned by the env and reused alternately: it stays valid until the second
-    following ``reset``/``step`` call (so the previous observation is still intact while you
-    hold the new one). Pass ``copy=True`` to get a fresh array each call. Rewards, flags and
+    **Array lifetimes.** The observation array returned by ``reset``/``step`` is a view of one
+    of the pool's two shared-memory batch slots, which the workers write directly (zero-copy)
+    and alternately: it stays unchanged until the second following ``reset``/``step`` call (so
+    the previous observation is still intact while you hold the new one), and readable even
+    after ``close()``. Pass ``copy=True`` to get a fresh array each call. Rewards, flags and
     infos are fresh arrays. ``infos["final_obs"]`` entries are copies.
     """
 
