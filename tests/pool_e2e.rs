@@ -488,3 +488,23 @@ fn async_mode_reports_a_restarted_block() {
     assert_eq!(restarted, ids0);
     assert_eq!(p.restarts(), 1);
 }
+
+#[test]
+fn set_seeds_then_reset_replays_a_fresh_pool() {
+    let mut fresh = pool(config(EXE, test_env(), 4, 2));
+    let reference = run_sync(&mut fresh, 20).unwrap();
+    let mut c = config(EXE, test_env(), 4, 2);
+    c.seeds.base = 7;
+    let mut p = pool(c);
+    let other = run_sync(&mut p, 20).unwrap();
+    assert_ne!(other, reference);
+    p.set_seeds(rogue_gym_pool::SeedSchedule::from_base(1234))
+        .unwrap();
+    let mut obs = vec![0u8; 4 * p.obs_bytes()];
+    let mut out = BatchOutput::default();
+    assert!(
+        p.step(&[0; 4], &mut obs, &mut out).is_err(),
+        "reset required"
+    );
+    assert_eq!(run_sync(&mut p, 20).unwrap(), reference);
+}

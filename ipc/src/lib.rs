@@ -76,6 +76,9 @@ pub enum IpcError {
     /// A name or path does not fit iceoryx2's limits.
     #[error("invalid pool name or path: {0}")]
     InvalidName(String),
+    /// A shared resource does not have the size this side expects.
+    #[error("size mismatch: {0}")]
+    SizeMismatch(String),
 }
 
 fn ice<E: std::fmt::Debug>(what: impl Into<String>) -> impl FnOnce(E) -> IpcError {
@@ -780,8 +783,9 @@ impl SharedBuffer {
             })?;
         let actual = f.metadata().map(|m| m.len()).unwrap_or(0);
         if actual < len as u64 {
-            return Err(IpcError::InvalidName(format!(
-                "shared buffer {} has {actual} bytes, expected {len}",
+            return Err(IpcError::SizeMismatch(format!(
+                "shared buffer {} has {actual} bytes, expected {len}: supervisor and worker \
+                 disagree (different builds?)",
                 path.display()
             )));
         }

@@ -21,7 +21,7 @@ use crate::layout::{BlockLayout, EnvRecord, FLAG_RESTARTED, FLAG_TRUNCATED};
 use crate::seeds::SeedSchedule;
 use crate::worker::{
     AutoresetMode, BATCH_BUFFER, BATCH_SLOTS, BLOCK_DATA, BLOCK_READY, CMD_CLOSE, CMD_RESET,
-    CMD_STEP, TARGET_SHIFT, WorkerConfig, slot_bytes,
+    CMD_STEP, RELOAD_SEEDS, TARGET_SHIFT, WorkerConfig, slot_bytes,
 };
 
 /// What to do when a worker dies or hangs.
@@ -472,6 +472,9 @@ struct Core {
     restarts: u32,
     must_reset: bool,
     closed: bool,
+    /// Workers must re-read the seed schedule at their next reset.
+    reload_seeds: Vec<bool>,
+    worker_config: Option<WorkerConfig>,
 }
 
 /// A pool of envs stepped by worker processes, with observations in shared memory.
@@ -589,6 +592,7 @@ impl Pool {
         };
         let config_path = id.aux_dir().join("worker.json");
         let num_envs = cfg.num_envs;
+        let num_workers = cfg.num_workers;
         let mut pool = Pool {
             listener: None,
             core: Core {
@@ -610,10 +614,13 @@ impl Pool {
                 restarts: 0,
                 must_reset: true,
                 closed: false,
+                reload_seeds: vec![false; num_workers],
+                worker_config: None,
             },
         };
         // From here on, Drop cleans up whatever was created.
         pool.start(&wcfg)?;
+        pool.core.worker_config = Some(wcfg);
         Ok(pool)
     }
 
@@ -654,6 +661,36 @@ impl Pool {
                 .iter()
                 .any(|s| matches!(s.state, SlotState::Starting { .. }))
         })
+    }
+
+    /// Replace the seed schedule and restart every env's episode count: the next reset
+    /// ([`Pool::reset`], [`Pool::reset_shared`] or [`Pool::async_reset`], which you must call
+    /// next) starts episode 0 of every env under `seeds`, so the run continues exactly as a
+    /// fresh pool created with `seeds` would (gymnasium's `reset(seed=...)`). Outstanding
+    /// async results are discarded.
+    pub fn set_seeds(&mut self, seeds: SeedSchedule) -> Result<(), PoolError> {
+        self.check_usable()?;
+        seeds.validate().map_err(PoolError::Config)?;
+        self.drain()?;
+        let c = &mut self.core;
+        let mut wcfg = c
+            .worker_config
+            .clone()
+            .ok_or_else(|| PoolError::State("the pool is not started".into()))?;
+        wcfg.seeds = seeds.clone();
+        let json = serde_json::to_string(&wcfg)
+            .map_err(|e| PoolError::Config(format!("cannot serialize worker config: {e}")))?;
+        // Write then rename, so a worker (re)reading it never sees a partial file.
+        let tmp = c.config_path.with_extension("json.tmp");
+        fs::write(&tmp, json)
+            .and_then(|_| fs::rename(&tmp, &c.config_path))
+            .map_err(|e| PoolError::Io(format!("cannot write {}: {e}", c.config_path.display())))?;
+        c.cfg.seeds = seeds;
+        c.worker_config = Some(wcfg);
+        c.cur_episode.iter_mut().for_each(|e| *e = None);
+        c.reload_seeds.iter_mut().for_each(|r| *r = true);
+        c.must_reset = true;
+        Ok(())
     }
 
     /// The env spec (observation shape and dtype, actions, info names).
@@ -1147,12 +1184,17 @@ impl Core {
             .iter()
             .map(|e| e.map_or(0, |e| e + 1))
             .collect();
+        let reload = if std::mem::take(&mut self.reload_seeds[k]) {
+            RELOAD_SEEDS
+        } else {
+            0
+        };
         let s = &mut self.slots[k];
         s.seq += 1;
         s.target = target;
         s.ports.send_cmd(
             s.seq,
-            CMD_RESET | (target << TARGET_SHIFT),
+            CMD_RESET | (target << TARGET_SHIFT) | reload,
             eps.len(),
             |p| p.copy_from_slice(&eps),
         )?;

@@ -29,6 +29,8 @@ pub(crate) const CMD_CLOSE: u32 = 3;
 /// Command kinds carry the observation target in bits 8..: 0 = the block's own obs area,
 /// `s + 1` = slot `s` of the shared batch buffer.
 pub(crate) const TARGET_SHIFT: u32 = 8;
+/// Flag of a reset command: re-read the seed schedule from the config file first.
+pub(crate) const RELOAD_SEEDS: u32 = 1 << 16;
 /// Name of the shared batch buffer (`/dev/shm/<prefix>batch`).
 pub(crate) const BATCH_BUFFER: &str = "batch";
 /// Number of slots of the shared batch buffer (double buffering).
@@ -362,13 +364,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
     *ready.user_header_mut() = header(0, BLOCK_READY);
     ports.send_block(ready)?;
 
-    let ctx = SlotCtx {
-        seeds: &cfg.seeds,
-        num_envs: cfg.num_envs as u64,
-        autoreset: cfg.autoreset,
-        num_actions: spec.num_actions,
-        n_info,
-    };
+    let mut seeds = cfg.seeds.clone();
     let mut payload: Vec<u64> = vec![0; epw];
     loop {
         let mut cmd = None;
@@ -395,7 +391,23 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         drop(cmd);
 
         let kind = h.kind & ((1 << TARGET_SHIFT) - 1);
-        let target = (h.kind >> TARGET_SHIFT) as usize;
+        let target = ((h.kind & (RELOAD_SEEDS - 1)) >> TARGET_SHIFT) as usize;
+        if h.kind & RELOAD_SEEDS != 0 {
+            let fresh: WorkerConfig = std::fs::read_to_string(&a.config)
+                .map_err(|e| format!("cannot re-read worker config {}: {e}", a.config.display()))
+                .and_then(|t| {
+                    serde_json::from_str(&t).map_err(|e| format!("bad worker config: {e}"))
+                })
+                .map_err(WorkerError::Msg)?;
+            seeds = fresh.seeds;
+        }
+        let ctx = SlotCtx {
+            seeds: &seeds,
+            num_envs: cfg.num_envs as u64,
+            autoreset: cfg.autoreset,
+            num_actions: spec.num_actions,
+            n_info,
+        };
         if target > BATCH_SLOTS {
             return Err(WorkerError::Msg(format!("bad observation target {target}")));
         }
