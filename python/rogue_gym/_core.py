@@ -275,8 +275,7 @@ class PoolCore:
         """Reset every env; returns (obs batch, records) written into the next slot.
 
         With ``seed``, the episode schedule restarts from base seed ``seed`` (env ``i``'s episode
-        ``e`` plays the same dungeon whatever the worker count), which restarts the workers
-        unless they were never reset. ``mask`` must select every env (partial resets are not
+        ``e`` plays the same dungeon whatever the worker count), as in a fresh pool. ``mask`` must select every env (partial resets are not
         supported by the pool yet).
         """
         self._check_open()
@@ -296,7 +295,9 @@ class PoolCore:
             if not 0 <= seed < 2**64:
                 raise ValueError(f"seed must be in [0, 2**64), got {seed}")
             if not (self._fresh and seed == self.base_seed):
-                self.start(seed)
+                self.base_seed = seed
+                self._settings["seeds"]["base"] = seed
+                self._pool.set_seeds(json.dumps(self._settings["seeds"]))
         recs = self._recs[1 - self._slot]
         slot = self._slot = self._pool.reset_shared(recs)
         if self._recs[slot] is not recs:

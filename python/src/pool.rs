@@ -403,6 +403,14 @@ impl PyPool {
         Ok(list)
     }
 
+    /// Replace the episode-seed schedule (JSON `{"base": .., "set": .., "policy": ..}`) and
+    /// restart every env's episode count; call a reset next.
+    fn set_seeds(&self, py: Python<'_>, seeds_json: &str) -> PyResult<()> {
+        let seeds: SeedSchedule = serde_json::from_str(seeds_json)
+            .map_err(|e| PyValueError::new_err(format!("invalid seed schedule: {e}")))?;
+        self.with_pool(py, move |p, _| p.set_seeds(seeds))
+    }
+
     /// Async: reset every env; collect the results with `recv()`.
     fn async_reset(&self, py: Python<'_>) -> PyResult<()> {
         self.with_pool(py, |p, _| p.async_reset())
