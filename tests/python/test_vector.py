@@ -342,3 +342,15 @@ def test_worker_module_rejects_bad_arguments() -> None:
         timeout=60,
     )
     assert r.returncode == 2 and "usage" in r.stderr
+
+
+def test_worker_that_cannot_start_reports_its_stderr() -> None:
+    import sys
+
+    bad = [
+        sys.executable,
+        "-c",
+        "import sys; sys.stderr.write('boom from the worker'); sys.exit(3)",
+    ]
+    with pytest.raises(RuntimeError, match="boom from the worker"):
+        rogue_gym.make_vec(2, num_workers=1, seed=0, worker_command=bad)
