@@ -341,10 +341,13 @@ class PoolCore:
             "episode_return": recs["episode_return"].copy(),
             "episode_length": recs["episode_length"].astype(np.int64),
         }
-        info = recs["info"]
-        for k, name in enumerate(self.info_names):
-            col = info[:, k]
-            out[name] = col != 0 if name in _BOOL_INFO else col.astype(np.int64)
+        n = len(self.info_names)
+        if n:
+            # One conversion for all columns; rows of the transposed copy are contiguous.
+            values = recs["info"][:, :n].T
+            ints = np.ascontiguousarray(values, dtype=np.int64)
+            for k, name in enumerate(self.info_names):
+                out[name] = values[k] != 0 if name in _BOOL_INFO else ints[k]
         return out
 
     def info_dict(self, recs: np.ndarray, i: int) -> dict[str, Any]:
