@@ -190,7 +190,8 @@ class RogueVecEnv(VecEnv):
 
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
         """Read an attribute of the envs (``render_mode``, ``config``, ``max_steps``,
-        ``stair_reward``, ``observation_space``, ``action_space``, ``episode_seed``)."""
+        ``stair_reward``, ``observation_space``, ``action_space``, ``episode_seed``,
+        ``worker_pid``)."""
         idx = list(self._get_indices(indices))
         core = getattr(self, "_core", None)
         if attr_name == "render_mode":
@@ -206,7 +207,6 @@ class RogueVecEnv(VecEnv):
             "stair_reward": core.stair_reward,
             "observation_space": self.observation_space,
             "action_space": self.action_space,
-            "worker_pid": None,
         }
         if attr_name == "worker_pid":
             pids = core.worker_pids
