@@ -234,8 +234,12 @@ class PoolCore:
         if self._closed or self._pool is None:
             raise RuntimeError("the environment pool is closed")
 
-    def validate_actions(self, actions: Any) -> np.ndarray:
-        """Check a batch of actions; returns them as ``uint64`` (one per env)."""
+    def validate_actions(self, actions: Any, check_range: bool = True) -> np.ndarray:
+        """Check a batch of actions; returns them as ``int64`` (one per env).
+
+        With ``check_range=False`` the range is left to the native pool, which raises the same
+        ``ValueError`` (naming the env and the value) before anything is sent to the workers.
+        """
         n = self.num_envs
         if isinstance(actions, str):
             if len(actions) != n:
@@ -260,12 +264,13 @@ class PoolCore:
                 raise TypeError(
                     f"expected integer actions in [0, {len(ACTIONS)}), got dtype {a.dtype}"
                 )
-        bad = (a < 0) | (a >= len(ACTIONS))
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            raise ValueError(
-                f"action {a[i]} of env {i} is out of range: expected an int in [0, {len(ACTIONS)})"
-            )
+        if check_range:
+            bad = (a < 0) | (a >= len(ACTIONS))
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0])
+                raise ValueError(
+                    f"env {i}: action {a[i]} is out of range; valid actions are 0..{len(ACTIONS)}"
+                )
         np.copyto(self._actions, a, casting="unsafe")
         return self._actions
 
@@ -308,7 +313,7 @@ class PoolCore:
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray]:
         """Step every env; returns (obs batch, records) written into the next slot."""
         self._check_open()
-        acts = self.validate_actions(actions)
+        acts = self.validate_actions(actions, check_range=False)
         recs = self._recs[1 - self._slot]
         slot = self._slot = self._pool.step_shared(acts, recs, self._final)
         if self._recs[slot] is not recs:
@@ -325,12 +330,14 @@ class PoolCore:
     @staticmethod
     def flags(recs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(terminated, truncated, restarted, has_final_obs) bool arrays of a record batch."""
-        f = recs["flags"]
+        # One unpack for all four flags (bit k of the low byte -> row k), rows viewed as bool.
+        bits = np.unpackbits(recs["flags"].astype(np.uint8)[None, :], axis=0, bitorder="little")
+        b = bits.view(np.bool_)
         return (
-            (f & FLAG_TERMINATED) != 0,
-            (f & FLAG_TRUNCATED) != 0,
-            (f & FLAG_RESTARTED) != 0,
-            (f & FLAG_FINAL_OBS) != 0,
+            b[FLAG_TERMINATED.bit_length() - 1],
+            b[FLAG_TRUNCATED.bit_length() - 1],
+            b[FLAG_RESTARTED.bit_length() - 1],
+            b[FLAG_FINAL_OBS.bit_length() - 1],
         )
 
     def info_arrays(self, recs: np.ndarray) -> dict[str, np.ndarray]:

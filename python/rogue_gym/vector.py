@@ -190,11 +190,11 @@ class RogueVectorEnv(gym.vector.VectorEnv):
         """Step every env; returns ``(obs, rewards, terminations, truncations, infos)``."""
         if self._last_recs is None:
             raise RuntimeError("call reset() before step()")
-        prev_done = self._prev_done()
+        prev_done = self._prev_done() if self._history is not None else None
         obs, recs = self._core.step(actions)
         self._last_recs = recs
         terminated, truncated, restarted, has_final = PoolCore.flags(recs)
-        if self._history is not None:
+        if self._history is not None and prev_done is not None:
             self._history.on_step(self._core._actions, ~prev_done & ~restarted, recs)
             self._history.on_reset(recs, prev_done | restarted)
         rewards = recs["reward"].astype(np.float64)

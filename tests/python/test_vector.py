@@ -163,8 +163,8 @@ def test_double_buffer_keeps_previous_observation(make_vec) -> None:
         (np.zeros(3, np.int64), ValueError, r"shape \(4,\)"),
         (np.zeros((4, 2), np.int64), ValueError, r"shape \(4,\)"),
         (np.full(4, 0.5), TypeError, "integer actions"),
-        (np.array([0, 1, 11, 2]), ValueError, "action 11 of env 2"),
-        (np.array([0, -1, 1, 2]), ValueError, "action -1 of env 1"),
+        (np.array([0, 1, 11, 2]), ValueError, "env 2: action 11 is out of range"),
+        (np.array([0, -1, 1, 2]), ValueError, "env 1: action -1 is out of range"),
         (["a", "b", "c", "d"], TypeError, "integer actions"),
     ],
 )
