@@ -47,7 +47,9 @@ class RogueVectorEnv(gym.vector.VectorEnv):
     * ``autoreset_mode``: ``NEXT_STEP`` (default; the step after an episode end ignores the
       env's action and returns the reset observation with reward 0) or ``SAME_STEP`` (the ending
       step returns the reset observation; ``infos["final_obs"]`` / ``infos["final_info"]`` hold
-      the last one).
+      the last one). Deviation: on that step the other info values of the ended envs still
+      describe the ended episode (as ``final_info`` does); the new episode's show from the next
+      step on.
     * A crashed worker is restarted (``on_worker_failure="restart"``: its envs report
       ``truncated=True`` and ``infos["worker_restarted"]``) or raises
       :class:`rogue_gym.WorkerCrashedError` (``"raise"``).

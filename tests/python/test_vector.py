@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import rogue_gym
 from gymnasium.vector import AutoresetMode
-from gymnasium.wrappers.vector import RecordEpisodeStatistics
+from gymnasium.wrappers.vector import DictInfoToList, RecordEpisodeStatistics
 from rogue_gym import WorkerCrashedError
 from rogue_gym.envs import RogueEnv
 
@@ -91,6 +91,23 @@ def test_record_episode_statistics_wrapper(make_vec) -> None:
             episodes += int(infos["_episode"].sum())
             assert (infos["episode"]["l"][infos["_episode"]] == 10).all()
     assert episodes == 8
+
+
+def test_dict_info_to_list_wrapper(make_vec) -> None:
+    env = DictInfoToList(make_vec(2, max_steps=3, autoreset_mode="same_step"))
+    _, infos = env.reset(seed=0)
+    assert isinstance(infos, list) and len(infos) == 2 and "seed" in infos[0]
+    for _ in range(3):
+        *_, infos = env.step(np.zeros(2, np.int64))
+    assert all("final_obs" in info and info["final_info"]["episode_length"] == 3 for info in infos)
+
+
+def test_workers_are_the_extension_module(make_vec) -> None:
+    env = make_vec(4, num_workers=2)
+    for pid in env.worker_pids:
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            argv = f.read().split(b"\0")
+        assert b"rogue_gym.worker" in argv and b"-m" in argv
 
 
 @pytest.mark.parametrize("mode", ["next_step", "same_step"])
