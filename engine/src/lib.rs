@@ -1,1 +1,54 @@
-//! The Rogue-Gym game engine (work in progress).
+//! # rogue-gym-engine
+//!
+//! The Rogue-Gym game (a rebuild of Kanagawa & Kaneko's roguelike RL benchmark, CoG 2019):
+//! configuration, "rogue"-style dungeon generation, the rules, and observation encoders.
+//!
+//! This crate is the game and nothing else: it knows nothing of IPC, processes or Python.
+//! The environment pool (`rogue-gym-pool`) owns many [`Game`]s in worker processes, and each
+//! step asks a game to write its observation straight into a caller-provided buffer
+//! ([`ObsBufMut`]) - in practice a loaned shared-memory sample - so there is no intermediate
+//! copy.
+//!
+//! ```
+//! use rogue_gym_engine::{Action, EpisodeConfig, Game, GameConfig, ObsBufMut, ObsSpec};
+//! let mut game = Game::new(&GameConfig::paper(), EpisodeConfig { max_steps: 500, ..Default::default() }).unwrap();
+//! game.reset(7);
+//! let spec = ObsSpec::paper();
+//! let mut obs = vec![0u8; game.observation_shape(&spec).iter().product()];
+//! let r = game.step(Action::Right);
+//! game.write_obs(&spec, ObsBufMut::U8(&mut obs)).unwrap();
+//! assert!(!r.terminated);
+//! ```
+//!
+//! Determinism: the same config, seed and actions give the same game. Every subsystem
+//! draws from its own ChaCha8 stream derived from the seed (floor k's layout from (seed, k)),
+//! there is no `HashMap` iteration and no float in the game logic.
+
+#![warn(missing_docs)]
+
+pub mod action;
+pub mod config;
+mod dungeon;
+pub mod game;
+pub mod geometry;
+pub mod obs;
+
+mod enemies;
+mod rng;
+mod rules;
+mod symbol;
+
+#[cfg(test)]
+mod tests;
+
+pub use action::{Action, Command, NUM_ACTIONS};
+pub use config::{ConfigError, GameConfig};
+pub use game::{EpisodeConfig, EpisodeInfo, Game, StepResult};
+pub use obs::{Dtype, Encoding, ObsBufMut, ObsError, ObsSpec, Status, StatusFlags};
+pub use rng::splitmix64;
+
+/// A `Game` moves between threads (pool workers may own games on worker threads).
+const _: () = {
+    const fn assert_send<T: Send + Sync>() {}
+    assert_send::<Game>();
+};

@@ -1,2 +1,56 @@
-//! The `rogue-gym` command-line tool (work in progress).
-fn main() {}
+//! The `rogue-gym` command-line tool: play in the terminal, replay an action log, and
+//! benchmark the engine. Each subcommand lives in its own module; adding one is a variant in
+//! [`Cmd`] plus an arm in `main`.
+
+mod bench;
+mod play;
+mod replay;
+
+use std::path::Path;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use rogue_gym_engine::GameConfig;
+
+/// Rogue-Gym: a roguelike benchmark for generalization in reinforcement learning.
+#[derive(Debug, Parser)]
+#[command(name = "rogue-gym", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Debug, Subcommand)]
+enum Cmd {
+    /// Play in the terminal (vi keys; q quits).
+    Play(play::Args),
+    /// Play back an action log saved by `play --save`.
+    Replay(replay::Args),
+    /// Measure engine steps per second.
+    Bench(bench::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.cmd {
+        Cmd::Play(args) => play::run(args),
+        Cmd::Replay(args) => replay::run(args),
+        Cmd::Bench(args) => bench::run(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(msg) => {
+            eprintln!("error: {msg}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Reads and validates a config file, or returns `default` when no path is given.
+/// Errors are messages naming the file and the offending key.
+pub(crate) fn load_config(path: Option<&Path>, default: GameConfig) -> Result<GameConfig, String> {
+    let Some(path) = path else { return Ok(default) };
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("cannot read config {}: {e}", path.display()))?;
+    GameConfig::from_json(&text).map_err(|e| format!("config {}: {e}", path.display()))
+}

@@ -1,0 +1,168 @@
+//! Monsters: placement on a new floor (engine-spec §9.2) and their turn (§9.4): random
+//! steps for RANDOM/CONFUSED kinds, otherwise a chase along a BFS distance map from the player.
+//! Fixes: real HP, the diagonal rule applies to chase steps, no border panic, no monster is
+//! lost on collision (a monster never moves onto another).
+
+use crate::config::{CONFUSED, RANDOM};
+use crate::dungeon::RoomKind;
+use crate::game::Game;
+use crate::geometry::Dir;
+use crate::rng::{GameRng, Stream};
+
+/// One monster on the current floor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Enemy {
+    /// Index into `Game::kinds`.
+    pub kind: u16,
+    pub pos: usize,
+    pub hp: i32,
+    pub level: u32,
+    pub defense: i32,
+    pub exp: u32,
+    pub awake: bool,
+    pub alive: bool,
+}
+
+impl Game {
+    /// Places monsters on the new floor: one roll per real room (monster stream of the floor).
+    pub(crate) fn place_enemies(&mut self) {
+        if self.kinds.is_empty() {
+            return;
+        }
+        let mut rng = GameRng::new(self.seed, Stream::Enemies, u64::from(self.level));
+        let level = self.level as i32;
+        let count = self.kinds.len() as i32;
+        for r in 0..self.floor.rooms.len() {
+            let room = self.floor.rooms[r];
+            if room.kind == RoomKind::Gone {
+                continue;
+            }
+            let Some(cell) = self.generator.random_empty_cell(&self.floor, &mut rng, r) else {
+                continue;
+            };
+            let rate = if room.has_gold {
+                self.cfg.enemies.appear_rate_gold
+            } else {
+                self.cfg.enemies.appear_rate_nogold
+            };
+            if !rng.percent(rate) {
+                continue;
+            }
+            let mut id = rng.range((level - 4).max(0), level + 6);
+            if id > count {
+                id = rng.range(count - count.min(5), count);
+            }
+            if id >= count {
+                continue;
+            }
+            let kind = &self.kinds[id as usize];
+            let lev_add = self.level.saturating_sub(self.cfg.dungeon.amulet_level);
+            let elevel = kind.level + lev_add;
+            let hp = rng.dice(8, elevel).max(1);
+            let per = if elevel == 1 { hp / 8 } else { hp / 6 };
+            let exp = kind
+                .exp
+                .saturating_add(lev_add.saturating_mul(10))
+                .saturating_add((per as u32).saturating_mul(if elevel >= 10 { 20 } else { 4 }));
+            self.enemies.push(Enemy {
+                kind: id as u16,
+                pos: cell,
+                hp,
+                level: elevel,
+                defense: kind.defense - lev_add as i32,
+                exp,
+                awake: false,
+                alive: true,
+            });
+            self.enemy_at[cell] = self.enemies.len() as u16;
+        }
+    }
+
+    /// Every awake monster acts once.
+    pub(crate) fn enemies_act(&mut self) {
+        let mut have_map = false;
+        for k in 0..self.enemies.len() {
+            if self.terminated {
+                return;
+            }
+            let e = self.enemies[k];
+            if !e.alive || !e.awake {
+                continue;
+            }
+            let attr = self.kinds[e.kind as usize].attr;
+            let random = (self.rng.below(2) == 0 && attr & RANDOM != 0)
+                || (self.rng.below(5) != 0 && attr & CONFUSED != 0);
+            if random {
+                let dir = Dir::ALL[self.rng.below(8) as usize];
+                if let Some(t) = self.can_move(e.pos, dir) {
+                    if t == self.player.pos {
+                        self.enemy_attack(k);
+                    } else if self.enemy_at[t] == 0 {
+                        self.move_enemy(k, t);
+                    }
+                }
+                continue;
+            }
+            if !have_map {
+                self.chase_map();
+                have_map = true;
+            }
+            let here = self.dist[e.pos];
+            let mut best: Option<(u16, usize)> = None;
+            let mut attack = false;
+            for dir in Dir::ALL {
+                let Some(t) = self.can_move(e.pos, dir) else {
+                    continue;
+                };
+                if t == self.player.pos {
+                    attack = true;
+                    break;
+                }
+                if self.enemy_at[t] != 0 {
+                    continue;
+                }
+                let d = self.dist[t];
+                if d < here && best.is_none_or(|(bd, _)| d < bd) {
+                    best = Some((d, t));
+                }
+            }
+            if attack {
+                self.enemy_attack(k);
+            } else if let Some((_, t)) = best {
+                self.move_enemy(k, t);
+            }
+        }
+    }
+
+    fn move_enemy(&mut self, k: usize, t: usize) {
+        let from = self.enemies[k].pos;
+        self.enemy_at[from] = 0;
+        self.enemy_at[t] = k as u16 + 1;
+        self.enemies[k].pos = t;
+        self.touch(from);
+        self.touch(t);
+    }
+
+    /// BFS distances (8-neighbourhood, monster moves) from the player into `self.dist`.
+    fn chase_map(&mut self) {
+        self.dist.fill(u16::MAX);
+        self.queue.clear();
+        let start = self.player.pos;
+        self.dist[start] = 0;
+        self.queue.push(start as u32);
+        let mut head = 0;
+        while head < self.queue.len() {
+            let c = self.queue[head] as usize;
+            head += 1;
+            let d = self.dist[c];
+            for dir in Dir::ALL {
+                if let Some(t) = self.can_move(c, dir)
+                    && self.dist[t] == u16::MAX
+                {
+                    self.dist[t] = d + 1;
+                    self.queue.push(t as u32);
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,7 @@
+//! The game rules, one file each: movement (moves, pickup, search), visibility (what the
+//! player sees), combat (melee both ways) and hunger (the per-turn tick).
+
+mod combat;
+mod hunger;
+mod movement;
+mod visibility;

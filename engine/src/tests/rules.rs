@@ -1,0 +1,406 @@
+//! Rule tests on hand-made floors.
+
+use crate::config::{CustomEnemy, Dice, EnemiesConfig, EnemyPreset};
+use crate::dungeon::{Surface, flag};
+use crate::*;
+
+fn quiet() -> GameConfig {
+    GameConfig {
+        enemies: EnemiesConfig {
+            enemies: vec![],
+            ..Default::default()
+        },
+        ..GameConfig::paper()
+    }
+}
+
+const ROOM: [&str; 5] = ["-------", "|.....|", "|..@..+", "|.....|", "-------"];
+
+#[test]
+fn lit_room_is_shown_on_entry() {
+    let g = Game::from_layout(&quiet(), EpisodeConfig::default(), &ROOM, false);
+    assert_eq!(g.tile_at(1, 2), b'.');
+    assert_eq!(g.tile_at(6, 3), b'+');
+    assert_eq!(g.tile_at(3, 3), b'@');
+}
+
+#[test]
+fn dark_room_shows_only_3x3() {
+    let rows = [
+        "---------",
+        "|.......|",
+        "|...@...|",
+        "|.......|",
+        "|.......|",
+        "---------",
+    ];
+    let mut g = Game::from_layout(&quiet(), EpisodeConfig::default(), &rows, true);
+    // Floor within one cell of (4,3) is visible; farther floor is not.
+    assert_eq!(g.tile_at(3, 2), b'.');
+    assert_eq!(g.tile_at(5, 4), b'.');
+    assert_eq!(g.tile_at(1, 2), b' ');
+    assert_eq!(g.tile_at(7, 5), b' ');
+    g.step(Action::Right);
+    g.step(Action::Right);
+    // The player is at (6,3): the old neighbourhood is dark again.
+    assert_eq!(g.tile_at(6, 3), b'@');
+    assert_eq!(g.tile_at(3, 3), b' ');
+    assert_eq!(g.tile_at(7, 4), b'.');
+    let visible_floor = g.ascii.iter().filter(|&&t| t == b'.').count();
+    assert!(
+        visible_floor <= 8,
+        "only the 3x3 around the player: {visible_floor}"
+    );
+}
+
+#[test]
+fn gold_pickup_gives_reward() {
+    let rows = ["-------", "|.....|", "|..@*.|", "|.....|", "-------"];
+    let mut g = Game::from_layout(&quiet(), EpisodeConfig::default(), &rows, false);
+    let r = g.step(Action::Right);
+    assert_eq!(r.reward, 10.0);
+    assert_eq!(g.status().gold, 10);
+    assert_eq!(g.step(Action::Left).reward, 0.0);
+}
+
+#[test]
+fn search_finds_hidden_passage_and_secret_door() {
+    let rows = ["-------", "|....@&~", "|.....|", "-------"];
+    let mut g = Game::from_layout(
+        &quiet(),
+        EpisodeConfig {
+            max_steps: 10_000,
+            ..Default::default()
+        },
+        &rows,
+        false,
+    );
+    let door = g.floor.idx(6, 2);
+    assert_eq!(g.tile_at(6, 2), b'|');
+    assert!(
+        g.step(Action::Right).reward == 0.0 && g.player_position() == (5, 2),
+        "secret door blocks"
+    );
+    let mut n = 0;
+    while g.floor.flags[door] & flag::LOCKED != 0 {
+        g.step(Action::Search);
+        n += 1;
+        assert!(n < 200);
+    }
+    assert_eq!(g.tile_at(6, 2), b'+');
+    g.step(Action::Right);
+    assert_eq!(g.player_position(), (6, 2));
+    let hidden = g.floor.idx(7, 2);
+    assert_eq!(
+        g.tile_at(7, 2),
+        b' ',
+        "hidden passage is not revealed on approach"
+    );
+    let mut n = 0;
+    while g.floor.flags[hidden] & flag::HIDDEN != 0 {
+        g.step(Action::Search);
+        n += 1;
+        assert!(n < 200);
+    }
+    assert_eq!(g.floor.surface[hidden], Surface::Passage);
+    assert_eq!(g.tile_at(7, 2), b'#');
+}
+
+#[test]
+fn descending_gives_stair_reward_once_per_new_floor() {
+    let rows = ["-------", "|.....|", "|..@%.|", "|.....|", "-------"];
+    let mut g = Game::from_layout(&quiet(), EpisodeConfig::default(), &rows, false);
+    assert_eq!(g.step(Action::DownStair).reward, 0.0, "not on the stairs");
+    assert_eq!(g.status().dungeon_level, 1);
+    g.step(Action::Right);
+    let r = g.step(Action::DownStair);
+    assert_eq!(r.reward, 50.0);
+    assert_eq!(g.info().floor, 2);
+    assert_eq!(g.info().max_floor, 2);
+    // Walk to the new stairs with the generator's own map: teleport for the test.
+    g.player.pos = g.floor.stairs;
+    let r = g.step(Action::DownStair);
+    assert_eq!(r.reward, 50.0);
+    assert_eq!(g.info().max_floor, 3);
+}
+
+#[test]
+fn amulet_pickup_wins() {
+    let rows = ["-------", "|.....|", "|..@,.|", "|.....|", "-------"];
+    let mut g = Game::from_layout(&quiet(), EpisodeConfig::default(), &rows, false);
+    assert_eq!(g.tile_at(4, 3), b',');
+    let r = g.step(Action::Right);
+    assert!(r.terminated && !r.truncated);
+    assert!(g.info().won && !g.info().died);
+    // Stepping after the end is ignored.
+    let again = g.step(Action::Left);
+    assert_eq!(
+        again,
+        StepResult {
+            reward: 0.0,
+            terminated: true,
+            truncated: false
+        }
+    );
+    assert_eq!(g.player_position(), (4, 3));
+}
+
+#[test]
+fn starvation_kills() {
+    let mut cfg = quiet();
+    cfg.player.hunger_time = 20;
+    let mut g = Game::from_layout(&cfg, EpisodeConfig::default(), &ROOM, false);
+    for _ in 0..19 {
+        assert!(!g.step(Action::NoOp).terminated);
+    }
+    assert_eq!(g.status().hunger, 2);
+    let r = g.step(Action::NoOp);
+    assert!(r.terminated);
+    assert!(g.info().died);
+}
+
+#[test]
+fn noop_passes_a_turn() {
+    let mut g = Game::from_layout(&quiet(), EpisodeConfig::default(), &ROOM, false);
+    let food = g.player.food;
+    g.step(Action::NoOp);
+    g.step(Action::NoOp);
+    assert_eq!(g.player.food, food - 2);
+    assert_eq!(g.info().steps, 2);
+}
+
+#[test]
+fn max_steps_truncates() {
+    let mut g = Game::from_layout(
+        &quiet(),
+        EpisodeConfig {
+            max_steps: 3,
+            stair_reward: 50.0,
+        },
+        &ROOM,
+        false,
+    );
+    assert!(!g.step(Action::NoOp).truncated);
+    assert!(!g.step(Action::NoOp).truncated);
+    let r = g.step(Action::NoOp);
+    assert!(r.truncated && !r.terminated);
+    assert!(g.is_over());
+    assert_eq!(g.step(Action::Left).reward, 0.0);
+    assert_eq!(g.info().steps, 3);
+}
+
+#[test]
+fn diagonal_moves_blocked_at_doors_and_corners() {
+    let rows = ["-----", "|...|", "|..@+#", "|...|#", "-----#"];
+    let mut g = Game::from_layout(&quiet(), EpisodeConfig::default(), &rows, false);
+    g.step(Action::Right);
+    assert_eq!(g.player_position(), (4, 3), "onto the door");
+    g.step(Action::RightDown);
+    assert_eq!(g.player_position(), (4, 3), "no diagonal step off a door");
+    g.step(Action::Right);
+    g.step(Action::Down);
+    assert_eq!(g.player_position(), (5, 4));
+}
+
+fn tough_config() -> GameConfig {
+    let mut cfg = quiet();
+    cfg.enemies.enemies = vec![EnemyPreset::Custom(CustomEnemy {
+        attack: vec![Dice { times: 1, max: 3 }],
+        attr: 0,
+        defense: 10,
+        exp: 30,
+        gold: 0,
+        level: 20,
+        name: "brute".into(),
+        tile: b'Z',
+        rarelity: 0,
+    })];
+    cfg
+}
+
+#[test]
+fn player_kills_monster_in_several_hits() {
+    let rows = ["-------", "|.....|", "|..@Z.|", "|.....|", "-------"];
+    let mut g = Game::from_layout(&tough_config(), EpisodeConfig::default(), &rows, false);
+    g.enemies[0].hp = 25; // mace 2d4+1 does at most 9
+    g.player.max_hp = 10_000;
+    g.player.hp = 10_000;
+    let mut attacks = 0;
+    while g.enemies[0].alive {
+        g.step(Action::Right);
+        attacks += 1;
+        assert!(attacks < 500);
+        if g.enemies[0].alive {
+            assert!(g.enemies[0].hp > 0);
+        }
+    }
+    assert!(attacks > 2, "25 HP needs at least 3 hits");
+    assert_eq!(g.enemy_at[g.floor.idx(4, 3)], 0);
+    assert_eq!(g.tile_at(4, 3), b'.');
+    assert_eq!(g.status().exp, 30);
+    assert!(g.status().player_level >= 3, "30 exp passes 10 and 20");
+}
+
+#[test]
+fn monster_damages_player() {
+    let rows = ["-------", "|.....|", "|..@Z.|", "|.....|", "-------"];
+    let mut g = Game::from_layout(
+        &tough_config(),
+        EpisodeConfig {
+            max_steps: 10_000,
+            ..Default::default()
+        },
+        &rows,
+        false,
+    );
+    let mut turns = 0;
+    while g.status().hp_current == 12 {
+        g.step(Action::NoOp);
+        turns += 1;
+        assert!(turns < 100);
+    }
+    assert!(g.status().hp_current < 12);
+    while !g.is_over() {
+        g.step(Action::NoOp);
+    }
+    assert!(g.info().died && g.status().hp_current == 0);
+}
+
+#[test]
+fn monster_chases_player() {
+    let rows = [
+        "-----------",
+        "|.........|",
+        "|@.......Z|",
+        "|.........|",
+        "-----------",
+    ];
+    let mut g = Game::from_layout(&tough_config(), EpisodeConfig::default(), &rows, false);
+    g.step(Action::NoOp);
+    assert_eq!(g.floor.xy(g.enemies[0].pos), (8, 3));
+    for _ in 0..6 {
+        g.step(Action::NoOp);
+    }
+    assert_eq!(g.floor.xy(g.enemies[0].pos), (2, 3));
+}
+
+#[test]
+fn every_symbol_channel_is_live() {
+    let rows = ["-------", "|.....|", "|..@Z,", "|.....|", "-------"];
+    let g = Game::from_layout(
+        &GameConfig {
+            enemies: EnemiesConfig::default(),
+            ..GameConfig::paper()
+        },
+        EpisodeConfig::default(),
+        &rows,
+        false,
+    );
+    assert_eq!(g.symbol_count(), 43);
+    let spec = ObsSpec::paper();
+    let shape = g.observation_shape(&spec);
+    assert_eq!(shape, vec![43, 16, 32]);
+    let mut buf = vec![0u8; shape.iter().product()];
+    g.write_obs(&spec, ObsBufMut::U8(&mut buf)).unwrap();
+    let hw = 16 * 32;
+    let plane_sum = |c: usize| {
+        buf[c * hw..(c + 1) * hw]
+            .iter()
+            .map(|&v| v as usize)
+            .sum::<usize>()
+    };
+    assert_eq!(plane_sum(42), 1, "Z is the last channel");
+    assert_eq!(plane_sum(16), 1, "the amulet channel");
+    assert_eq!(plane_sum(1), 1, "one player");
+    for i in 0..hw {
+        assert_eq!((0..43).map(|c| buf[c * hw + i] as usize).sum::<usize>(), 1);
+    }
+}
+
+#[test]
+fn deep_floors_have_the_amulet_and_never_panic() {
+    let mut cfg = GameConfig::default();
+    cfg.dungeon.amulet_level = 5;
+    let mut g = Game::new(
+        &cfg,
+        EpisodeConfig {
+            max_steps: 100_000,
+            stair_reward: 50.0,
+        },
+    )
+    .unwrap();
+    let mut state = 3u64;
+    let mut deepest = 0;
+    for seed in 0..40 {
+        g.reset(seed);
+        g.player.max_hp = 1_000_000;
+        g.player.hp = 1_000_000;
+        for _ in 1..40u32 {
+            let floor = g.info().floor;
+            deepest = deepest.max(floor);
+            assert_eq!(
+                g.floor.amulet.is_some(),
+                floor >= 5,
+                "amulet from amulet_level on"
+            );
+            for _ in 0..20 {
+                state = splitmix64(state);
+                g.step(Action::ALL[(state % 11) as usize]);
+            }
+            if g.is_over() {
+                break;
+            }
+            // Teleport to the stairs (a monster may stand there: then skip the floor check).
+            let stairs = g.floor.stairs;
+            if g.enemy_at[stairs] != 0 {
+                break;
+            }
+            g.player.pos = stairs;
+            let r = g.step(Action::DownStair);
+            assert!(r.reward >= 50.0 || r.terminated, "{r:?}");
+            if g.is_over() {
+                break;
+            }
+        }
+    }
+    assert!(deepest >= 30, "deepest floor {deepest}");
+}
+
+#[test]
+fn corridors_are_revealed_orthogonally() {
+    let rows = ["-----", "|...|", "|..@+##", "|...| ##", "-----  #"];
+    let mut g = Game::from_layout(&quiet(), EpisodeConfig::default(), &rows, false);
+    g.step(Action::Right); // onto the door (4,3)
+    assert_eq!(g.tile_at(5, 3), b'#');
+    assert_eq!(g.tile_at(6, 3), b' ', "two cells away");
+    g.step(Action::Right); // (5,3)
+    assert_eq!(g.tile_at(6, 3), b'#');
+    assert_eq!(g.tile_at(6, 4), b' ', "diagonal corridor cell stays unseen");
+    g.step(Action::Right); // (6,3)
+    assert_eq!(g.tile_at(6, 4), b'#');
+    // Seen corridor cells stay visible.
+    assert_eq!(g.tile_at(5, 3), b'#');
+}
+
+#[test]
+fn run_stops_at_a_door() {
+    let rows = ["--------", "|......|", "|@.....+##", "|......|", "--------"];
+    let mut g = Game::from_layout(&quiet(), EpisodeConfig::default(), &rows, false);
+    g.step_command(Command::Run(Action::Right));
+    assert_eq!(g.player_position(), (7, 3), "the run stops on the door");
+    assert_eq!(g.info().steps, 6);
+}
+
+#[test]
+fn hide_dungeon_false_shows_the_floor() {
+    let cfg = GameConfig {
+        hide_dungeon: false,
+        ..GameConfig::paper()
+    };
+    let mut g = Game::new(&cfg, EpisodeConfig::default()).unwrap();
+    g.reset(4);
+    let stairs = g.floor.xy(g.floor.stairs);
+    assert_eq!(g.tile_at(stairs.0, stairs.1), b'%');
+    let walls = g.ascii.iter().filter(|&&t| t == b'-' || t == b'|').count();
+    assert!(walls > 20);
+}
