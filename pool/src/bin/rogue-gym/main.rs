@@ -4,7 +4,9 @@
 
 mod bench;
 mod play;
+mod pool_bench;
 mod replay;
+mod worker;
 
 use std::path::Path;
 use std::process::ExitCode;
@@ -28,6 +30,10 @@ enum Cmd {
     Replay(replay::Args),
     /// Measure engine steps per second.
     Bench(bench::Args),
+    /// Benchmark the multi-process pool against the raw single-process loop.
+    PoolBench(pool_bench::Args),
+    /// Run a pool worker (spawned by the pool's supervisor; not for direct use).
+    Worker(worker::Args),
 }
 
 fn main() -> ExitCode {
@@ -36,6 +42,8 @@ fn main() -> ExitCode {
         Cmd::Play(args) => play::run(args),
         Cmd::Replay(args) => replay::run(args),
         Cmd::Bench(args) => bench::run(args),
+        Cmd::PoolBench(args) => std::process::exit(pool_bench::run(args)),
+        Cmd::Worker(args) => std::process::exit(worker::run(args)),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

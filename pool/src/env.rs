@@ -1,0 +1,181 @@
+//! The [`Env`] trait hosted by the pool, and the registry that builds envs from a JSON spec.
+
+use serde_json::Value;
+
+/// Element type of an observation tensor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Dtype {
+    /// `u8`, one byte per element.
+    U8,
+    /// `f32`, four bytes per element (native endianness).
+    F32,
+}
+
+impl Dtype {
+    /// Bytes per element.
+    pub fn size(self) -> usize {
+        match self {
+            Dtype::U8 => 1,
+            Dtype::F32 => 4,
+        }
+    }
+    /// The numpy name of the type (`"uint8"` or `"float32"`).
+    pub fn numpy_name(self) -> &'static str {
+        match self {
+            Dtype::U8 => "uint8",
+            Dtype::F32 => "float32",
+        }
+    }
+}
+
+/// Most env-defined info values per env (see [`EnvSpec::info_names`]).
+pub const MAX_INFO: usize = 8;
+
+/// What an env looks like from outside: observation shape and type, action count, and the names
+/// of its small fixed array of info values.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct EnvSpec {
+    /// Observation shape, e.g. `[17, 16, 32]`.
+    pub obs_shape: Vec<usize>,
+    /// Observation element type.
+    pub dtype: Dtype,
+    /// Number of discrete actions; valid actions are `0..num_actions`.
+    pub num_actions: usize,
+    /// Names of the env's info values (at most [`MAX_INFO`]), e.g. `["floor", "gold", "hp"]`.
+    pub info_names: Vec<String>,
+}
+
+impl EnvSpec {
+    /// Number of elements of one observation.
+    pub fn obs_len(&self) -> usize {
+        self.obs_shape.iter().product()
+    }
+    /// Bytes of one observation.
+    pub fn obs_bytes(&self) -> usize {
+        self.obs_len() * self.dtype.size()
+    }
+    /// Check the spec is usable by the pool.
+    pub fn validate(&self) -> Result<(), EnvError> {
+        if self.obs_len() == 0 {
+            return Err(EnvError::new(format!(
+                "observation shape {:?} is empty",
+                self.obs_shape
+            )));
+        }
+        if self.num_actions == 0 {
+            return Err(EnvError::new("the env declares 0 actions"));
+        }
+        if self.info_names.len() > MAX_INFO {
+            return Err(EnvError::new(format!(
+                "the env declares {} info values; at most {MAX_INFO} are supported",
+                self.info_names.len()
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Result of one env step.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StepOutcome {
+    /// Reward of the step.
+    pub reward: f32,
+    /// The episode ended by the game's rules (death, win).
+    pub terminated: bool,
+    /// The episode was cut (step limit).
+    pub truncated: bool,
+}
+
+/// An error of an env (bad config, bad action, encoder failure). A message for humans.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct EnvError(pub String);
+
+impl EnvError {
+    /// Build an error from a message.
+    pub fn new(msg: impl Into<String>) -> Self {
+        EnvError(msg.into())
+    }
+}
+
+/// An environment the pool can host. Observations are written in place into the caller's byte
+/// slice (in a worker: straight into the shared-memory sample), which is exactly
+/// [`EnvSpec::obs_bytes`] long and, for `f32` observations, 4-byte aligned.
+pub trait Env {
+    /// The env's spec; must not change over the env's life.
+    fn spec(&self) -> EnvSpec;
+    /// Start a new episode from `seed` and write its first observation.
+    fn reset(&mut self, seed: u64, obs: &mut [u8]) -> Result<(), EnvError>;
+    /// Apply `action` (already checked to be `< num_actions`) and write the new observation.
+    fn step(&mut self, action: usize, obs: &mut [u8]) -> Result<StepOutcome, EnvError>;
+    /// Write the env's info values (as many as [`EnvSpec::info_names`]) into `out`.
+    fn info(&self, out: &mut [f64]) {
+        let _ = out;
+    }
+}
+
+/// Builds an env from its JSON spec (the whole object, including `"kind"`).
+pub type EnvCtor = fn(&Value) -> Result<Box<dyn Env>, EnvError>;
+
+/// The env kinds a worker (and the supervisor, to learn the spec) can build, by name. The JSON
+/// spec of an env is an object whose `"kind"` field selects the constructor, e.g.
+/// `{"kind": "rogue", "config": {...}, "max_steps": 500}`.
+#[derive(Debug, Clone, Default)]
+pub struct EnvRegistry {
+    kinds: Vec<(String, EnvCtor)>,
+}
+
+impl EnvRegistry {
+    /// An empty registry.
+    pub fn new() -> Self {
+        Self::default()
+    }
+    /// The registry with every env kind of this crate: `"rogue"` (the Rogue-Gym game) and
+    /// `"test"` (the deterministic [`crate::TestEnv`]).
+    pub fn with_defaults() -> Self {
+        let mut r = Self::new();
+        r.register("rogue", crate::rogue::make_rogue_env);
+        r.register("test", crate::test_env::make_test_env);
+        r
+    }
+    /// Add (or replace) a kind.
+    pub fn register(&mut self, kind: &str, ctor: EnvCtor) {
+        self.kinds.retain(|(k, _)| k != kind);
+        self.kinds.push((kind.to_string(), ctor));
+    }
+    /// The registered kinds.
+    pub fn kinds(&self) -> Vec<&str> {
+        self.kinds.iter().map(|(k, _)| k.as_str()).collect()
+    }
+    /// Build an env from its JSON spec.
+    pub fn make(&self, spec: &Value) -> Result<Box<dyn Env>, EnvError> {
+        let kind = spec.get("kind").and_then(Value::as_str).ok_or_else(|| {
+            EnvError::new(format!(
+                "env spec must be a JSON object with a \"kind\" string (one of {:?}); got {spec}",
+                self.kinds()
+            ))
+        })?;
+        let (_, ctor) = self.kinds.iter().find(|(k, _)| k == kind).ok_or_else(|| {
+            EnvError::new(format!(
+                "unknown env kind {kind:?}; known kinds: {:?}",
+                self.kinds()
+            ))
+        })?;
+        let env = ctor(spec)?;
+        env.spec().validate()?;
+        Ok(env)
+    }
+}
+
+/// View an f32 observation buffer as `&mut [f32]`; errors if misaligned or of odd length.
+pub fn bytes_as_f32_mut(obs: &mut [u8]) -> Result<&mut [f32], EnvError> {
+    // SAFETY: every bit pattern is a valid f32; align_to_mut handles alignment.
+    let (pre, mid, post) = unsafe { obs.align_to_mut::<f32>() };
+    if !pre.is_empty() || !post.is_empty() {
+        return Err(EnvError::new(
+            "f32 observation buffer is not 4-byte aligned or not a multiple of 4 bytes",
+        ));
+    }
+    Ok(mid)
+}

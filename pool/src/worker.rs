@@ -1,0 +1,542 @@
+//! The worker process: steps a block of envs and publishes their observations and records
+//! through shared memory.
+//!
+//! Entry point: [`worker_main`], called by `rogue-gym worker ...`, by the e2e test binary and by
+//! the Python extension (`python -m rogue_gym.worker ...`). Arguments (after the program and its
+//! leading args): `--config <file> --index <k> --generation <g> --ppid <supervisor pid>`.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use rogue_gym_ipc::{
+    BlockHeader, ChannelSettings, IpcError, PoolId, WaitCall, WaitPolicy, WorkerPorts, hybrid_wait,
+};
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use crate::env::{Env, EnvRegistry, MAX_INFO};
+use crate::layout::{
+    BlockLayout, EnvRecord, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED, write_record_words,
+};
+use crate::seeds::SeedSchedule;
+
+/// Command: reset the block's envs; payload = episode index per env.
+pub(crate) const CMD_RESET: u32 = 1;
+/// Command: step the block's envs; payload = action per env.
+pub(crate) const CMD_STEP: u32 = 2;
+/// Command: exit cleanly.
+pub(crate) const CMD_CLOSE: u32 = 3;
+/// Command kinds carry the observation target in bits 8..: 0 = the block's own obs area,
+/// `s + 1` = slot `s` of the shared batch buffer.
+pub(crate) const TARGET_SHIFT: u32 = 8;
+/// Flag of a reset command: re-read the seed schedule from the config file first.
+pub(crate) const RELOAD_SEEDS: u32 = 1 << 16;
+/// Name of the shared batch buffer (`/dev/shm/<prefix>batch`).
+pub(crate) const BATCH_BUFFER: &str = "batch";
+/// Number of slots of the shared batch buffer (double buffering).
+pub const BATCH_SLOTS: usize = 2;
+
+/// Bytes of one slot of the shared batch buffer (64-byte aligned).
+pub(crate) fn slot_bytes(num_envs: usize, obs_bytes: usize) -> usize {
+    (num_envs * obs_bytes).div_ceil(64) * 64
+}
+/// Block: the worker is up (no payload meaning).
+pub(crate) const BLOCK_READY: u32 = 1;
+/// Block: records and observations.
+pub(crate) const BLOCK_DATA: u32 = 2;
+
+/// When an env whose episode ended is reset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AutoresetMode {
+    /// gymnasium/EnvPool default: the step after an episode ends ignores the env's action and
+    /// returns the reset observation with reward 0 and `terminated = truncated = false`.
+    #[default]
+    NextStep,
+    /// The step that ends an episode returns its reward and flags with the *reset* observation;
+    /// the final observation is returned separately (SB3 `terminal_observation`).
+    SameStep,
+}
+
+/// Everything a worker needs, written by the supervisor to a JSON file in the pool's directory.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct WorkerConfig {
+    /// Pool name (`rg<8hex>`).
+    pub pool_name: String,
+    /// Base dir of the pool's files.
+    pub base_dir: PathBuf,
+    /// Envs of the whole pool.
+    pub num_envs: usize,
+    /// Workers of the pool.
+    pub num_workers: usize,
+    /// Envs per worker (worker `k` hosts envs `k*epw .. (k+1)*epw`).
+    pub envs_per_worker: usize,
+    /// JSON spec of the env (see [`EnvRegistry`]).
+    pub env: Value,
+    /// Episode seed schedule.
+    pub seeds: SeedSchedule,
+    /// Autoreset mode.
+    pub autoreset: AutoresetMode,
+    /// Samples of one worker the supervisor may hold at once.
+    pub max_borrowed: usize,
+    /// Yield-poll budget of the worker's wait, µs.
+    pub poll_budget_us: u64,
+    /// Longest blocking wait slice of the worker, ms (parent liveness is checked between).
+    pub block_slice_ms: u64,
+    /// Whether the worker's poll yields the CPU (see `WaitPolicy::yield_cpu`).
+    #[serde(default = "default_true")]
+    pub poll_yield: bool,
+}
+
+fn default_true() -> bool {
+    true
+}
+
+impl WorkerConfig {
+    /// The channel settings both sides use.
+    pub fn channel_settings(&self) -> ChannelSettings {
+        ChannelSettings {
+            num_workers: self.num_workers,
+            max_borrowed: self.max_borrowed,
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+enum WorkerError {
+    #[error(transparent)]
+    Ipc(#[from] IpcError),
+    #[error("{0}")]
+    Msg(String),
+    #[error("the supervisor (pid {0}) is gone")]
+    ParentGone(i32),
+}
+
+struct Args {
+    config: PathBuf,
+    index: usize,
+    generation: u64,
+    ppid: i32,
+}
+
+fn parse_args(args: &[String]) -> Result<Args, String> {
+    let mut config = None;
+    let mut index = None;
+    let mut generation = 0u64;
+    let mut ppid = None;
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        let mut val = |name: &str| {
+            it.next()
+                .cloned()
+                .ok_or_else(|| format!("{name} needs a value"))
+        };
+        match a.as_str() {
+            "--config" => config = Some(PathBuf::from(val("--config")?)),
+            "--index" => {
+                index = Some(
+                    val("--index")?
+                        .parse()
+                        .map_err(|e| format!("--index: {e}"))?,
+                )
+            }
+            "--generation" => {
+                generation = val("--generation")?
+                    .parse()
+                    .map_err(|e| format!("--generation: {e}"))?
+            }
+            "--ppid" => ppid = Some(val("--ppid")?.parse().map_err(|e| format!("--ppid: {e}"))?),
+            other => return Err(format!("unexpected argument {other:?}")),
+        }
+    }
+    Ok(Args {
+        config: config.ok_or("missing --config <file>")?,
+        index: index.ok_or("missing --index <worker index>")?,
+        generation,
+        ppid: ppid.ok_or("missing --ppid <supervisor pid>")?,
+    })
+}
+
+/// Run a worker; returns the process exit code (0: closed by the supervisor or supervisor gone,
+/// 2: bad arguments or config, 3: env or transport failure). Messages go to stderr, which the
+/// supervisor captures for crash reports. `args` are the arguments after the program name and
+/// its leading args (see the module docs). `registry` must know the pool's env kind.
+pub fn worker_main(args: &[String], registry: &EnvRegistry) -> i32 {
+    let a = match parse_args(args) {
+        Ok(a) => a,
+        Err(e) => {
+            eprintln!(
+                "rogue-gym worker: {e}\nusage: worker --config <file> --index <k> --generation <g> --ppid <pid>"
+            );
+            return 2;
+        }
+    };
+    // Die with the supervisor; then close the race where it died before prctl.
+    let _ = nix::sys::prctl::set_pdeathsig(nix::sys::signal::Signal::SIGKILL);
+    if nix::unistd::getppid().as_raw() != a.ppid {
+        eprintln!(
+            "rogue-gym worker {}: supervisor {} already gone",
+            a.index, a.ppid
+        );
+        return 0;
+    }
+    let cfg: WorkerConfig = match std::fs::read_to_string(&a.config)
+        .map_err(|e| format!("cannot read worker config {}: {e}", a.config.display()))
+        .and_then(|s| serde_json::from_str(&s).map_err(|e| format!("bad worker config: {e}")))
+    {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("rogue-gym worker {}: {e}", a.index);
+            return 2;
+        }
+    };
+    match run(&a, &cfg, registry) {
+        Ok(()) => 0,
+        Err(WorkerError::ParentGone(p)) => {
+            eprintln!("rogue-gym worker {}: supervisor {p} gone, exiting", a.index);
+            0
+        }
+        Err(e) => {
+            eprintln!(
+                "rogue-gym worker {} (generation {}): {e}",
+                a.index, a.generation
+            );
+            3
+        }
+    }
+}
+
+/// One env of a worker with its episode bookkeeping.
+pub(crate) struct Slot {
+    pub(crate) env: Box<dyn Env>,
+    /// Global env id.
+    pub(crate) global: u64,
+    pub(crate) episode: u64,
+    pub(crate) seed: u64,
+    pub(crate) ret: f64,
+    pub(crate) len: u32,
+    pub(crate) needs_reset: bool,
+}
+
+impl Slot {
+    pub(crate) fn new(env: Box<dyn Env>, global: u64) -> Self {
+        Slot {
+            env,
+            global,
+            episode: 0,
+            seed: 0,
+            ret: 0.0,
+            len: 0,
+            needs_reset: true,
+        }
+    }
+}
+
+/// What [`apply`] needs besides the slot.
+pub(crate) struct SlotCtx<'a> {
+    pub(crate) seeds: &'a SeedSchedule,
+    pub(crate) num_envs: u64,
+    pub(crate) autoreset: AutoresetMode,
+    pub(crate) num_actions: usize,
+    pub(crate) n_info: usize,
+}
+
+fn do_reset(s: &mut Slot, obs: &mut [u8], ctx: &SlotCtx) -> Result<(), String> {
+    s.seed = ctx.seeds.seed(s.global, s.episode, ctx.num_envs);
+    s.ret = 0.0;
+    s.len = 0;
+    s.needs_reset = false;
+    s.env.reset(s.seed, obs).map_err(|e| {
+        format!(
+            "env {} reset (episode {}, seed {}) failed: {e}",
+            s.global, s.episode, s.seed
+        )
+    })
+}
+
+/// Apply one command to one env: `CMD_RESET` (value = episode index) or `CMD_STEP` (value =
+/// action), with autoreset. Writes the observation into `obs` and, in SAME_STEP mode on an
+/// episode end, the final observation into `fin`. Returns the env's record.
+pub(crate) fn apply(
+    s: &mut Slot,
+    kind: u32,
+    value: u64,
+    obs: &mut [u8],
+    fin: &mut [u8],
+    ctx: &SlotCtx,
+) -> Result<EnvRecord, String> {
+    let mut rec = EnvRecord::default();
+    match kind {
+        CMD_RESET => {
+            s.episode = value;
+            do_reset(s, obs, ctx)?;
+        }
+        CMD_STEP if s.needs_reset => {
+            // NEXT_STEP: this step only resets; the action is ignored.
+            s.episode += 1;
+            do_reset(s, obs, ctx)?;
+        }
+        CMD_STEP => {
+            let action = value as usize;
+            if value >= ctx.num_actions as u64 {
+                return Err(format!(
+                    "env {}: action {value} out of range 0..{}",
+                    s.global, ctx.num_actions
+                ));
+            }
+            let out = s.env.step(action, obs).map_err(|e| {
+                format!(
+                    "env {} step (episode {}, seed {}, step {}) failed: {e}",
+                    s.global, s.episode, s.seed, s.len
+                )
+            })?;
+            s.ret += f64::from(out.reward);
+            s.len += 1;
+            rec.reward = out.reward;
+            rec.flags = (u32::from(out.terminated) * FLAG_TERMINATED)
+                | (u32::from(out.truncated) * FLAG_TRUNCATED);
+        }
+        k => return Err(format!("unknown command kind {k}")),
+    }
+    rec.episode = s.episode;
+    rec.seed = s.seed;
+    rec.episode_return = s.ret;
+    rec.episode_length = s.len;
+    s.env.info(&mut rec.info[..ctx.n_info]);
+    if rec.flags & (FLAG_TERMINATED | FLAG_TRUNCATED) != 0 {
+        match ctx.autoreset {
+            AutoresetMode::NextStep => s.needs_reset = true,
+            AutoresetMode::SameStep => {
+                if fin.len() == obs.len() {
+                    fin.copy_from_slice(obs);
+                    rec.flags |= FLAG_FINAL_OBS;
+                }
+                s.episode += 1;
+                do_reset(s, obs, ctx)?;
+            }
+        }
+    }
+    Ok(rec)
+}
+
+fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), WorkerError> {
+    if a.index >= cfg.num_workers || cfg.envs_per_worker == 0 {
+        return Err(WorkerError::Msg(format!(
+            "worker index {} out of range (pool has {} workers of {} envs)",
+            a.index, cfg.num_workers, cfg.envs_per_worker
+        )));
+    }
+    let epw = cfg.envs_per_worker;
+    let mut slots = Vec::with_capacity(epw);
+    for j in 0..epw {
+        let env = registry
+            .make(&cfg.env)
+            .map_err(|e| WorkerError::Msg(format!("cannot build env: {e}")))?;
+        slots.push(Slot::new(env, (a.index * epw + j) as u64));
+    }
+    let spec = slots[0].env.spec();
+    let n_info = spec.info_names.len().min(MAX_INFO);
+    let layout = BlockLayout {
+        envs: epw,
+        obs_bytes: spec.obs_bytes(),
+        final_obs: cfg.autoreset == AutoresetMode::SameStep,
+    };
+    let words = layout.words();
+    let id = PoolId::from_parts(&cfg.pool_name, &cfg.base_dir)?;
+    let node = id.node(&format!("w{}g{}", a.index, a.generation))?;
+    let ports = WorkerPorts::new(&node, a.index, words, &cfg.channel_settings())?;
+    let policy = WaitPolicy {
+        poll_budget: Duration::from_micros(cfg.poll_budget_us),
+        block_slice: Duration::from_millis(cfg.block_slice_ms.max(1)),
+        yield_cpu: cfg.poll_yield,
+    };
+    let header = |seq, kind| BlockHeader {
+        seq,
+        generation: a.generation,
+        worker: a.index as u32,
+        kind,
+    };
+    let ob = layout.obs_bytes;
+    let sb = slot_bytes(cfg.num_envs, ob);
+    let batch = rogue_gym_ipc::SharedBuffer::open(&id, BATCH_BUFFER, BATCH_SLOTS * sb)?;
+    let first_env = a.index * epw;
+    let mut ready = ports.loan_block(words)?;
+    *ready.user_header_mut() = header(0, BLOCK_READY);
+    ports.send_block(ready)?;
+
+    let mut seeds = cfg.seeds.clone();
+    let mut payload: Vec<u64> = vec![0; epw];
+    loop {
+        let mut cmd = None;
+        hybrid_wait::<WorkerError>(ports.cmd_listener(), &policy, None, |call| {
+            if call == WaitCall::Idle && nix::unistd::getppid().as_raw() != a.ppid {
+                return Err(WorkerError::ParentGone(a.ppid));
+            }
+            cmd = ports.try_recv_cmd()?;
+            Ok(cmd.is_some())
+        })?;
+        let Some(cmd) = cmd else { continue };
+        let h = *cmd.user_header();
+        let n = (h.len as usize).min(cmd.payload().len());
+        if h.kind == CMD_CLOSE {
+            return Ok(());
+        }
+        if n != epw {
+            return Err(WorkerError::Msg(format!(
+                "command {} carries {n} values for {epw} envs",
+                h.seq
+            )));
+        }
+        payload.copy_from_slice(&cmd.payload()[..epw]);
+        drop(cmd);
+
+        let kind = h.kind & ((1 << TARGET_SHIFT) - 1);
+        let target = ((h.kind & (RELOAD_SEEDS - 1)) >> TARGET_SHIFT) as usize;
+        if h.kind & RELOAD_SEEDS != 0 {
+            let fresh: WorkerConfig = std::fs::read_to_string(&a.config)
+                .map_err(|e| format!("cannot re-read worker config {}: {e}", a.config.display()))
+                .and_then(|t| {
+                    serde_json::from_str(&t).map_err(|e| format!("bad worker config: {e}"))
+                })
+                .map_err(WorkerError::Msg)?;
+            seeds = fresh.seeds;
+        }
+        let ctx = SlotCtx {
+            seeds: &seeds,
+            num_envs: cfg.num_envs as u64,
+            autoreset: cfg.autoreset,
+            num_actions: spec.num_actions,
+            n_info,
+        };
+        if target > BATCH_SLOTS {
+            return Err(WorkerError::Msg(format!("bad observation target {target}")));
+        }
+        let mut block = ports.loan_block(words)?;
+        *block.user_header_mut() = header(h.seq, BLOCK_DATA);
+        let (records, obs_area, final_area) = layout.split_mut(block.payload_mut());
+        let obs_area: &mut [u8] = if target == 0 {
+            obs_area
+        } else {
+            // SAFETY: the shared batch buffer holds BATCH_SLOTS slots of `sb` bytes; this
+            // worker's envs occupy bytes [first_env*ob, (first_env+epw)*ob) of slot
+            // `target - 1`, which the supervisor neither reads nor lends out until this
+            // command is answered, and no other worker writes them.
+            unsafe {
+                std::slice::from_raw_parts_mut(
+                    batch.as_ptr().add((target - 1) * sb + first_env * ob),
+                    epw * ob,
+                )
+            }
+        };
+        for (j, s) in slots.iter_mut().enumerate() {
+            let obs = &mut obs_area[j * ob..(j + 1) * ob];
+            let fin = if ctx.autoreset == AutoresetMode::SameStep {
+                &mut final_area[j * ob..(j + 1) * ob]
+            } else {
+                &mut final_area[..0]
+            };
+            let rec = apply(s, kind, payload[j], obs, fin, &ctx).map_err(WorkerError::Msg)?;
+            write_record_words(records, j, &rec);
+        }
+        ports.send_block(block)?;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_env::TestEnv;
+
+    fn slot() -> Slot {
+        let env =
+            TestEnv::from_json(&serde_json::json!({"obs_shape": [4], "max_steps": 3})).unwrap();
+        Slot::new(Box::new(env), 5)
+    }
+
+    fn ctx(seeds: &SeedSchedule, autoreset: AutoresetMode) -> SlotCtx<'_> {
+        SlotCtx {
+            seeds,
+            num_envs: 8,
+            autoreset,
+            num_actions: 5,
+            n_info: 2,
+        }
+    }
+
+    #[test]
+    fn next_step_autoreset_ignores_action_and_keeps_last_reward() {
+        let seeds = SeedSchedule::from_base(1);
+        let c = ctx(&seeds, AutoresetMode::NextStep);
+        let mut s = slot();
+        let (mut obs, mut fin) = ([0u8; 4], [0u8; 0]);
+        let r = apply(&mut s, CMD_RESET, 0, &mut obs, &mut fin, &c).unwrap();
+        assert_eq!((r.episode, r.seed, r.flags), (0, seeds.seed(5, 0, 8), 0));
+        let mut total = 0.0;
+        for t in 1..=3 {
+            let r = apply(&mut s, CMD_STEP, 1, &mut obs, &mut fin, &c).unwrap();
+            total += f64::from(r.reward);
+            assert_eq!(r.episode_length, t);
+            if r.terminated() {
+                break;
+            }
+            assert_eq!(r.truncated(), t == 3, "max_steps 3 truncates at step 3");
+        }
+        // The episode ended: its last reward was reported; the next step only resets.
+        assert_eq!(s.ret, total);
+        let r = apply(&mut s, CMD_STEP, 4, &mut obs, &mut fin, &c).unwrap();
+        assert_eq!(r.reward, 0.0);
+        assert!(!r.terminated() && !r.truncated());
+        assert_eq!(
+            (r.episode, r.seed, r.episode_length),
+            (1, seeds.seed(5, 1, 8), 0)
+        );
+        let mut fresh = [0u8; 4];
+        let mut e = TestEnv::from_json(&serde_json::json!({"obs_shape": [4]})).unwrap();
+        e.reset(seeds.seed(5, 1, 8), &mut fresh).unwrap();
+        assert_eq!(obs, fresh, "the reset obs is returned");
+    }
+
+    #[test]
+    fn same_step_autoreset_returns_reset_obs_and_final_obs() {
+        let seeds = SeedSchedule::from_base(1);
+        let c = ctx(&seeds, AutoresetMode::SameStep);
+        let mut s = slot();
+        let (mut obs, mut fin) = ([0u8; 4], [0u8; 4]);
+        apply(&mut s, CMD_RESET, 0, &mut obs, &mut fin, &c).unwrap();
+        // Replay the same episode on a bare env to know the final obs.
+        let mut bare =
+            TestEnv::from_json(&serde_json::json!({"obs_shape": [4], "max_steps": 3})).unwrap();
+        let mut bobs = [0u8; 4];
+        bare.reset(seeds.seed(5, 0, 8), &mut bobs).unwrap();
+        loop {
+            let o = bare.step(2, &mut bobs).unwrap();
+            let r = apply(&mut s, CMD_STEP, 2, &mut obs, &mut fin, &c).unwrap();
+            assert_eq!(r.reward, o.reward, "the final reward is kept");
+            if o.terminated || o.truncated {
+                assert_eq!((r.terminated(), r.truncated()), (o.terminated, o.truncated));
+                assert!(r.has_final_obs());
+                assert_eq!(fin, bobs, "final obs kept separately");
+                assert_eq!(r.episode, 0, "the record describes the finished episode");
+                bare.reset(seeds.seed(5, 1, 8), &mut bobs).unwrap();
+                assert_eq!(obs, bobs, "obs is the next episode's first");
+                assert_eq!(s.episode, 1);
+                break;
+            }
+            assert_eq!(obs, bobs);
+        }
+        // The next step acts normally in the new episode.
+        let r = apply(&mut s, CMD_STEP, 0, &mut obs, &mut fin, &c).unwrap();
+        assert_eq!((r.episode, r.episode_length), (1, 1));
+    }
+
+    #[test]
+    fn bad_action_is_an_error_not_a_panic() {
+        let seeds = SeedSchedule::from_base(1);
+        let c = ctx(&seeds, AutoresetMode::NextStep);
+        let mut s = slot();
+        let (mut obs, mut fin) = ([0u8; 4], [0u8; 0]);
+        apply(&mut s, CMD_RESET, 0, &mut obs, &mut fin, &c).unwrap();
+        let e = apply(&mut s, CMD_STEP, 99, &mut obs, &mut fin, &c).unwrap_err();
+        assert!(e.contains("action 99"), "{e}");
+    }
+}

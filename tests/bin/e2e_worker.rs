@@ -1,0 +1,53 @@
+//! Worker and helper binary of the end-to-end tests.
+//!
+//! * `e2e_worker worker <worker args>`: a pool worker with the default env registry.
+//! * `e2e_worker hold-pool <num_workers>`: build a pool of test envs (workers spawned from this
+//!   binary), print `pids <pid> <pid> ...` and the pool name, then sleep until killed. Used to
+//!   check that workers die with a killed supervisor.
+
+use std::io::Write;
+
+use rogue_gym_pool::{EnvRegistry, Pool, PoolConfig, WorkerCommand, worker_main};
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    match args.first().map(String::as_str) {
+        Some("worker") => {
+            std::process::exit(worker_main(&args[1..], &EnvRegistry::with_defaults()))
+        }
+        Some("hold-pool") => {
+            let workers: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(2);
+            let base = args.get(2).map(std::path::PathBuf::from);
+            let cmd = WorkerCommand::current_exe(&["worker"]).expect("current exe");
+            let mut cfg = PoolConfig::new(
+                serde_json::json!({"kind": "test"}),
+                workers * 2,
+                workers,
+                cmd,
+            );
+            if let Some(b) = base {
+                cfg.base_dir = b;
+            }
+            let pool = match Pool::new(cfg, &EnvRegistry::with_defaults()) {
+                Ok(p) => p,
+                Err(e) => {
+                    eprintln!("hold-pool: {e}");
+                    std::process::exit(1);
+                }
+            };
+            let pids: Vec<String> = pool.worker_pids().iter().map(u32::to_string).collect();
+            println!("pool {}", pool.id().name());
+            println!("pids {}", pids.join(" "));
+            let _ = std::io::stdout().flush();
+            loop {
+                std::thread::sleep(std::time::Duration::from_secs(1));
+            }
+        }
+        _ => {
+            eprintln!(
+                "usage: e2e_worker worker <args> | e2e_worker hold-pool <num_workers> [base_dir]"
+            );
+            std::process::exit(2);
+        }
+    }
+}
