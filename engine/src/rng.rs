@@ -29,19 +29,32 @@ pub(crate) enum Stream {
 
 /// A seeded random stream with the few draws the game needs.
 #[derive(Debug, Clone)]
-pub(crate) struct GameRng(ChaCha8Rng);
+pub(crate) struct GameRng(
+    ChaCha8Rng,
+    /// Test builds only: the original's raw-seeded XorShift128 (see [`legacy`]).
+    #[cfg(test)]
+    Option<legacy::XorShift128>,
+);
 
 impl GameRng {
     /// The stream `stream` number `index` of `seed`.
     pub fn new(seed: u64, stream: Stream, index: u64) -> Self {
         let s = splitmix64(splitmix64(seed ^ stream as u64).wrapping_add(index));
-        GameRng(ChaCha8Rng::seed_from_u64(s))
+        GameRng(
+            ChaCha8Rng::seed_from_u64(s),
+            #[cfg(test)]
+            legacy::stream(seed, stream, index),
+        )
     }
 
     /// Uniform in `[0, n)`; 0 when `n == 0`. Unbiased (Lemire's multiply-and-reject).
     pub fn below(&mut self, n: u32) -> u32 {
         if n <= 1 {
             return 0;
+        }
+        #[cfg(test)]
+        if let Some(x) = &mut self.1 {
+            return x.below(n);
         }
         let threshold = n.wrapping_neg() % n;
         loop {
@@ -73,5 +86,80 @@ impl GameRng {
     /// Sum of `times` rolls of 1..=`max`.
     pub fn dice(&mut self, times: u32, max: u32) -> i32 {
         (0..times).map(|_| self.below(max) as i32 + 1).sum::<i32>() * i32::from(max > 0)
+    }
+}
+
+/// Test builds only: a diagnostic emulation of the original's seeding (engine-spec §14). The
+/// original seeds each of its dungeon, item and enemy XorShift128 streams with the raw seed
+/// as the state `(seed_lo, seed_hi, 0, 0)`, without mixing. For small seeds the first outputs
+/// are tiny, so floor 1's first draws all come out at the low end of their ranges. With
+/// [`legacy::set`] on, floor 1's dungeon, item and monster streams are such a XorShift128
+/// with rand 0.7's `gen_range` (every draw taken as a u32 draw); later floors and the play
+/// stream stay ours. See `src/tests/random_agent.rs`.
+#[cfg(test)]
+pub(crate) mod legacy {
+    use std::cell::Cell;
+
+    thread_local! {
+        static ON: Cell<bool> = const { Cell::new(false) };
+    }
+
+    /// Turns the emulation on or off for games built on this thread.
+    pub(crate) fn set(on: bool) {
+        ON.with(|c| c.set(on));
+    }
+
+    /// The legacy stream for `(seed, stream, index)`, if the emulation is on and this is a
+    /// floor-1 generation stream.
+    pub(super) fn stream(seed: u64, stream: super::Stream, index: u64) -> Option<XorShift128> {
+        let on = ON.with(|c| c.get());
+        (on && index == 1 && !matches!(stream, super::Stream::Play))
+            .then(|| XorShift128::from_seed(seed))
+    }
+
+    /// Marsaglia's XorShift128 as in rand_xorshift 0.2.
+    #[derive(Debug, Clone)]
+    pub(crate) struct XorShift128 {
+        x: u32,
+        y: u32,
+        z: u32,
+        w: u32,
+    }
+
+    impl XorShift128 {
+        /// The original's seeding: the seed's little-endian words, all-zero replaced.
+        pub(crate) fn from_seed(seed: u64) -> Self {
+            let (x, y) = (seed as u32, (seed >> 32) as u32);
+            if x == 0 && y == 0 {
+                let k = 0x0BAD_5EED;
+                return XorShift128 {
+                    x: k,
+                    y: k,
+                    z: k,
+                    w: k,
+                };
+            }
+            XorShift128 { x, y, z: 0, w: 0 }
+        }
+
+        pub(crate) fn next_u32(&mut self) -> u32 {
+            let t = self.x ^ (self.x << 11);
+            self.x = self.y;
+            self.y = self.z;
+            self.z = self.w;
+            self.w = self.w ^ (self.w >> 19) ^ t ^ (t >> 8);
+            self.w
+        }
+
+        /// rand 0.7's `sample_single` for u32: widening multiply, reject above the zone.
+        pub(crate) fn below(&mut self, n: u32) -> u32 {
+            let zone = (n << n.leading_zeros()).wrapping_sub(1);
+            loop {
+                let m = u64::from(self.next_u32()) * u64::from(n);
+                if (m as u32) <= zone {
+                    return (m >> 32) as u32;
+                }
+            }
+        }
     }
 }
