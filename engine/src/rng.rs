@@ -93,28 +93,41 @@ impl GameRng {
 /// original seeds each of its dungeon, item and enemy XorShift128 streams with the raw seed
 /// as the state `(seed_lo, seed_hi, 0, 0)`, without mixing. For small seeds the first outputs
 /// are tiny, so floor 1's first draws all come out at the low end of their ranges. With
-/// [`legacy::set`] on, floor 1's dungeon, item and monster streams are such a XorShift128
+/// [`legacy::set`], floor 1's dungeon, item and/or monster streams are such a XorShift128
 /// with rand 0.7's `gen_range` (every draw taken as a u32 draw); later floors and the play
 /// stream stay ours. See `src/tests/random_agent.rs`.
 #[cfg(test)]
 pub(crate) mod legacy {
     use std::cell::Cell;
 
+    /// Bit of [`set`]'s mask: floor 1's dungeon stream (layout, gold cells, stairs, player).
+    pub(crate) const DUNGEON: u8 = 1;
+    /// Bit of [`set`]'s mask: floor 1's item stream (gold rolls and amounts).
+    pub(crate) const ITEMS: u8 = 2;
+    /// Bit of [`set`]'s mask: floor 1's monster stream (placement, kinds, HP).
+    pub(crate) const ENEMIES: u8 = 4;
+    /// All three.
+    pub(crate) const ALL: u8 = DUNGEON | ITEMS | ENEMIES;
+
     thread_local! {
-        static ON: Cell<bool> = const { Cell::new(false) };
+        static MASK: Cell<u8> = const { Cell::new(0) };
     }
 
-    /// Turns the emulation on or off for games built on this thread.
-    pub(crate) fn set(on: bool) {
-        ON.with(|c| c.set(on));
+    /// Selects the raw-seeded streams (a mask of [`DUNGEON`], [`ITEMS`], [`ENEMIES`]; 0 =
+    /// off) for games built or reset on this thread.
+    pub(crate) fn set(mask: u8) {
+        MASK.with(|c| c.set(mask));
     }
 
-    /// The legacy stream for `(seed, stream, index)`, if the emulation is on and this is a
-    /// floor-1 generation stream.
+    /// The legacy stream for `(seed, stream, index)`, if selected and this is floor 1.
     pub(super) fn stream(seed: u64, stream: super::Stream, index: u64) -> Option<XorShift128> {
-        let on = ON.with(|c| c.get());
-        (on && index == 1 && !matches!(stream, super::Stream::Play))
-            .then(|| XorShift128::from_seed(seed))
+        let bit = match stream {
+            super::Stream::Dungeon => DUNGEON,
+            super::Stream::Items => ITEMS,
+            super::Stream::Enemies => ENEMIES,
+            super::Stream::Play => 0,
+        };
+        (index == 1 && MASK.with(|c| c.get()) & bit != 0).then(|| XorShift128::from_seed(seed))
     }
 
     /// Marsaglia's XorShift128 as in rand_xorshift 0.2.

@@ -9,7 +9,7 @@ use crate::*;
 
 /// Mean gold, mean final floor, death rate and P(stairs in the start room) of the uniform
 /// random agent over 500-step episodes of seeds `seeds`.
-fn baseline(cfg: &GameConfig, raw_seeding: bool, seeds: std::ops::Range<u64>) -> [f64; 4] {
+fn baseline(cfg: &GameConfig, raw_seeding: u8, seeds: std::ops::Range<u64>) -> [f64; 4] {
     legacy::set(raw_seeding);
     let episode = EpisodeConfig {
         max_steps: 500,
@@ -34,7 +34,7 @@ fn baseline(cfg: &GameConfig, raw_seeding: bool, seeds: std::ops::Range<u64>) ->
         floor += u64::from(info.floor);
         died += u64::from(info.died);
     }
-    legacy::set(false);
+    legacy::set(0);
     let n = n as f64;
     [
         gold as f64 / n,
@@ -56,7 +56,7 @@ fn no_enemies(cfg: GameConfig) -> GameConfig {
 
 /// Floor-1 layout statistics: mean gone rooms, P(slot 0 is a maze), mean gold piles, mean
 /// pile size.
-fn floor1(cfg: &GameConfig, raw_seeding: bool, seeds: std::ops::Range<u64>) -> [f64; 4] {
+fn floor1(cfg: &GameConfig, raw_seeding: u8, seeds: std::ops::Range<u64>) -> [f64; 4] {
     legacy::set(raw_seeding);
     let mut g = Game::new(cfg, EpisodeConfig::default()).unwrap();
     let (mut gone, mut maze0, mut piles, mut total) = (0u64, 0u64, 0u64, 0u64);
@@ -71,7 +71,7 @@ fn floor1(cfg: &GameConfig, raw_seeding: bool, seeds: std::ops::Range<u64>) -> [
             total += u64::from(v);
         }
     }
-    legacy::set(false);
+    legacy::set(0);
     [
         gone as f64 / n,
         maze0 as f64 / n,
@@ -95,7 +95,13 @@ fn random_agent_raw_seeding() {
             ("seeds 0..5000", 0..5000, 1),
             ("seeds 1000..2000 x5", 1000..2000, 5),
         ] {
-            for raw in [false, true] {
+            for (raw, label) in [
+                (0, "none"),
+                (legacy::ALL, "all"),
+                (legacy::DUNGEON, "dungeon"),
+                (legacy::ITEMS, "items"),
+                (legacy::DUNGEON | legacy::ITEMS, "dungeon+items"),
+            ] {
                 let mut m = [0.0; 4];
                 for _ in 0..repeats {
                     let r = baseline(cfg, raw, seeds.clone());
@@ -106,7 +112,7 @@ fn random_agent_raw_seeding() {
                 let [gold, floor, died, same] = m;
                 let [gone, maze0, piles, pile] = floor1(cfg, raw, seeds.clone());
                 eprintln!(
-                    "{name:18} {what:19} raw seeding {raw:5}: gold {gold:5.2}  floor {floor:.3}  \
+                    "{name:18} {what:19} raw-seeded {label:13}: gold {gold:5.2}  floor {floor:.3}  \
                      died {:4.1}%  | floor 1: stairs in start room {same:.3}, gone rooms \
                      {gone:.2}, slot 0 maze {maze0:.3}, gold piles {piles:.2}, mean pile {pile:.1}",
                     100.0 * died
@@ -125,14 +131,14 @@ fn print_raw_seeded_maps() {
         (GameConfig::paper(), 3u64),
         (no_enemies(GameConfig::default()), 7),
     ] {
-        legacy::set(true);
+        legacy::set(legacy::ALL);
         let cfg = GameConfig {
             hide_dungeon: false,
             ..cfg
         };
         let mut g = Game::new(&cfg, EpisodeConfig::default()).unwrap();
         g.reset(seed);
-        legacy::set(false);
+        legacy::set(0);
         eprintln!("seed {seed}:\n{}", g.screen_string());
     }
 }
