@@ -179,6 +179,17 @@ impl Drop for PidGuard {
     }
 }
 
+/// Sweeps the pools of dead owners under a base directory when dropped (files of a killed
+/// supervisor, even if the test fails before its own sweep).
+pub struct SweepGuard(pub PathBuf);
+
+impl Drop for SweepGuard {
+    fn drop(&mut self) {
+        rogue_gym_ipc::sweep_stale_pools(&self.0);
+        let _ = std::fs::remove_dir(&self.0);
+    }
+}
+
 /// Whether the pool's files are all gone.
 pub fn pool_files_gone(id: &rogue_gym_ipc::PoolId) -> bool {
     rogue_gym_ipc::pool_shm_files(id).is_empty() && !id.root().exists() && !id.aux_dir().exists()

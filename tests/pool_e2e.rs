@@ -398,6 +398,7 @@ fn two_pools_at_once_do_not_interfere() {
 #[test]
 fn killed_supervisor_leaves_no_worker_and_its_files_are_swept() {
     let base = test_base().join("sk");
+    let _sweep = SweepGuard(base.clone());
     let child = Command::new(EXE)
         .args(["hold-pool", "2"])
         .arg(&base)

@@ -14,6 +14,8 @@
 //!   [`BlockHeader`]), plus an event service per worker for commands and one shared event
 //!   service (event id = worker index) for blocks. Payloads are 8-byte aligned `u64` words; the
 //!   pool decides what they mean.
+//! * **Shared batch buffer** ([`SharedBuffer`]): a plain `/dev/shm/<prefix>...` mapping that
+//!   workers can write observations into directly (the pool's copy-free sync path).
 //! * **Waiting** ([`WaitPolicy`], [`hybrid_wait`]): yield-poll for a bounded budget, then block
 //!   on an iceoryx2 event listener with a timeout. Never an unbounded spin.
 //! * **Cleanup** ([`remove_pool_files`], [`sweep_stale_pools`], [`cleanup_dead_nodes`]):

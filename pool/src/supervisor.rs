@@ -414,6 +414,15 @@ impl Block {
     pub fn restarted(&self) -> bool {
         self.restarted
     }
+    /// The underlying iceoryx2 sample (records, then observations; see `layout`).
+    pub fn sample(&self) -> &BlockSample {
+        &self.sample
+    }
+    /// Give up the block, keeping only the iceoryx2 sample (the memory stays valid while it
+    /// lives). Note: restart flags are applied by [`Block::record`], not stored in the sample.
+    pub fn into_sample(self) -> BlockSample {
+        self.sample
+    }
 }
 
 /// The blocks returned by one async [`Pool::recv`], in arrival order.
