@@ -25,6 +25,10 @@ __all__ = ["RogueVecEnv"]
 class RogueVecEnv(VecEnv):
     """``num_envs`` Rogue-Gym games in worker processes, with SB3's ``VecEnv`` API.
 
+    The constructor takes the same arguments as :class:`rogue_gym.vector.RogueVectorEnv`
+    (less ``autoreset_mode`` and ``copy``; ``render_mode`` is ``None``, ``"ansi"`` or
+    ``"rgb_array"``).
+
     * Same-step autoreset: when an episode ends, ``step_wait`` returns the next episode's first
       observation, with ``infos[i]["terminal_observation"]`` (the last observation, a copy) and
       ``infos[i]["TimeLimit.truncated"] = truncated and not terminated``. ``infos[i]["episode"]``

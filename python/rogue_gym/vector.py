@@ -54,6 +54,32 @@ class RogueVectorEnv(gym.vector.VectorEnv):
       ``truncated=True`` and ``infos["worker_restarted"]``) or raises
       :class:`rogue_gym.WorkerCrashedError` (``"raise"``).
 
+    Args:
+        num_envs: number of games.
+        config: game config: ``"paper"`` (default: 32x16, 2x2 rooms, no monsters, seeds
+            [0, 40)), a dict, a JSON string or a path; ``{}`` is the original default game.
+        num_workers: worker processes (must divide ``num_envs``; default: one per CPU core).
+        seed: base of the episode-seed schedule (default: random).
+        seeds: the dungeons episodes are drawn from: a list, a ``range`` or ``(lo, hi)``
+            (default: the config's ``seed_range`` / ``seed``, else unrestricted).
+        seed_policy: ``"sample"`` (independent draws, training) or ``"sequential"`` (cover the
+            set evenly, evaluation).
+        obs, dtype, status, normalize_status, history: the observation encoding
+            (``symbol_onehot`` / ``symbol_index`` / ``gray`` / ``ascii`` / ``status``), its
+            dtype (``uint8`` / ``float32``), status planes (a :class:`StatusFlag` mask) and the
+            visited-history plane.
+        max_steps: episode step limit (truncation); default 500 as in the paper.
+        stair_reward: reward per new deepest floor, added to the gold gained (default 50).
+        autoreset_mode: ``NEXT_STEP`` (default) or ``SAME_STEP``.
+        on_worker_failure: ``"restart"`` (default) or ``"raise"``.
+        step_timeout: seconds after which a silent worker counts as hung (``None``: never).
+        max_restarts: worker restarts allowed over the pool's life.
+        copy: return a fresh observation array each call instead of the shared-memory view.
+        render_mode: ``None``, ``"ansi"`` or ``"human"`` (records actions to replay screens).
+        worker_command: program and leading args of a worker (default:
+            ``[sys.executable, "-m", "rogue_gym.worker"]``).
+        batch_size: envs per async :meth:`recv` (a multiple of the envs per worker; default all).
+
     **Array lifetimes.** The observation array returned by ``reset``/``step`` is a view of one
     of the pool's two shared-memory batch slots, which the workers write directly (zero-copy)
     and alternately: it stays unchanged until the second following ``reset``/``step`` call (so
