@@ -368,3 +368,26 @@ def test_worker_that_cannot_start_reports_its_stderr() -> None:
     ]
     with pytest.raises(RuntimeError, match="boom from the worker"):
         rogue_gym.make_vec(2, num_workers=1, seed=0, worker_command=bad)
+
+
+def test_async_matches_sync_trajectories(make_vec) -> None:
+    acts = _actions(4, 30, seed=7)
+    sync = make_vec(4, num_workers=2, max_steps=12, seed=3)
+    obs, _ = sync.reset()
+    want = [obs.copy()]
+    for a in acts:
+        want.append(sync.step(a)[0].copy())
+    env = make_vec(4, num_workers=2, max_steps=12, seed=3, batch_size=2)
+    env.async_reset()
+    got: dict[int, list[np.ndarray]] = {i: [] for i in range(4)}
+    while min(len(v) for v in got.values()) <= len(acts):
+        obs, _, _, _, infos = env.recv()  # one worker block, in arrival order
+        ids = infos["env_id"]
+        for r, i in enumerate(ids):
+            got[int(i)].append(obs[r].copy())
+        t = len(got[int(ids[0])]) - 1  # index of the next action for these envs
+        if t < len(acts):
+            env.send(acts[t][ids], ids)
+    for i in range(4):
+        for t in range(len(acts) + 1):
+            assert np.array_equal(got[i][t], want[t][i]), (i, t)
