@@ -391,3 +391,10 @@ def test_async_matches_sync_trajectories(make_vec) -> None:
     for i in range(4):
         for t in range(len(acts) + 1):
             assert np.array_equal(got[i][t], want[t][i]), (i, t)
+
+
+def test_record_dtype_matches_the_native_layout() -> None:
+    from rogue_gym import _native
+    from rogue_gym._records import RECORD_DTYPE
+
+    assert RECORD_DTYPE.itemsize == _native.RECORD_BYTES == 104
