@@ -84,6 +84,30 @@ pub fn run_sync(pool: &mut Pool, steps: u64) -> Result<Digests, PoolError> {
     Ok(d)
 }
 
+/// [`run_sync`] through the zero-copy shared batch slots (`reset_shared`/`step_shared`);
+/// also checks the double buffering (a step leaves the previous step's slot unchanged).
+pub fn run_sync_shared(pool: &mut Pool, steps: u64) -> Result<Digests, PoolError> {
+    let n = pool.num_envs();
+    let ob = pool.obs_bytes();
+    let na = pool.spec().num_actions;
+    let mut out = BatchOutput::default();
+    let mut d = Digests::new(n);
+    let mut slot = pool.reset_shared(&mut out)?;
+    d.add_batch(pool.shared_obs(slot), ob, &out);
+    for t in 0..steps {
+        let actions: Vec<i64> = (0..n).map(|i| action(i, t, na)).collect();
+        let (prev, snapshot) = (slot, pool.shared_obs(slot).to_vec());
+        slot = pool.step_shared(&actions, &mut out)?;
+        assert_ne!(slot, prev, "slots alternate");
+        assert!(
+            pool.shared_obs(prev) == &snapshot[..],
+            "previous slot unchanged"
+        );
+        d.add_batch(pool.shared_obs(slot), ob, &out);
+    }
+    Ok(d)
+}
+
 /// The same trajectories through the async API (`async_reset`, then `recv`/`send` until every
 /// env did `steps` steps; blocks that finish early keep stepping, unrecorded, so that every
 /// `recv` finds a full batch).
@@ -152,6 +176,17 @@ impl Drop for PidGuard {
                 );
             }
         }
+    }
+}
+
+/// Sweeps the pools of dead owners under a base directory when dropped (files of a killed
+/// supervisor, even if the test fails before its own sweep).
+pub struct SweepGuard(pub PathBuf);
+
+impl Drop for SweepGuard {
+    fn drop(&mut self) {
+        rogue_gym_ipc::sweep_stale_pools(&self.0);
+        let _ = std::fs::remove_dir(&self.0);
     }
 }
 

@@ -23,8 +23,29 @@ fn pool(c: PoolConfig) -> Pool {
     Pool::new(c, &EnvRegistry::with_defaults()).expect("pool starts")
 }
 
+/// Send a signal and wait until it took effect (killed: dead or zombie; stopped: state T), so
+/// the worker cannot answer one more command in between.
 fn signal(pid: u32, s: Signal) {
     kill(Pid::from_raw(pid as i32), s).expect("signal worker");
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(5) {
+        let state = std::fs::read_to_string(format!("/proc/{pid}/stat"))
+            .ok()
+            .and_then(|st| {
+                st.rsplit_once(')')
+                    .and_then(|(_, r)| r.split_whitespace().next().map(str::to_string))
+            });
+        let done = match (s, state.as_deref()) {
+            (_, None) => true,
+            (Signal::SIGSTOP, Some(st)) => st == "T" || st == "t",
+            (_, Some(st)) => st == "Z" || st == "X",
+        };
+        if done {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    panic!("signal {s} to {pid} did not take effect");
 }
 
 #[test]
@@ -43,6 +64,14 @@ fn trajectories_identical_for_1_2_4_workers_and_sync_async() {
         }
     }
     let reference = reference.unwrap();
+    for workers in [1, 2, 4] {
+        let mut p = pool(config(EXE, test_env(), 8, workers));
+        let d = run_sync_shared(&mut p, steps).unwrap();
+        assert_eq!(
+            d, reference,
+            "shared-slot sync with {workers} workers differs"
+        );
+    }
     for (workers, batch) in [(4, 4), (2, 4), (4, 8)] {
         let mut c = config(EXE, test_env(), 8, workers);
         c.batch_size = Some(batch);
@@ -101,6 +130,15 @@ fn seed_sets_sequential_policy_through_the_pool() {
 
 #[test]
 fn killed_worker_is_restarted_and_other_envs_are_untouched() {
+    killed_worker_case(false);
+}
+
+#[test]
+fn killed_worker_is_restarted_in_shared_slot_mode() {
+    killed_worker_case(true);
+}
+
+fn killed_worker_case(shared: bool) {
     let steps = 30u64;
     let mut clean = pool(config(EXE, test_env(), 8, 2));
     let reference = run_sync(&mut clean, steps).unwrap();
@@ -113,7 +151,12 @@ fn killed_worker_is_restarted_and_other_envs_are_untouched() {
     let mut obs = vec![0u8; n * ob];
     let mut out = BatchOutput::default();
     let mut d = Digests::new(n);
-    p.reset(&mut obs, &mut out).unwrap();
+    if shared {
+        let slot = p.reset_shared(&mut out).unwrap();
+        obs.copy_from_slice(p.shared_obs(slot));
+    } else {
+        p.reset(&mut obs, &mut out).unwrap();
+    }
     d.add_batch(&obs, ob, &out);
     let victim = p.worker_pids()[0];
     let mut restarted_rows = 0;
@@ -124,7 +167,12 @@ fn killed_worker_is_restarted_and_other_envs_are_untouched() {
             signal(victim, Signal::SIGKILL);
         }
         let actions: Vec<i64> = (0..n).map(|i| action(i, t, 5)).collect();
-        p.step(&actions, &mut obs, &mut out).unwrap();
+        if shared {
+            let slot = p.step_shared(&actions, &mut out).unwrap();
+            obs.copy_from_slice(p.shared_obs(slot));
+        } else {
+            p.step(&actions, &mut obs, &mut out).unwrap();
+        }
         d.add_batch(&obs, ob, &out);
         #[allow(clippy::needless_range_loop)]
         for r in 0..n {
@@ -350,6 +398,7 @@ fn two_pools_at_once_do_not_interfere() {
 #[test]
 fn killed_supervisor_leaves_no_worker_and_its_files_are_swept() {
     let base = test_base().join("sk");
+    let _sweep = SweepGuard(base.clone());
     let child = Command::new(EXE)
         .args(["hold-pool", "2"])
         .arg(&base)
@@ -389,4 +438,74 @@ fn killed_supervisor_leaves_no_worker_and_its_files_are_swept() {
     let swept = rogue_gym_ipc::sweep_stale_pools(&base);
     assert!(swept.contains(&name), "{swept:?}");
     assert!(pool_files_gone(&id));
+    let _ = std::fs::remove_dir(&base);
+}
+
+#[test]
+fn shared_slots_stay_mapped_through_their_arc_after_close() {
+    let mut p = pool(config(EXE, test_env(), 4, 2));
+    let mut out = BatchOutput::default();
+    let slot = p.reset_shared(&mut out).unwrap();
+    let snapshot = p.shared_obs(slot).to_vec();
+    let buf = p.shared_buffer().unwrap();
+    let offset = slot * p.shared_slot_bytes();
+    let id = p.id().clone();
+    p.close().unwrap();
+    assert!(pool_files_gone(&id));
+    assert!(p.shared_obs_ptr(slot).is_null());
+    // SAFETY: the Arc keeps the mapping alive; the range lies inside it.
+    let view = unsafe { std::slice::from_raw_parts(buf.as_ptr().add(offset), snapshot.len()) };
+    assert_eq!(view, &snapshot[..]);
+}
+
+#[test]
+fn async_mode_reports_a_restarted_block() {
+    let mut c = config(EXE, test_env(), 4, 2);
+    c.batch_size = Some(2);
+    let mut p = pool(c);
+    let _guard = PidGuard(p.worker_pids());
+    p.async_reset().unwrap();
+    let b0 = p.recv().unwrap();
+    let b1 = p.recv().unwrap();
+    let ids0 = b0.env_ids();
+    let ids1 = b1.env_ids();
+    drop((b0, b1));
+    let victim_worker = ids0[0] / 2;
+    signal(p.worker_pids()[victim_worker], Signal::SIGKILL);
+    p.send(&[1, 1], &ids0).unwrap();
+    p.send(&[1, 1], &ids1).unwrap();
+    let mut restarted = Vec::new();
+    for _ in 0..2 {
+        let b = p.recv().unwrap();
+        let blk = &b.blocks[0];
+        for j in 0..2 {
+            let r = blk.record(j);
+            if r.restarted() {
+                assert!(r.truncated() && !r.terminated());
+                restarted.push(blk.env_ids().start + j);
+            }
+        }
+    }
+    assert_eq!(restarted, ids0);
+    assert_eq!(p.restarts(), 1);
+}
+
+#[test]
+fn set_seeds_then_reset_replays_a_fresh_pool() {
+    let mut fresh = pool(config(EXE, test_env(), 4, 2));
+    let reference = run_sync(&mut fresh, 20).unwrap();
+    let mut c = config(EXE, test_env(), 4, 2);
+    c.seeds.base = 7;
+    let mut p = pool(c);
+    let other = run_sync(&mut p, 20).unwrap();
+    assert_ne!(other, reference);
+    p.set_seeds(rogue_gym_pool::SeedSchedule::from_base(1234))
+        .unwrap();
+    let mut obs = vec![0u8; 4 * p.obs_bytes()];
+    let mut out = BatchOutput::default();
+    assert!(
+        p.step(&[0; 4], &mut obs, &mut out).is_err(),
+        "reset required"
+    );
+    assert_eq!(run_sync(&mut p, 20).unwrap(), reference);
 }

@@ -25,10 +25,13 @@ fn rogue_trajectories_identical_for_1_2_4_workers_and_sync_async() {
             Some(r) => assert_eq!(&d, r, "sync with {workers} workers differs"),
         }
     }
+    let reference = reference.unwrap();
+    let mut p = Pool::new(config(EXE, rogue(), 8, 2), &reg).unwrap();
+    assert_eq!(run_sync_shared(&mut p, steps).unwrap(), reference);
     let mut c = config(EXE, rogue(), 8, 4);
     c.batch_size = Some(4);
     let mut p = Pool::new(c, &reg).unwrap();
-    assert_eq!(run_async(&mut p, steps).unwrap(), reference.unwrap());
+    assert_eq!(run_async(&mut p, steps).unwrap(), reference);
 }
 
 #[test]

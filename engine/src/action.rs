@@ -88,6 +88,14 @@ impl Action {
     }
 }
 
+impl TryFrom<u8> for Action {
+    type Error = u8;
+    /// The action with this index; the index itself as the error when it is >= 11.
+    fn try_from(i: u8) -> Result<Action, u8> {
+        Action::from_index(usize::from(i)).ok_or(i)
+    }
+}
+
 /// A terminal-play command: an RL action, or a run (`HJKLYUBN`) in a move action's direction.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Command {
@@ -103,12 +111,11 @@ impl Command {
         if let Some(a) = Action::from_key(c) {
             return Some(Command::Act(a));
         }
-        if c.is_ascii_uppercase() {
-            if let Some(a) = Action::from_key(c.to_ascii_lowercase()) {
-                if a.dir().is_some() {
-                    return Some(Command::Run(a));
-                }
-            }
+        if c.is_ascii_uppercase()
+            && let Some(a) = Action::from_key(c.to_ascii_lowercase())
+            && a.dir().is_some()
+        {
+            return Some(Command::Run(a));
         }
         None
     }

@@ -60,7 +60,10 @@ impl Game {
             let elevel = kind.level + lev_add;
             let hp = rng.dice(8, elevel).max(1);
             let per = if elevel == 1 { hp / 8 } else { hp / 6 };
-            let exp = kind.exp + 10 * lev_add + per as u32 * if elevel >= 10 { 20 } else { 4 };
+            let exp = kind
+                .exp
+                .saturating_add(lev_add.saturating_mul(10))
+                .saturating_add((per as u32).saturating_mul(if elevel >= 10 { 20 } else { 4 }));
             self.enemies.push(Enemy {
                 kind: id as u16,
                 pos: cell,
@@ -153,11 +156,11 @@ impl Game {
             head += 1;
             let d = self.dist[c];
             for dir in Dir::ALL {
-                if let Some(t) = self.can_move(c, dir) {
-                    if self.dist[t] == u16::MAX {
-                        self.dist[t] = d + 1;
-                        self.queue.push(t as u32);
-                    }
+                if let Some(t) = self.can_move(c, dir)
+                    && self.dist[t] == u16::MAX
+                {
+                    self.dist[t] = d + 1;
+                    self.queue.push(t as u32);
                 }
             }
         }

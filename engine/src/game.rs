@@ -207,7 +207,7 @@ impl Game {
         for item in &p.init_items {
             match item {
                 InitItem::Noinit(n) if n.kind.eq_ignore_ascii_case("gold") => {
-                    player.gold += n.how_many
+                    player.gold = player.gold.saturating_add(n.how_many)
                 }
                 InitItem::Armor(a) if !armor => {
                     armor = true;
@@ -258,6 +258,7 @@ impl Game {
             return self.result(0.0);
         }
         self.reward = 0.0;
+        self.message.clear();
         self.act(action);
         self.end_step()
     }
@@ -466,6 +467,11 @@ impl Game {
     /// The shape of the observation for `spec` (see [`crate::obs`] for layouts).
     pub fn observation_shape(&self, spec: &ObsSpec) -> Vec<usize> {
         obs::shape(spec, self.height(), self.width(), self.symbols)
+    }
+
+    /// The number of elements of the observation for `spec` (the product of its shape).
+    pub fn observation_len(&self, spec: &ObsSpec) -> usize {
+        self.observation_shape(spec).iter().product()
     }
 
     /// Writes the observation into `out` (length = product of the shape, dtype = spec's).

@@ -24,6 +24,8 @@
 //! draws from its own ChaCha8 stream derived from the seed (floor k's layout from (seed, k)),
 //! there is no `HashMap` iteration and no float in the game logic.
 
+#![warn(missing_docs)]
+
 pub mod action;
 pub mod config;
 mod dungeon;
@@ -44,5 +46,11 @@ pub use config::{ConfigError, GameConfig};
 pub use game::{EpisodeConfig, EpisodeInfo, Game, StepResult};
 pub use obs::{Dtype, Encoding, ObsBufMut, ObsError, ObsSpec, Status, StatusFlags};
 pub use rng::splitmix64;
+
+/// A `Game` moves between threads (pool workers may own games on worker threads).
+const _: () = {
+    const fn assert_send<T: Send + Sync>() {}
+    assert_send::<Game>();
+};
 pub mod summary;
 pub use summary::{FloorSummary, floor_summary};

@@ -408,10 +408,10 @@ pub(crate) fn write(
                     p.fill(b);
                 }
             }
-            if spec.history {
-                if let Some(p) = planes.next() {
-                    p.copy_from_slice(src.visited);
-                }
+            if spec.history
+                && let Some(p) = planes.next()
+            {
+                p.copy_from_slice(src.visited);
             }
         }
         ObsBufMut::F32(buf) => {
@@ -457,11 +457,11 @@ pub(crate) fn write(
                     p.fill(*v);
                 }
             }
-            if spec.history {
-                if let Some(p) = planes.next() {
-                    for (o, &s) in p.iter_mut().zip(src.visited) {
-                        *o = f32::from(s);
-                    }
+            if spec.history
+                && let Some(p) = planes.next()
+            {
+                for (o, &s) in p.iter_mut().zip(src.visited) {
+                    *o = f32::from(s);
                 }
             }
         }

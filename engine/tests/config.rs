@@ -163,3 +163,28 @@ fn seeds() {
         9
     );
 }
+
+#[test]
+fn tiny_rooms_still_have_stairs() {
+    let cfg = GameConfig::from_json(
+        r#"{"width": 32, "height": 16, "enemies": {"enemies": []},
+            "dungeon": {"style": "rogue", "room_num_x": 1, "room_num_y": 1, "min_room_size": {"x": 3, "y": 3}},
+            "item": {"gold": {"rate_inv": 1}}}"#,
+    )
+    .unwrap();
+    let mut g = Game::new(&cfg, EpisodeConfig::default()).unwrap();
+    for seed in 0..300 {
+        g.reset(seed);
+        let s = GameConfig {
+            hide_dungeon: false,
+            ..cfg.clone()
+        };
+        let mut open = Game::new(&s, EpisodeConfig::default()).unwrap();
+        open.reset(seed);
+        let screen = open.screen_string();
+        assert!(
+            screen.contains('%') || screen.contains('*') || screen.contains('@'),
+            "{screen}"
+        );
+    }
+}

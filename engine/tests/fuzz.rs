@@ -77,3 +77,56 @@ fn random_play_10k_episodes_part2() {
     let (deaths, steps) = play(5_000, 1_000_000);
     eprintln!("deaths {deaths} / 5000, steps {steps}");
 }
+
+/// The random agent's baseline (engine-spec §18), for reference; run with
+/// `cargo test --release -p rogue-gym-engine --test fuzz -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn random_agent_baseline() {
+    for (name, cfg) in [
+        ("paper", GameConfig::paper()),
+        (
+            "80x24 no enemies",
+            GameConfig {
+                enemies: rogue_gym_engine::config::EnemiesConfig {
+                    enemies: vec![],
+                    ..Default::default()
+                },
+                ..GameConfig::default()
+            },
+        ),
+        ("80x24 enemies", GameConfig::default()),
+    ] {
+        let mut g = Game::new(
+            &cfg,
+            EpisodeConfig {
+                max_steps: 500,
+                stair_reward: 50.0,
+            },
+        )
+        .unwrap();
+        let (mut gold, mut level, mut deaths) = (0u64, 0u64, 0u64);
+        let episodes = 5000u64;
+        let mut state = 1u64;
+        for e in 0..episodes {
+            g.reset(e);
+            loop {
+                state = splitmix64(state);
+                let r = g.step(Action::ALL[(state % 11) as usize]);
+                if r.terminated || r.truncated {
+                    break;
+                }
+            }
+            gold += u64::from(g.info().gold);
+            level += u64::from(g.info().floor);
+            deaths += u64::from(g.info().died);
+        }
+        let n = episodes as f64;
+        eprintln!(
+            "{name}: mean gold {:.2}, mean final level {:.3}, died {:.1}%",
+            gold as f64 / n,
+            level as f64 / n,
+            100.0 * deaths as f64 / n
+        );
+    }
+}

@@ -250,6 +250,9 @@ fn actions() {
     }
     assert_eq!(Action::from_key('j'), Some(Action::Down));
     assert_eq!(Action::from_index(11), None);
+    assert_eq!(Action::try_from(9u8), Ok(Action::DownStair));
+    assert_eq!(Action::try_from(11u8), Err(11));
+    assert_eq!(game().observation_len(&ObsSpec::paper()), 17 * 16 * 32);
     assert_eq!(Action::from_key('x'), None);
     assert_eq!(Command::from_key('L'), Some(Command::Run(Action::Right)));
     assert_eq!(Command::from_key('S'), None);

@@ -14,6 +14,8 @@
 //!   [`BlockHeader`]), plus an event service per worker for commands and one shared event
 //!   service (event id = worker index) for blocks. Payloads are 8-byte aligned `u64` words; the
 //!   pool decides what they mean.
+//! * **Shared batch buffer** ([`SharedBuffer`]): a plain `/dev/shm/<prefix>...` mapping that
+//!   workers can write observations into directly (the pool's copy-free sync path).
 //! * **Waiting** ([`WaitPolicy`], [`hybrid_wait`]): yield-poll for a bounded budget, then block
 //!   on an iceoryx2 event listener with a timeout. Never an unbounded spin.
 //! * **Cleanup** ([`remove_pool_files`], [`sweep_stale_pools`], [`cleanup_dead_nodes`]):
@@ -76,6 +78,9 @@ pub enum IpcError {
     /// A name or path does not fit iceoryx2's limits.
     #[error("invalid pool name or path: {0}")]
     InvalidName(String),
+    /// A shared resource does not have the size this side expects.
+    #[error("size mismatch: {0}")]
+    SizeMismatch(String),
 }
 
 fn ice<E: std::fmt::Debug>(what: impl Into<String>) -> impl FnOnce(E) -> IpcError {
@@ -712,6 +717,131 @@ pub fn words_as_bytes_mut(w: &mut [u64]) -> &mut [u8] {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Shared batch buffer
+// ---------------------------------------------------------------------------------------------
+
+/// A plain shared-memory buffer of a pool (`/dev/shm/<prefix><name>`, so pool cleanup removes
+/// it), mapped read-write in every process that opens it. Used for batch observation slots that
+/// workers write directly. It has no synchronisation of its own: the pool's command/answer
+/// protocol decides who may touch which bytes when.
+pub struct SharedBuffer {
+    ptr: std::ptr::NonNull<std::ffi::c_void>,
+    len: usize,
+    path: PathBuf,
+}
+
+// SAFETY: the mapping is plain memory owned by this value; access discipline is the caller's.
+unsafe impl Send for SharedBuffer {}
+// SAFETY: shared references only hand out raw pointers / reads synchronised by the protocol.
+unsafe impl Sync for SharedBuffer {}
+
+impl std::fmt::Debug for SharedBuffer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SharedBuffer")
+            .field("path", &self.path)
+            .field("len", &self.len)
+            .finish()
+    }
+}
+
+impl SharedBuffer {
+    fn path_of(id: &PoolId, name: &str) -> PathBuf {
+        StdPath::new(SHM_DIR).join(format!("{}{name}", id.prefix()))
+    }
+
+    /// Create (or truncate) the buffer `name` of `len` bytes (zero-filled) and map it.
+    pub fn create(id: &PoolId, name: &str, len: usize) -> Result<Self, IpcError> {
+        let path = Self::path_of(id, name);
+        let f = fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&path)
+            .map_err(|source| IpcError::Io {
+                what: "create shared buffer",
+                path: path.clone(),
+                source,
+            })?;
+        f.set_len(len as u64).map_err(|source| IpcError::Io {
+            what: "size shared buffer",
+            path: path.clone(),
+            source,
+        })?;
+        Self::map(f, path, len)
+    }
+
+    /// Open and map an existing buffer `name` of `len` bytes.
+    pub fn open(id: &PoolId, name: &str, len: usize) -> Result<Self, IpcError> {
+        let path = Self::path_of(id, name);
+        let f = fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(&path)
+            .map_err(|source| IpcError::Io {
+                what: "open shared buffer",
+                path: path.clone(),
+                source,
+            })?;
+        let actual = f.metadata().map(|m| m.len()).unwrap_or(0);
+        if actual < len as u64 {
+            return Err(IpcError::SizeMismatch(format!(
+                "shared buffer {} has {actual} bytes, expected {len}: supervisor and worker \
+                 disagree (different builds?)",
+                path.display()
+            )));
+        }
+        Self::map(f, path, len)
+    }
+
+    fn map(f: fs::File, path: PathBuf, len: usize) -> Result<Self, IpcError> {
+        use nix::sys::mman::{MapFlags, ProtFlags, mmap};
+        let n = std::num::NonZeroUsize::new(len.max(1)).unwrap_or(std::num::NonZeroUsize::MIN);
+        // SAFETY: a fresh shared mapping of a file we opened; no existing memory is affected.
+        let ptr = unsafe {
+            mmap(
+                None,
+                n,
+                ProtFlags::PROT_READ | ProtFlags::PROT_WRITE,
+                MapFlags::MAP_SHARED,
+                &f,
+                0,
+            )
+        }
+        .map_err(|e| IpcError::Io {
+            what: "map shared buffer",
+            path: path.clone(),
+            source: std::io::Error::from(e),
+        })?;
+        Ok(SharedBuffer {
+            ptr,
+            len: len.max(1),
+            path,
+        })
+    }
+
+    /// Start of the mapping (page aligned).
+    pub fn as_ptr(&self) -> *mut u8 {
+        self.ptr.as_ptr().cast()
+    }
+    /// Length in bytes.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+    /// Whether the buffer is empty (never: at least one byte is mapped).
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+}
+
+impl Drop for SharedBuffer {
+    fn drop(&mut self) {
+        // SAFETY: we own the mapping; nobody uses it after drop (borrowers hold `&self`).
+        let _ = unsafe { nix::sys::mman::munmap(self.ptr, self.len) };
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
 // Waiting
 // ---------------------------------------------------------------------------------------------
 
@@ -724,6 +854,9 @@ pub struct WaitPolicy {
     pub poll_budget: Duration,
     /// Longest single blocking wait on the listener.
     pub block_slice: Duration,
+    /// Poll with `sched_yield` between checks (`true`), or spin with a CPU pause hint
+    /// (`false`; never gives the CPU away, but is still bounded by `poll_budget`).
+    pub yield_cpu: bool,
 }
 
 impl Default for WaitPolicy {
@@ -731,6 +864,7 @@ impl Default for WaitPolicy {
         WaitPolicy {
             poll_budget: Duration::from_micros(50),
             block_slice: Duration::from_millis(10),
+            yield_cpu: true,
         }
     }
 }
@@ -770,7 +904,13 @@ pub fn hybrid_wait<E: From<IpcError>>(
     }
     let start = Instant::now();
     while start.elapsed() < policy.poll_budget {
-        std::thread::yield_now();
+        if policy.yield_cpu {
+            std::thread::yield_now();
+        } else {
+            for _ in 0..64 {
+                std::hint::spin_loop();
+            }
+        }
         if f(WaitCall::Poll)? {
             return Ok(WaitOutcome::Done);
         }
@@ -881,6 +1021,52 @@ mod tests {
         remove_pool_files(&id).unwrap();
         assert!(pool_shm_files(&id).is_empty());
         assert!(!id.root().exists() && !id.aux_dir().exists());
+        let _ = fs::remove_dir(&base);
+    }
+
+    /// CPU time (utime + stime, clock ticks) of the calling thread.
+    fn thread_cpu_ticks() -> u64 {
+        let s = fs::read_to_string("/proc/thread-self/stat").unwrap();
+        let rest = &s[s.rfind(')').unwrap() + 2..];
+        let f: Vec<&str> = rest.split_whitespace().collect();
+        f[11].parse::<u64>().unwrap() + f[12].parse::<u64>().unwrap()
+    }
+
+    #[test]
+    fn idle_wait_blocks_instead_of_spinning() {
+        let base = std::env::temp_dir().join("rgp-ipc-idle-test");
+        let id = PoolId::new_unique(&base).unwrap();
+        id.create_dirs().unwrap();
+        let s = ChannelSettings {
+            num_workers: 1,
+            max_borrowed: 2,
+        };
+        {
+            let node = id.node("sup").unwrap();
+            let bl = BlockListener::new(&node, &s).unwrap();
+            let before = thread_cpu_ticks();
+            let t0 = Instant::now();
+            let mut idles = 0;
+            let out = hybrid_wait::<IpcError>(
+                bl.listener(),
+                &WaitPolicy::default(),
+                Some(Instant::now() + Duration::from_millis(400)),
+                |c| {
+                    if c == WaitCall::Idle {
+                        idles += 1;
+                    }
+                    Ok(false)
+                },
+            )
+            .unwrap();
+            assert_eq!(out, WaitOutcome::TimedOut);
+            assert!(t0.elapsed() >= Duration::from_millis(400));
+            assert!(idles >= 10, "idle hook runs every block slice ({idles})");
+            // 400 ms of waiting cost (much) less than 100 ms of CPU (ticks are 10 ms).
+            assert!(thread_cpu_ticks() - before < 10);
+        }
+        remove_pool_files(&id).unwrap();
+        let _ = fs::remove_dir(&base);
     }
 
     #[test]
@@ -897,5 +1083,6 @@ mod tests {
         assert!(!dead.aux_dir().exists());
         assert!(live.aux_dir().exists());
         remove_pool_files(&live).unwrap();
+        let _ = fs::remove_dir(&base);
     }
 }

@@ -7,7 +7,9 @@
 //! builds `num_envs / num_workers` envs from a JSON spec through an [`EnvRegistry`], steps them,
 //! and writes observations straight into a loaned shared-memory block, which the supervisor
 //! copies into the caller's batch buffer (sync [`Pool::step`]) or hands over zero-copy (async
-//! [`Pool::recv`] returns [`Block`]s that own the samples).
+//! [`Pool::recv`] returns [`Block`]s that own the samples). A third, copy-free sync form,
+//! [`Pool::step_shared`], has the workers write straight into one of two pool-owned shared
+//! batch slots (double buffering).
 //!
 //! * Envs: anything implementing [`Env`]; the Rogue-Gym game (`"rogue"` kind) and a
 //!   deterministic [`TestEnv`] (`"test"`) are built in.
@@ -39,4 +41,4 @@ pub use supervisor::{
     WorkerCommand, WorkerFailure,
 };
 pub use test_env::TestEnv;
-pub use worker::{AutoresetMode, WorkerConfig, worker_main};
+pub use worker::{AutoresetMode, BATCH_SLOTS, WorkerConfig, worker_main};

@@ -20,7 +20,8 @@ use crate::env::{EnvError, EnvRegistry, EnvSpec};
 use crate::layout::{BlockLayout, EnvRecord, FLAG_RESTARTED, FLAG_TRUNCATED};
 use crate::seeds::SeedSchedule;
 use crate::worker::{
-    AutoresetMode, BLOCK_DATA, BLOCK_READY, CMD_CLOSE, CMD_RESET, CMD_STEP, WorkerConfig,
+    AutoresetMode, BATCH_BUFFER, BATCH_SLOTS, BLOCK_DATA, BLOCK_READY, CMD_CLOSE, CMD_RESET,
+    CMD_STEP, RELOAD_SEEDS, TARGET_SHIFT, WorkerConfig, slot_bytes,
 };
 
 /// What to do when a worker dies or hangs.
@@ -117,10 +118,12 @@ impl PoolConfig {
             wait: WaitPolicy {
                 poll_budget: Duration::from_micros(50),
                 block_slice: Duration::from_millis(10),
+                yield_cpu: true,
             },
             worker_wait: WaitPolicy {
                 poll_budget: Duration::from_micros(50),
                 block_slice: Duration::from_millis(100),
+                yield_cpu: true,
             },
             base_dir: PathBuf::from(rogue_gym_ipc::DEFAULT_BASE_DIR),
         }
@@ -283,6 +286,8 @@ struct WorkerSlot {
     state: SlotState,
     restarted: bool,
     stderr_path: PathBuf,
+    /// Observation target of the last command (see `TARGET_SHIFT`).
+    target: u32,
 }
 
 /// Per-env arrays of one batch (sync step/reset, or filled from an async [`Batch`]). Row `r`
@@ -409,6 +414,15 @@ impl Block {
     pub fn restarted(&self) -> bool {
         self.restarted
     }
+    /// The underlying iceoryx2 sample (records, then observations; see `layout`).
+    pub fn sample(&self) -> &BlockSample {
+        &self.sample
+    }
+    /// Give up the block, keeping only the iceoryx2 sample (the memory stays valid while it
+    /// lives). Note: restart flags are applied by [`Block::record`], not stored in the sample.
+    pub fn into_sample(self) -> BlockSample {
+        self.sample
+    }
 }
 
 /// The blocks returned by one async [`Pool::recv`], in arrival order.
@@ -458,12 +472,18 @@ struct Core {
     settings: ChannelSettings,
     slots: Vec<WorkerSlot>,
     node: Option<rogue_gym_ipc::iceoryx2::node::Node<Svc>>,
+    batch: Option<std::sync::Arc<rogue_gym_ipc::SharedBuffer>>,
+    slot_bytes: usize,
+    next_slot: usize,
     ready_order: VecDeque<usize>,
     cur_episode: Vec<Option<u64>>,
     cur_seed: Vec<u64>,
     restarts: u32,
     must_reset: bool,
     closed: bool,
+    /// Workers must re-read the seed schedule at their next reset.
+    reload_seeds: Vec<bool>,
+    worker_config: Option<WorkerConfig>,
 }
 
 /// A pool of envs stepped by worker processes, with observations in shared memory.
@@ -577,9 +597,11 @@ impl Pool {
             max_borrowed: cfg.max_borrowed,
             poll_budget_us: cfg.worker_wait.poll_budget.as_micros() as u64,
             block_slice_ms: cfg.worker_wait.block_slice.as_millis() as u64,
+            poll_yield: cfg.worker_wait.yield_cpu,
         };
         let config_path = id.aux_dir().join("worker.json");
         let num_envs = cfg.num_envs;
+        let num_workers = cfg.num_workers;
         let mut pool = Pool {
             listener: None,
             core: Core {
@@ -595,13 +617,19 @@ impl Pool {
                 ready_order: VecDeque::new(),
                 cur_episode: vec![None; num_envs],
                 cur_seed: vec![0; num_envs],
+                batch: None,
+                slot_bytes: 0,
+                next_slot: 0,
                 restarts: 0,
                 must_reset: true,
                 closed: false,
+                reload_seeds: vec![false; num_workers],
+                worker_config: None,
             },
         };
         // From here on, Drop cleans up whatever was created.
         pool.start(&wcfg)?;
+        pool.core.worker_config = Some(wcfg);
         Ok(pool)
     }
 
@@ -611,6 +639,12 @@ impl Pool {
             .map_err(|e| PoolError::Config(format!("cannot serialize worker config: {e}")))?;
         fs::write(&c.config_path, json)
             .map_err(|e| PoolError::Io(format!("cannot write {}: {e}", c.config_path.display())))?;
+        c.slot_bytes = slot_bytes(c.cfg.num_envs, c.layout.obs_bytes);
+        c.batch = Some(std::sync::Arc::new(rogue_gym_ipc::SharedBuffer::create(
+            &c.id,
+            BATCH_BUFFER,
+            BATCH_SLOTS * c.slot_bytes,
+        )?));
         let node = c.id.node("sup")?;
         self.listener = Some(BlockListener::new(&node, &c.settings)?);
         for k in 0..c.cfg.num_workers {
@@ -624,6 +658,7 @@ impl Pool {
                 state: SlotState::Idle,
                 restarted: false,
                 stderr_path: PathBuf::new(),
+                target: 0,
             });
         }
         c.node = Some(node);
@@ -635,6 +670,36 @@ impl Pool {
                 .iter()
                 .any(|s| matches!(s.state, SlotState::Starting { .. }))
         })
+    }
+
+    /// Replace the seed schedule and restart every env's episode count: the next reset
+    /// ([`Pool::reset`], [`Pool::reset_shared`] or [`Pool::async_reset`], which you must call
+    /// next) starts episode 0 of every env under `seeds`, so the run continues exactly as a
+    /// fresh pool created with `seeds` would (gymnasium's `reset(seed=...)`). Outstanding
+    /// async results are discarded.
+    pub fn set_seeds(&mut self, seeds: SeedSchedule) -> Result<(), PoolError> {
+        self.check_usable()?;
+        seeds.validate().map_err(PoolError::Config)?;
+        self.drain()?;
+        let c = &mut self.core;
+        let mut wcfg = c
+            .worker_config
+            .clone()
+            .ok_or_else(|| PoolError::State("the pool is not started".into()))?;
+        wcfg.seeds = seeds.clone();
+        let json = serde_json::to_string(&wcfg)
+            .map_err(|e| PoolError::Config(format!("cannot serialize worker config: {e}")))?;
+        // Write then rename, so a worker (re)reading it never sees a partial file.
+        let tmp = c.config_path.with_extension("json.tmp");
+        fs::write(&tmp, json)
+            .and_then(|_| fs::rename(&tmp, &c.config_path))
+            .map_err(|e| PoolError::Io(format!("cannot write {}: {e}", c.config_path.display())))?;
+        c.cfg.seeds = seeds;
+        c.worker_config = Some(wcfg);
+        c.cur_episode.iter_mut().for_each(|e| *e = None);
+        c.reload_seeds.iter_mut().for_each(|r| *r = true);
+        c.must_reset = true;
+        Ok(())
     }
 
     /// The env spec (observation shape and dtype, actions, info names).
@@ -769,10 +834,10 @@ impl Pool {
         self.check_obs_buf(obs_out)?;
         self.drain()?;
         for k in 0..self.core.slots.len() {
-            self.core.send_reset(k)?;
+            self.core.send_reset(k, 0)?;
         }
         self.core.must_reset = false;
-        self.gather_all(obs_out, out)
+        self.gather_all(Some(obs_out), out)
     }
 
     /// Sync step: `actions[i]` for env `i` (all envs). Writes observations into `obs_out`
@@ -801,12 +866,105 @@ impl Pool {
         self.all_idle()?;
         let epw = self.core.epw;
         for k in 0..self.core.slots.len() {
-            self.core.send_step(k, &actions[k * epw..(k + 1) * epw])?;
+            self.core
+                .send_step(k, &actions[k * epw..(k + 1) * epw], 0)?;
         }
-        self.gather_all(obs_out, out)
+        self.gather_all(Some(obs_out), out)
     }
 
-    fn gather_all(&mut self, obs_out: &mut [u8], out: &mut BatchOutput) -> Result<(), PoolError> {
+    /// Like [`Pool::reset`], but the workers write the observations straight into the next
+    /// slot of the pool's shared batch buffer (no copy at all); returns the slot index for
+    /// [`Pool::shared_obs`].
+    pub fn reset_shared(&mut self, out: &mut BatchOutput) -> Result<usize, PoolError> {
+        self.check_usable()?;
+        self.drain()?;
+        let slot = self.core.next_slot;
+        for k in 0..self.core.slots.len() {
+            self.core.send_reset(k, slot as u32 + 1)?;
+        }
+        self.core.must_reset = false;
+        self.gather_all(None, out)?;
+        self.core.next_slot = (slot + 1) % BATCH_SLOTS;
+        Ok(slot)
+    }
+
+    /// Like [`Pool::step`], but the workers write the observations straight into the next
+    /// slot of the pool's shared batch buffer (zero-copy sync step); returns the slot index
+    /// for [`Pool::shared_obs`]. Slots alternate (double buffering): the observations of slot
+    /// `s` stay unchanged until the second `*_shared` call after the one that returned `s`.
+    pub fn step_shared(
+        &mut self,
+        actions: &[i64],
+        out: &mut BatchOutput,
+    ) -> Result<usize, PoolError> {
+        self.check_usable()?;
+        if actions.len() != self.core.cfg.num_envs {
+            return Err(PoolError::BadActionsLength {
+                expected: self.core.cfg.num_envs,
+                got: actions.len(),
+            });
+        }
+        self.check_actions(actions, 0..actions.len())?;
+        if self.core.must_reset {
+            return Err(PoolError::State(
+                "call reset() before step() (after creation or after a worker failure)".into(),
+            ));
+        }
+        self.all_idle()?;
+        let epw = self.core.epw;
+        let slot = self.core.next_slot;
+        for k in 0..self.core.slots.len() {
+            self.core
+                .send_step(k, &actions[k * epw..(k + 1) * epw], slot as u32 + 1)?;
+        }
+        self.gather_all(None, out)?;
+        self.core.next_slot = (slot + 1) % BATCH_SLOTS;
+        Ok(slot)
+    }
+
+    /// The observations of shared batch slot `slot` (`num_envs x obs_bytes`, env-major,
+    /// 64-byte aligned). See [`Pool::step_shared`] for when they are valid.
+    pub fn shared_obs(&self, slot: usize) -> &[u8] {
+        let n = self.core.cfg.num_envs * self.core.layout.obs_bytes;
+        match &self.core.batch {
+            // SAFETY: the slot lies inside the mapping. Workers write a slot only during a
+            // `*_shared` call, which needs `&mut self`: none runs while this borrow lives.
+            Some(b) if slot < BATCH_SLOTS => unsafe {
+                std::slice::from_raw_parts(b.as_ptr().add(slot * self.core.slot_bytes), n)
+            },
+            _ => &[],
+        }
+    }
+
+    /// The shared batch buffer itself: slot `s` starts at byte `s * shared_slot_bytes()`.
+    /// Holding this `Arc` keeps the mapping valid even after [`Pool::close`] (e.g. as the base
+    /// object of numpy views); `None` after close.
+    pub fn shared_buffer(&self) -> Option<std::sync::Arc<rogue_gym_ipc::SharedBuffer>> {
+        self.core.batch.clone()
+    }
+
+    /// Distance in bytes between two shared batch slots.
+    pub fn shared_slot_bytes(&self) -> usize {
+        self.core.slot_bytes
+    }
+
+    /// Raw pointer to shared batch slot `slot` (for zero-copy views in other languages; keep
+    /// [`Pool::shared_buffer`] alive with the view). Null after `close`.
+    pub fn shared_obs_ptr(&self, slot: usize) -> *const u8 {
+        match &self.core.batch {
+            Some(b) if slot < BATCH_SLOTS => {
+                // SAFETY: the offset stays inside the mapping.
+                unsafe { b.as_ptr().add(slot * self.core.slot_bytes) }
+            }
+            _ => std::ptr::null(),
+        }
+    }
+
+    fn gather_all(
+        &mut self,
+        mut obs_out: Option<&mut [u8]>,
+        out: &mut BatchOutput,
+    ) -> Result<(), PoolError> {
         // Copy each block as soon as it arrives, overlapping with the other workers' steps.
         let w = self.core.slots.len();
         let blk_bytes = self.core.epw * self.core.layout.obs_bytes;
@@ -816,7 +974,9 @@ impl Pool {
             self.wait_until(|c| !c.ready_order.is_empty())?;
             while let Some(k) = self.core.ready_order.pop_front() {
                 let b = self.core.take_block(k)?;
-                obs_out[k * blk_bytes..(k + 1) * blk_bytes].copy_from_slice(b.obs());
+                if let Some(o) = obs_out.as_deref_mut() {
+                    o[k * blk_bytes..(k + 1) * blk_bytes].copy_from_slice(b.obs());
+                }
                 blocks[k] = Some(b);
                 got += 1;
             }
@@ -836,7 +996,7 @@ impl Pool {
         self.check_usable()?;
         self.drain()?;
         for k in 0..self.core.slots.len() {
-            self.core.send_reset(k)?;
+            self.core.send_reset(k, 0)?;
         }
         self.core.must_reset = false;
         Ok(())
@@ -888,7 +1048,8 @@ impl Pool {
             workers.push(k);
         }
         for (r, &k) in workers.iter().enumerate() {
-            self.core.send_step(k, &actions[r * epw..(r + 1) * epw])?;
+            self.core
+                .send_step(k, &actions[r * epw..(r + 1) * epw], 0)?;
         }
         Ok(())
     }
@@ -955,6 +1116,7 @@ impl Pool {
         c.slots.clear();
         self.listener = None;
         c.node = None;
+        c.batch = None;
         rogue_gym_ipc::remove_pool_files(&c.id)?;
         Ok(())
     }
@@ -1025,26 +1187,38 @@ impl Core {
         Ok(())
     }
 
-    fn send_reset(&mut self, k: usize) -> Result<(), PoolError> {
+    fn send_reset(&mut self, k: usize, target: u32) -> Result<(), PoolError> {
         let range = self.env_range(k);
         let eps: Vec<u64> = self.cur_episode[range]
             .iter()
             .map(|e| e.map_or(0, |e| e + 1))
             .collect();
+        let reload = if std::mem::take(&mut self.reload_seeds[k]) {
+            RELOAD_SEEDS
+        } else {
+            0
+        };
         let s = &mut self.slots[k];
         s.seq += 1;
-        s.ports
-            .send_cmd(s.seq, CMD_RESET, eps.len(), |p| p.copy_from_slice(&eps))?;
+        s.target = target;
+        s.ports.send_cmd(
+            s.seq,
+            CMD_RESET | (target << TARGET_SHIFT) | reload,
+            eps.len(),
+            |p| p.copy_from_slice(&eps),
+        )?;
         s.state = SlotState::Pending {
             since: Instant::now(),
         };
         Ok(())
     }
 
-    fn send_step(&mut self, k: usize, actions: &[i64]) -> Result<(), PoolError> {
+    fn send_step(&mut self, k: usize, actions: &[i64], target: u32) -> Result<(), PoolError> {
         let s = &mut self.slots[k];
         s.seq += 1;
-        s.ports.send_cmd(s.seq, CMD_STEP, actions.len(), |p| {
+        s.target = target;
+        let kind = CMD_STEP | (target << TARGET_SHIFT);
+        s.ports.send_cmd(s.seq, kind, actions.len(), |p| {
             for (d, a) in p.iter_mut().zip(actions) {
                 *d = *a as u64;
             }
@@ -1097,7 +1271,9 @@ impl Core {
                     (SlotState::Starting { then_reset, .. }, BLOCK_READY) => {
                         if *then_reset {
                             drop(sample);
-                            self.send_reset(k)?;
+                            // Same observation target as the interrupted command.
+                            let target = s.target;
+                            self.send_reset(k, target)?;
                         } else {
                             s.state = SlotState::Idle;
                         }

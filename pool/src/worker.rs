@@ -26,6 +26,20 @@ pub(crate) const CMD_RESET: u32 = 1;
 pub(crate) const CMD_STEP: u32 = 2;
 /// Command: exit cleanly.
 pub(crate) const CMD_CLOSE: u32 = 3;
+/// Command kinds carry the observation target in bits 8..: 0 = the block's own obs area,
+/// `s + 1` = slot `s` of the shared batch buffer.
+pub(crate) const TARGET_SHIFT: u32 = 8;
+/// Flag of a reset command: re-read the seed schedule from the config file first.
+pub(crate) const RELOAD_SEEDS: u32 = 1 << 16;
+/// Name of the shared batch buffer (`/dev/shm/<prefix>batch`).
+pub(crate) const BATCH_BUFFER: &str = "batch";
+/// Number of slots of the shared batch buffer (double buffering).
+pub const BATCH_SLOTS: usize = 2;
+
+/// Bytes of one slot of the shared batch buffer (64-byte aligned).
+pub(crate) fn slot_bytes(num_envs: usize, obs_bytes: usize) -> usize {
+    (num_envs * obs_bytes).div_ceil(64) * 64
+}
 /// Block: the worker is up (no payload meaning).
 pub(crate) const BLOCK_READY: u32 = 1;
 /// Block: records and observations.
@@ -69,6 +83,13 @@ pub struct WorkerConfig {
     pub poll_budget_us: u64,
     /// Longest blocking wait slice of the worker, ms (parent liveness is checked between).
     pub block_slice_ms: u64,
+    /// Whether the worker's poll yields the CPU (see `WaitPolicy::yield_cpu`).
+    #[serde(default = "default_true")]
+    pub poll_yield: bool,
+}
+
+fn default_true() -> bool {
+    true
 }
 
 impl WorkerConfig {
@@ -327,6 +348,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
     let policy = WaitPolicy {
         poll_budget: Duration::from_micros(cfg.poll_budget_us),
         block_slice: Duration::from_millis(cfg.block_slice_ms.max(1)),
+        yield_cpu: cfg.poll_yield,
     };
     let header = |seq, kind| BlockHeader {
         seq,
@@ -334,17 +356,15 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         worker: a.index as u32,
         kind,
     };
+    let ob = layout.obs_bytes;
+    let sb = slot_bytes(cfg.num_envs, ob);
+    let batch = rogue_gym_ipc::SharedBuffer::open(&id, BATCH_BUFFER, BATCH_SLOTS * sb)?;
+    let first_env = a.index * epw;
     let mut ready = ports.loan_block(words)?;
     *ready.user_header_mut() = header(0, BLOCK_READY);
     ports.send_block(ready)?;
 
-    let ctx = SlotCtx {
-        seeds: &cfg.seeds,
-        num_envs: cfg.num_envs as u64,
-        autoreset: cfg.autoreset,
-        num_actions: spec.num_actions,
-        n_info,
-    };
+    let mut seeds = cfg.seeds.clone();
     let mut payload: Vec<u64> = vec![0; epw];
     loop {
         let mut cmd = None;
@@ -370,10 +390,44 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         payload.copy_from_slice(&cmd.payload()[..epw]);
         drop(cmd);
 
+        let kind = h.kind & ((1 << TARGET_SHIFT) - 1);
+        let target = ((h.kind & (RELOAD_SEEDS - 1)) >> TARGET_SHIFT) as usize;
+        if h.kind & RELOAD_SEEDS != 0 {
+            let fresh: WorkerConfig = std::fs::read_to_string(&a.config)
+                .map_err(|e| format!("cannot re-read worker config {}: {e}", a.config.display()))
+                .and_then(|t| {
+                    serde_json::from_str(&t).map_err(|e| format!("bad worker config: {e}"))
+                })
+                .map_err(WorkerError::Msg)?;
+            seeds = fresh.seeds;
+        }
+        let ctx = SlotCtx {
+            seeds: &seeds,
+            num_envs: cfg.num_envs as u64,
+            autoreset: cfg.autoreset,
+            num_actions: spec.num_actions,
+            n_info,
+        };
+        if target > BATCH_SLOTS {
+            return Err(WorkerError::Msg(format!("bad observation target {target}")));
+        }
         let mut block = ports.loan_block(words)?;
         *block.user_header_mut() = header(h.seq, BLOCK_DATA);
         let (records, obs_area, final_area) = layout.split_mut(block.payload_mut());
-        let ob = layout.obs_bytes;
+        let obs_area: &mut [u8] = if target == 0 {
+            obs_area
+        } else {
+            // SAFETY: the shared batch buffer holds BATCH_SLOTS slots of `sb` bytes; this
+            // worker's envs occupy bytes [first_env*ob, (first_env+epw)*ob) of slot
+            // `target - 1`, which the supervisor neither reads nor lends out until this
+            // command is answered, and no other worker writes them.
+            unsafe {
+                std::slice::from_raw_parts_mut(
+                    batch.as_ptr().add((target - 1) * sb + first_env * ob),
+                    epw * ob,
+                )
+            }
+        };
         for (j, s) in slots.iter_mut().enumerate() {
             let obs = &mut obs_area[j * ob..(j + 1) * ob];
             let fin = if ctx.autoreset == AutoresetMode::SameStep {
@@ -381,7 +435,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
             } else {
                 &mut final_area[..0]
             };
-            let rec = apply(s, h.kind, payload[j], obs, fin, &ctx).map_err(WorkerError::Msg)?;
+            let rec = apply(s, kind, payload[j], obs, fin, &ctx).map_err(WorkerError::Msg)?;
             write_record_words(records, j, &rec);
         }
         ports.send_block(block)?;

@@ -1,7 +1,8 @@
 """The pool core shared by the gymnasium and SB3 facades.
 
-It owns the native pool (supervisor + worker processes), validates actions, and keeps the
-double-buffered batch arrays the sync ``step()`` gathers worker blocks into.
+It owns the native pool (supervisor + worker processes), validates actions, and holds the
+zero-copy views of the pool's two shared-memory batch slots that the sync ``step()`` returns
+alternately (double buffering: the workers write the slot not returned last time).
 """
 
 from __future__ import annotations
@@ -163,9 +164,10 @@ class PoolCore:
         self._closed = False
         self._finalizer: Optional[weakref.finalize] = None
         batch_shape = (num_envs, *self.obs_shape)
-        # Double buffer: each call writes the slot the previous call did not return, so the
-        # array returned by the previous call stays intact while the next one is written.
-        self._bufs = [np.zeros(batch_shape, self.obs_dtype) for _ in range(2)]
+        # Double buffer: the workers write each step's observations straight into one of two
+        # shared-memory batch slots, alternately, so the batch returned by the previous call
+        # stays intact while the next one is written. (Set by start().)
+        self._bufs: list[np.ndarray] = []
         self._final = np.zeros(batch_shape, self.obs_dtype) if self.same_step else None
         self._recs = [np.zeros(num_envs, RECORD_DTYPE) for _ in range(2)]
         self._slot = 0
@@ -191,6 +193,8 @@ class PoolCore:
                 f"pool observation {pool.obs_dtype}{tuple(pool.obs_shape)} differs from the engine's {self.obs_dtype}{self.obs_shape}"
             )
         self.info_names = list(pool.info_names)
+        shape = (self.num_envs, *self.obs_shape)
+        self._bufs = [v.view(self.obs_dtype).reshape(shape) for v in pool.shared_views()]
         #: The pool's name: the prefix of its /dev/shm files.
         self.name: str = pool.name()
 
@@ -230,8 +234,12 @@ class PoolCore:
         if self._closed or self._pool is None:
             raise RuntimeError("the environment pool is closed")
 
-    def validate_actions(self, actions: Any) -> np.ndarray:
-        """Check a batch of actions; returns them as ``uint64`` (one per env)."""
+    def validate_actions(self, actions: Any, check_range: bool = True) -> np.ndarray:
+        """Check a batch of actions; returns them as ``int64`` (one per env).
+
+        With ``check_range=False`` the range is left to the native pool, which raises the same
+        ``ValueError`` (naming the env and the value) before anything is sent to the workers.
+        """
         n = self.num_envs
         if isinstance(actions, str):
             if len(actions) != n:
@@ -256,12 +264,13 @@ class PoolCore:
                 raise TypeError(
                     f"expected integer actions in [0, {len(ACTIONS)}), got dtype {a.dtype}"
                 )
-        bad = (a < 0) | (a >= len(ACTIONS))
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            raise ValueError(
-                f"action {a[i]} of env {i} is out of range: expected an int in [0, {len(ACTIONS)})"
-            )
+        if check_range:
+            bad = (a < 0) | (a >= len(ACTIONS))
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0])
+                raise ValueError(
+                    f"env {i}: action {a[i]} is out of range; valid actions are 0..{len(ACTIONS)}"
+                )
         np.copyto(self._actions, a, casting="unsafe")
         return self._actions
 
@@ -271,8 +280,7 @@ class PoolCore:
         """Reset every env; returns (obs batch, records) written into the next slot.
 
         With ``seed``, the episode schedule restarts from base seed ``seed`` (env ``i``'s episode
-        ``e`` plays the same dungeon whatever the worker count), which restarts the workers
-        unless they were never reset. ``mask`` must select every env (partial resets are not
+        ``e`` plays the same dungeon whatever the worker count), as in a fresh pool. ``mask`` must select every env (partial resets are not
         supported by the pool yet).
         """
         self._check_open()
@@ -292,22 +300,26 @@ class PoolCore:
             if not 0 <= seed < 2**64:
                 raise ValueError(f"seed must be in [0, 2**64), got {seed}")
             if not (self._fresh and seed == self.base_seed):
-                self.start(seed)
-        slot = self._slot = 1 - self._slot
-        obs, recs = self._bufs[slot], self._recs[slot]
-        self._pool.reset(obs, recs)
+                self.base_seed = seed
+                self._settings["seeds"]["base"] = seed
+                self._pool.set_seeds(json.dumps(self._settings["seeds"]))
+        recs = self._recs[1 - self._slot]
+        slot = self._slot = self._pool.reset_shared(recs)
+        if self._recs[slot] is not recs:
+            self._recs.reverse()
         self._fresh = False
-        return obs, recs
+        return self._bufs[slot], recs
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray]:
         """Step every env; returns (obs batch, records) written into the next slot."""
         self._check_open()
-        acts = self.validate_actions(actions)
-        slot = self._slot = 1 - self._slot
-        obs, recs = self._bufs[slot], self._recs[slot]
-        self._pool.step(acts, obs, recs, self._final)
+        acts = self.validate_actions(actions, check_range=False)
+        recs = self._recs[1 - self._slot]
+        slot = self._slot = self._pool.step_shared(acts, recs, self._final)
+        if self._recs[slot] is not recs:
+            self._recs.reverse()
         self._fresh = False
-        return obs, recs
+        return self._bufs[slot], recs
 
     @property
     def final_obs(self) -> Optional[np.ndarray]:
@@ -318,12 +330,14 @@ class PoolCore:
     @staticmethod
     def flags(recs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(terminated, truncated, restarted, has_final_obs) bool arrays of a record batch."""
-        f = recs["flags"]
+        # One unpack for all four flags (bit k of the low byte -> row k), rows viewed as bool.
+        bits = np.unpackbits(recs["flags"].astype(np.uint8)[None, :], axis=0, bitorder="little")
+        b = bits.view(np.bool_)
         return (
-            (f & FLAG_TERMINATED) != 0,
-            (f & FLAG_TRUNCATED) != 0,
-            (f & FLAG_RESTARTED) != 0,
-            (f & FLAG_FINAL_OBS) != 0,
+            b[FLAG_TERMINATED.bit_length() - 1],
+            b[FLAG_TRUNCATED.bit_length() - 1],
+            b[FLAG_RESTARTED.bit_length() - 1],
+            b[FLAG_FINAL_OBS.bit_length() - 1],
         )
 
     def info_arrays(self, recs: np.ndarray) -> dict[str, np.ndarray]:
@@ -334,10 +348,13 @@ class PoolCore:
             "episode_return": recs["episode_return"].copy(),
             "episode_length": recs["episode_length"].astype(np.int64),
         }
-        info = recs["info"]
-        for k, name in enumerate(self.info_names):
-            col = info[:, k]
-            out[name] = col != 0 if name in _BOOL_INFO else col.astype(np.int64)
+        n = len(self.info_names)
+        if n:
+            # One conversion for all columns; rows of the transposed copy are contiguous.
+            values = recs["info"][:, :n].T
+            ints = np.ascontiguousarray(values, dtype=np.int64)
+            for k, name in enumerate(self.info_names):
+                out[name] = values[k] != 0 if name in _BOOL_INFO else ints[k]
         return out
 
     def info_dict(self, recs: np.ndarray, i: int) -> dict[str, Any]:

@@ -25,6 +25,10 @@ __all__ = ["RogueVecEnv"]
 class RogueVecEnv(VecEnv):
     """``num_envs`` Rogue-Gym games in worker processes, with SB3's ``VecEnv`` API.
 
+    The constructor takes the same arguments as :class:`rogue_gym.vector.RogueVectorEnv`
+    (less ``autoreset_mode`` and ``copy``; ``render_mode`` is ``None``, ``"ansi"`` or
+    ``"rgb_array"``).
+
     * Same-step autoreset: when an episode ends, ``step_wait`` returns the next episode's first
       observation, with ``infos[i]["terminal_observation"]`` (the last observation, a copy) and
       ``infos[i]["TimeLimit.truncated"] = truncated and not terminated``. ``infos[i]["episode"]``
@@ -34,10 +38,11 @@ class RogueVecEnv(VecEnv):
     * ``seed(s)`` applies at the next ``reset()``: env ``i``'s episodes follow the schedule of base
       seed ``s`` (SB3's ``s + i`` convention is replaced by the pool's per-env schedule).
 
-    **Array lifetimes.** The observation array returned by ``reset``/``step_wait`` is one of two
-    batch buffers reused alternately: it stays intact until the second following call, which is
-    what SB3's rollout collection needs (it keeps the previous observation while stepping). Copy
-    it if you keep observations longer. Rewards, dones and infos are fresh.
+    **Array lifetimes.** The observation array returned by ``reset``/``step_wait`` is a view of
+    one of the pool's two shared-memory batch slots, written by the workers alternately: it
+    stays intact until the second following call, which is what SB3's rollout collection needs
+    (it keeps the previous observation while stepping). Copy it if you keep observations
+    longer. Rewards, dones and infos are fresh.
     """
 
     def __init__(
@@ -189,7 +194,8 @@ class RogueVecEnv(VecEnv):
 
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
         """Read an attribute of the envs (``render_mode``, ``config``, ``max_steps``,
-        ``stair_reward``, ``observation_space``, ``action_space``, ``episode_seed``)."""
+        ``stair_reward``, ``observation_space``, ``action_space``, ``episode_seed``,
+        ``worker_pid``)."""
         idx = list(self._get_indices(indices))
         core = getattr(self, "_core", None)
         if attr_name == "render_mode":
@@ -205,7 +211,6 @@ class RogueVecEnv(VecEnv):
             "stair_reward": core.stair_reward,
             "observation_space": self.observation_space,
             "action_space": self.action_space,
-            "worker_pid": None,
         }
         if attr_name == "worker_pid":
             pids = core.worker_pids

@@ -47,15 +47,44 @@ class RogueVectorEnv(gym.vector.VectorEnv):
     * ``autoreset_mode``: ``NEXT_STEP`` (default; the step after an episode end ignores the
       env's action and returns the reset observation with reward 0) or ``SAME_STEP`` (the ending
       step returns the reset observation; ``infos["final_obs"]`` / ``infos["final_info"]`` hold
-      the last one).
+      the last one). Deviation: on that step the other info values of the ended envs still
+      describe the ended episode (as ``final_info`` does); the new episode's show from the next
+      step on.
     * A crashed worker is restarted (``on_worker_failure="restart"``: its envs report
       ``truncated=True`` and ``infos["worker_restarted"]``) or raises
       :class:`rogue_gym.WorkerCrashedError` (``"raise"``).
 
-    **Array lifetimes.** The observation array returned by ``reset``/``step`` is one of two
-    batch buffers owned by the env and reused alternately: it stays valid until the second
-    following ``reset``/``step`` call (so the previous observation is still intact while you
-    hold the new one). Pass ``copy=True`` to get a fresh array each call. Rewards, flags and
+    Args:
+        num_envs: number of games.
+        config: game config: ``"paper"`` (default: 32x16, 2x2 rooms, no monsters, seeds
+            [0, 40)), a dict, a JSON string or a path; ``{}`` is the original default game.
+        num_workers: worker processes (must divide ``num_envs``; default: one per CPU core).
+        seed: base of the episode-seed schedule (default: random).
+        seeds: the dungeons episodes are drawn from: a list, a ``range`` or ``(lo, hi)``
+            (default: the config's ``seed_range`` / ``seed``, else unrestricted).
+        seed_policy: ``"sample"`` (independent draws, training) or ``"sequential"`` (cover the
+            set evenly, evaluation).
+        obs, dtype, status, normalize_status, history: the observation encoding
+            (``symbol_onehot`` / ``symbol_index`` / ``gray`` / ``ascii`` / ``status``), its
+            dtype (``uint8`` / ``float32``), status planes (a :class:`StatusFlag` mask) and the
+            visited-history plane.
+        max_steps: episode step limit (truncation); default 500 as in the paper.
+        stair_reward: reward per new deepest floor, added to the gold gained (default 50).
+        autoreset_mode: ``NEXT_STEP`` (default) or ``SAME_STEP``.
+        on_worker_failure: ``"restart"`` (default) or ``"raise"``.
+        step_timeout: seconds after which a silent worker counts as hung (``None``: never).
+        max_restarts: worker restarts allowed over the pool's life.
+        copy: return a fresh observation array each call instead of the shared-memory view.
+        render_mode: ``None``, ``"ansi"`` or ``"human"`` (records actions to replay screens).
+        worker_command: program and leading args of a worker (default:
+            ``[sys.executable, "-m", "rogue_gym.worker"]``).
+        batch_size: envs per async :meth:`recv` (a multiple of the envs per worker; default all).
+
+    **Array lifetimes.** The observation array returned by ``reset``/``step`` is a view of one
+    of the pool's two shared-memory batch slots, which the workers write directly (zero-copy)
+    and alternately: it stays unchanged until the second following ``reset``/``step`` call (so
+    the previous observation is still intact while you hold the new one), and readable even
+    after ``close()``. Pass ``copy=True`` to get a fresh array each call. Rewards, flags and
     infos are fresh arrays. ``infos["final_obs"]`` entries are copies.
     """
 
@@ -189,11 +218,11 @@ class RogueVectorEnv(gym.vector.VectorEnv):
         """Step every env; returns ``(obs, rewards, terminations, truncations, infos)``."""
         if self._last_recs is None:
             raise RuntimeError("call reset() before step()")
-        prev_done = self._prev_done()
+        prev_done = self._prev_done() if self._history is not None else None
         obs, recs = self._core.step(actions)
         self._last_recs = recs
         terminated, truncated, restarted, has_final = PoolCore.flags(recs)
-        if self._history is not None:
+        if self._history is not None and prev_done is not None:
             self._history.on_step(self._core._actions, ~prev_done & ~restarted, recs)
             self._history.on_reset(recs, prev_done | restarted)
         rewards = recs["reward"].astype(np.float64)

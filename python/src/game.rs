@@ -126,16 +126,24 @@ impl PyGame {
         let err = |e: rogue_gym_engine::ObsError| PyValueError::new_err(e.to_string());
         match spec.dtype {
             Dtype::U8 => {
-                let arr = out.cast::<PyArrayDyn<u8>>().map_err(|_| wrong_dtype("uint8", out))?;
+                let arr = out
+                    .cast::<PyArrayDyn<u8>>()
+                    .map_err(|_| wrong_dtype("uint8", out))?;
                 let mut rw = arr.try_readwrite()?;
                 let slice = rw.as_slice_mut().map_err(|_| not_contiguous())?;
-                self.game.write_obs(&spec, ObsBufMut::U8(slice)).map_err(err)
+                self.game
+                    .write_obs(&spec, ObsBufMut::U8(slice))
+                    .map_err(err)
             }
             Dtype::F32 => {
-                let arr = out.cast::<PyArrayDyn<f32>>().map_err(|_| wrong_dtype("float32", out))?;
+                let arr = out
+                    .cast::<PyArrayDyn<f32>>()
+                    .map_err(|_| wrong_dtype("float32", out))?;
                 let mut rw = arr.try_readwrite()?;
                 let slice = rw.as_slice_mut().map_err(|_| not_contiguous())?;
-                self.game.write_obs(&spec, ObsBufMut::F32(slice)).map_err(err)
+                self.game
+                    .write_obs(&spec, ObsBufMut::F32(slice))
+                    .map_err(err)
             }
         }
     }

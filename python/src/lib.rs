@@ -4,6 +4,8 @@
 //!
 //! Every Rust error is mapped to a Python exception; nothing panics across the FFI boundary.
 
+#![warn(missing_docs)]
+
 use pyo3::prelude::*;
 
 mod game;
@@ -27,6 +29,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<game::PyGame>()?;
     m.add_class::<pool::PyPool>()?;
     m.add_class::<pool::BlockHolder>()?;
+    m.add_class::<pool::SharedBatchHolder>()?;
     m.add("RECORD_BYTES", pool::RECORD_BYTES)?;
     m.add_function(wrap_pyfunction!(game::action_from_key, m)?)?;
     m.add_function(wrap_pyfunction!(worker_main, m)?)?;

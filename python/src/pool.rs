@@ -52,8 +52,11 @@ struct PyPoolSettings {
 }
 
 fn duration(what: &str, secs: f64) -> PyResult<Duration> {
-    Duration::try_from_secs_f64(secs)
-        .map_err(|_| PyValueError::new_err(format!("{what} must be a non-negative number of seconds, got {secs}")))
+    Duration::try_from_secs_f64(secs).map_err(|_| {
+        PyValueError::new_err(format!(
+            "{what} must be a non-negative number of seconds, got {secs}"
+        ))
+    })
 }
 
 /// Map a pool error to the matching Python exception (never a panic).
@@ -77,7 +80,9 @@ pub fn pool_error(py: Python<'_>, e: PoolError) -> PyErr {
 /// Build a `rogue_gym.errors.WorkerCrashedError` for a failure report.
 fn crashed(py: Python<'_>, msg: &str, f: &WorkerFailure) -> PyErr {
     let build = || -> PyResult<PyErr> {
-        let cls = py.import("rogue_gym.errors")?.getattr("WorkerCrashedError")?;
+        let cls = py
+            .import("rogue_gym.errors")?
+            .getattr("WorkerCrashedError")?;
         let kw = PyDict::new(py);
         kw.set_item("env", f.env_ids.start)?;
         kw.set_item("envs", f.env_ids.clone().collect::<Vec<_>>())?;
@@ -112,7 +117,9 @@ impl RawBuf {
 /// The writable, C-contiguous bytes of a numpy array, checked against an expected size.
 fn raw_bytes(arr: &Bound<'_, PyUntypedArray>, what: &str, expected: usize) -> PyResult<RawBuf> {
     if !arr.is_c_contiguous() {
-        return Err(PyValueError::new_err(format!("{what} must be C-contiguous")));
+        return Err(PyValueError::new_err(format!(
+            "{what} must be C-contiguous"
+        )));
     }
     let ptr = arr.as_array_ptr();
     // SAFETY: `ptr` is a live array object (we hold a reference to it).
@@ -202,6 +209,14 @@ impl BlockHolder {
     }
 }
 
+/// Owner of the pool's shared batch buffer (two observation slots written by the workers)
+/// behind the zero-copy views returned by `Pool.shared_views()`. The mapping stays valid for
+/// as long as a view (or this object) lives, even after the pool is closed.
+#[pyclass(module = "rogue_gym._native", name = "SharedBatchHolder", frozen)]
+pub struct SharedBatchHolder {
+    _buffer: std::sync::Arc<rogue_gym_ipc::SharedBuffer>,
+}
+
 /// The environment pool: `num_envs` envs stepped by `num_workers` worker processes.
 ///
 /// `Pool(settings_json, worker_command)`; `worker_command` is the program and its leading
@@ -228,9 +243,15 @@ impl PyPool {
         f: impl FnOnce(&mut Pool, &mut BatchOutput) -> Result<R, PoolError> + Send,
     ) -> PyResult<R> {
         let res = py.detach(|| {
-            let mut guard = self.pool.lock().map_err(|_| PoolError::State("the pool lock is poisoned".into()))?;
+            let mut guard = self
+                .pool
+                .lock()
+                .map_err(|_| PoolError::State("the pool lock is poisoned".into()))?;
             let pool = guard.as_mut().ok_or(PoolError::Closed)?;
-            let mut out = self.out.lock().map_err(|_| PoolError::State("the pool lock is poisoned".into()))?;
+            let mut out = self
+                .out
+                .lock()
+                .map_err(|_| PoolError::State("the pool lock is poisoned".into()))?;
             f(pool, &mut out)
         });
         res.map_err(|e| pool_error(py, e))
@@ -244,9 +265,18 @@ impl PyPool {
     ) -> PyResult<()> {
         let recs = raw_bytes(recs, "record array", self.num_envs * RECORD_BYTES)?;
         let fin = fin
-            .map(|f| raw_bytes(f, "final observation buffer", self.num_envs * self.obs_bytes))
+            .map(|f| {
+                raw_bytes(
+                    f,
+                    "final observation buffer",
+                    self.num_envs * self.obs_bytes,
+                )
+            })
             .transpose()?;
-        let out = self.out.lock().map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        let out = self
+            .out
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
         let _ = py;
         // SAFETY: both arrays are alive for this call and not otherwise borrowed by us.
         unsafe {
@@ -263,7 +293,10 @@ fn actions_vec(actions: &Bound<'_, PyAny>) -> PyResult<Vec<i64>> {
     let arr: PyReadonlyArray1<'_, i64> = actions.extract().map_err(|_| {
         PyTypeError::new_err("actions must be a 1-D int64 numpy array (one action per env)")
     })?;
-    Ok(arr.as_slice().map(<[i64]>::to_vec).unwrap_or_else(|_| arr.as_array().to_vec()))
+    Ok(arr
+        .as_slice()
+        .map(<[i64]>::to_vec)
+        .unwrap_or_else(|_| arr.as_array().to_vec()))
 }
 
 #[pymethods]
@@ -285,7 +318,10 @@ impl PyPool {
         cfg.seeds = s.seeds;
         cfg.autoreset = s.autoreset;
         cfg.on_worker_failure = s.on_worker_failure;
-        cfg.step_timeout = s.step_timeout_s.map(|t| duration("step_timeout", t)).transpose()?;
+        cfg.step_timeout = s
+            .step_timeout_s
+            .map(|t| duration("step_timeout", t))
+            .transpose()?;
         if let Some(t) = s.start_timeout_s {
             cfg.start_timeout = duration("start_timeout", t)?;
         }
@@ -317,8 +353,17 @@ impl PyPool {
 
     /// Sync reset of every env: observations into `obs_out` (`num_envs x obs`, C-contiguous),
     /// records into `recs_out` (`num_envs` records).
-    fn reset(&self, py: Python<'_>, obs_out: &Bound<'_, PyUntypedArray>, recs_out: &Bound<'_, PyUntypedArray>) -> PyResult<()> {
-        let obs = raw_bytes(obs_out, "observation buffer", self.num_envs * self.obs_bytes)?;
+    fn reset(
+        &self,
+        py: Python<'_>,
+        obs_out: &Bound<'_, PyUntypedArray>,
+        recs_out: &Bound<'_, PyUntypedArray>,
+    ) -> PyResult<()> {
+        let obs = raw_bytes(
+            obs_out,
+            "observation buffer",
+            self.num_envs * self.obs_bytes,
+        )?;
         // SAFETY: obs_out is alive for the call; the pool writes it while Python waits.
         self.with_pool(py, move |p, out| p.reset(unsafe { obs.slice() }, out))?;
         self.fill_outputs(py, recs_out, None)
@@ -336,10 +381,89 @@ impl PyPool {
         final_out: Option<&Bound<'_, PyUntypedArray>>,
     ) -> PyResult<()> {
         let acts = actions_vec(actions)?;
-        let obs = raw_bytes(obs_out, "observation buffer", self.num_envs * self.obs_bytes)?;
+        let obs = raw_bytes(
+            obs_out,
+            "observation buffer",
+            self.num_envs * self.obs_bytes,
+        )?;
         // SAFETY: as in `reset`.
         self.with_pool(py, move |p, out| p.step(&acts, unsafe { obs.slice() }, out))?;
         self.fill_outputs(py, recs_out, final_out)
+    }
+
+    /// Sync reset straight into the next shared batch slot (no copy); records into `recs_out`.
+    /// Returns the slot index (see `shared_views()`).
+    fn reset_shared(
+        &self,
+        py: Python<'_>,
+        recs_out: &Bound<'_, PyUntypedArray>,
+    ) -> PyResult<usize> {
+        let slot = self.with_pool(py, |p, out| p.reset_shared(out))?;
+        self.fill_outputs(py, recs_out, None)?;
+        Ok(slot)
+    }
+
+    /// Sync step straight into the next shared batch slot (no copy): `actions` (int64, one per
+    /// env); records into `recs_out`, (SAME_STEP) final observations into `final_out`. Returns
+    /// the slot index. Slots alternate: slot `s` stays unchanged until the second following
+    /// `*_shared` call.
+    #[pyo3(signature = (actions, recs_out, final_out = None))]
+    fn step_shared(
+        &self,
+        py: Python<'_>,
+        actions: &Bound<'_, PyAny>,
+        recs_out: &Bound<'_, PyUntypedArray>,
+        final_out: Option<&Bound<'_, PyUntypedArray>>,
+    ) -> PyResult<usize> {
+        let acts = actions_vec(actions)?;
+        let slot = self.with_pool(py, move |p, out| p.step_shared(&acts, out))?;
+        self.fill_outputs(py, recs_out, final_out)?;
+        Ok(slot)
+    }
+
+    /// Zero-copy uint8 views of the shared batch slots (`num_envs x obs_bytes` bytes each), in
+    /// slot order. Their base owns the mapping, so they stay valid after `close()`.
+    fn shared_views<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let guard = self
+            .pool
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        let pool = guard
+            .as_ref()
+            .ok_or_else(|| PyRuntimeError::new_err("the pool is closed"))?;
+        let buffer = pool
+            .shared_buffer()
+            .ok_or_else(|| PyRuntimeError::new_err("the pool has no shared batch buffer"))?;
+        let len = self.num_envs * self.obs_bytes;
+        let list = PyList::empty(py);
+        let mut slot = 0;
+        loop {
+            let ptr = pool.shared_obs_ptr(slot);
+            if ptr.is_null() {
+                break;
+            }
+            let holder = Bound::new(
+                py,
+                SharedBatchHolder {
+                    _buffer: buffer.clone(),
+                },
+            )?;
+            // SAFETY: the slot lies inside the mapping owned (via the Arc) by `holder`, the
+            // array's base; workers write it only during a `*_shared` call.
+            let view = unsafe { ArrayView1::from_shape_ptr(len, ptr) };
+            let arr = unsafe { PyArray1::<u8>::borrow_from_array(&view, holder.into_any()) };
+            list.append(arr)?;
+            slot += 1;
+        }
+        Ok(list)
+    }
+
+    /// Replace the episode-seed schedule (JSON `{"base": .., "set": .., "policy": ..}`) and
+    /// restart every env's episode count; call a reset next.
+    fn set_seeds(&self, py: Python<'_>, seeds_json: &str) -> PyResult<()> {
+        let seeds: SeedSchedule = serde_json::from_str(seeds_json)
+            .map_err(|e| PyValueError::new_err(format!("invalid seed schedule: {e}")))?;
+        self.with_pool(py, move |p, _| p.set_seeds(seeds))
     }
 
     /// Async: reset every env; collect the results with `recv()`.
@@ -348,7 +472,12 @@ impl PyPool {
     }
 
     /// Async: send `actions` (int64) to `env_ids` (whole worker blocks, each in order).
-    fn send(&self, py: Python<'_>, actions: &Bound<'_, PyAny>, env_ids: Vec<usize>) -> PyResult<()> {
+    fn send(
+        &self,
+        py: Python<'_>,
+        actions: &Bound<'_, PyAny>,
+        env_ids: Vec<usize>,
+    ) -> PyResult<()> {
         let acts = actions_vec(actions)?;
         self.with_pool(py, move |p, _| p.send(&acts, &env_ids))
     }
@@ -368,7 +497,10 @@ impl PyPool {
                 let rec = block.record(j);
                 // SAFETY: EnvRecord is #[repr(C)] plain data.
                 let src = unsafe {
-                    std::slice::from_raw_parts((&rec as *const EnvRecord).cast::<u8>(), RECORD_BYTES)
+                    std::slice::from_raw_parts(
+                        (&rec as *const EnvRecord).cast::<u8>(),
+                        RECORD_BYTES,
+                    )
                 };
                 recs[j * RECORD_BYTES..(j + 1) * RECORD_BYTES].copy_from_slice(src);
             }
@@ -376,7 +508,12 @@ impl PyPool {
                 let o = block.obs();
                 (o.as_ptr(), o.len())
             };
-            let holder = Bound::new(py, BlockHolder { block: Mutex::new(block) })?;
+            let holder = Bound::new(
+                py,
+                BlockHolder {
+                    block: Mutex::new(block),
+                },
+            )?;
             // SAFETY: the bytes live in the sample owned by `holder`, which becomes the array's
             // base, so they outlive the view; the sample is never written while held.
             let view = unsafe { ArrayView1::from_shape_ptr(len, ptr) };
@@ -389,30 +526,46 @@ impl PyPool {
 
     /// Current worker process ids (index = worker).
     fn worker_pids(&self) -> PyResult<Vec<u32>> {
-        let guard = self.pool.lock().map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        let guard = self
+            .pool
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
         Ok(guard.as_ref().map(Pool::worker_pids).unwrap_or_default())
     }
 
     /// Worker restarts so far.
     fn restarts(&self) -> PyResult<u32> {
-        let guard = self.pool.lock().map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        let guard = self
+            .pool
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
         Ok(guard.as_ref().map(Pool::restarts).unwrap_or(0))
     }
 
     /// The pool's name (the prefix of its shared-memory files).
     fn name(&self) -> PyResult<String> {
-        let guard = self.pool.lock().map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
-        Ok(guard.as_ref().map(|p| p.id().name().to_string()).unwrap_or_default())
+        let guard = self
+            .pool
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        Ok(guard
+            .as_ref()
+            .map(|p| p.id().name().to_string())
+            .unwrap_or_default())
     }
 
     /// Stop the workers and remove the pool's files (idempotent; GIL released).
     fn close(&self, py: Python<'_>) -> PyResult<()> {
         let taken = {
-            let mut guard = self.pool.lock().map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+            let mut guard = self
+                .pool
+                .lock()
+                .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
             guard.take()
         };
         if let Some(mut p) = taken {
-            py.detach(move || p.close()).map_err(|e| pool_error(py, e))?;
+            py.detach(move || p.close())
+                .map_err(|e| pool_error(py, e))?;
         }
         Ok(())
     }

@@ -229,3 +229,12 @@ def test_gymnasium_make_registration() -> None:
     assert obs.shape == (26, 16, 32)
     assert isinstance(env.unwrapped, RogueEnv)
     env.close()
+
+
+def test_import_does_not_load_sb3_or_torch() -> None:
+    import subprocess
+    import sys
+
+    code = "import sys, rogue_gym; assert 'torch' not in sys.modules and 'stable_baselines3' not in sys.modules"
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+    assert rogue_gym.RogueVecEnv.__name__ == "RogueVecEnv"  # lazily importable

@@ -101,3 +101,15 @@ def test_ppo_learns_a_few_steps(make_sb3) -> None:
     model.learn(total_timesteps=512)
     assert model.num_timesteps >= 512
     assert len(model.ep_info_buffer) > 0  # episodes reported through infos["episode"]
+
+
+def test_get_images_and_render(make_sb3) -> None:
+    env = make_sb3(2, num_workers=1, render_mode="rgb_array", max_steps=20)
+    env.reset()
+    env.step(np.array([4, 2]))
+    images = env.get_images()
+    assert len(images) == 2 and images[0].shape[0] == 17 and images[0].shape[2] == 3
+    assert images[0].shape[1] >= 32 and images[0].dtype == np.uint8
+    screens = env.env_method("render")
+    assert all("Level:" in s for s in screens)
+    assert env.render().ndim == 3  # SB3 tiles the images

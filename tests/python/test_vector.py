@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import rogue_gym
 from gymnasium.vector import AutoresetMode
-from gymnasium.wrappers.vector import RecordEpisodeStatistics
+from gymnasium.wrappers.vector import DictInfoToList, RecordEpisodeStatistics
 from rogue_gym import WorkerCrashedError
 from rogue_gym.envs import RogueEnv
 
@@ -93,6 +93,23 @@ def test_record_episode_statistics_wrapper(make_vec) -> None:
     assert episodes == 8
 
 
+def test_dict_info_to_list_wrapper(make_vec) -> None:
+    env = DictInfoToList(make_vec(2, max_steps=3, autoreset_mode="same_step"))
+    _, infos = env.reset(seed=0)
+    assert isinstance(infos, list) and len(infos) == 2 and "seed" in infos[0]
+    for _ in range(3):
+        *_, infos = env.step(np.zeros(2, np.int64))
+    assert all("final_obs" in info and info["final_info"]["episode_length"] == 3 for info in infos)
+
+
+def test_workers_are_the_extension_module(make_vec) -> None:
+    env = make_vec(4, num_workers=2)
+    for pid in env.worker_pids:
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            argv = f.read().split(b"\0")
+        assert b"rogue_gym.worker" in argv and b"-m" in argv
+
+
 @pytest.mark.parametrize("mode", ["next_step", "same_step"])
 def test_same_trajectories_for_one_and_two_workers(make_vec, mode) -> None:
     acts = _actions(4, 60, seed=1)
@@ -146,6 +163,9 @@ def test_seed_list_and_sequential_policy(make_vec) -> None:
 def test_double_buffer_keeps_previous_observation(make_vec) -> None:
     env = make_vec(4, max_steps=50)
     prev, _ = env.reset(seed=0)
+    # The sync batch is written by the workers straight into shared memory (no copy).
+    ptr = prev.__array_interface__["data"][0]
+    assert any(lo <= ptr < hi for lo, hi, _ in _shm_ranges())
     prev_copy = prev.copy()
     for a in _actions(4, 20):
         obs, *_ = env.step(a)
@@ -160,8 +180,8 @@ def test_double_buffer_keeps_previous_observation(make_vec) -> None:
         (np.zeros(3, np.int64), ValueError, r"shape \(4,\)"),
         (np.zeros((4, 2), np.int64), ValueError, r"shape \(4,\)"),
         (np.full(4, 0.5), TypeError, "integer actions"),
-        (np.array([0, 1, 11, 2]), ValueError, "action 11 of env 2"),
-        (np.array([0, -1, 1, 2]), ValueError, "action -1 of env 1"),
+        (np.array([0, 1, 11, 2]), ValueError, "env 2: action 11 is out of range"),
+        (np.array([0, -1, 1, 2]), ValueError, "env 1: action -1 is out of range"),
         (["a", "b", "c", "d"], TypeError, "integer actions"),
     ],
 )
@@ -223,10 +243,12 @@ def test_killed_worker_raises_with_details(make_vec) -> None:
 
 def test_close_and_gc_leave_nothing_behind() -> None:
     env = rogue_gym.make_vec(4, num_workers=2, seed=0)
-    env.reset()
+    obs, _ = env.reset()
+    snapshot = obs.copy()
     pids, name = env.worker_pids, env._core.name
     assert pool_files(name)
     env.close()
+    assert np.array_equal(obs, snapshot)  # sync views stay readable after close
     env.close()  # idempotent
     assert wait_until(lambda: not any(pid_alive(p) for p in pids))
     assert pool_files(name) == []
@@ -271,9 +293,10 @@ def test_async_recv_is_a_zero_copy_read_only_view(make_vec) -> None:
         seen.update(ids.tolist())
         env.send(np.zeros(2, np.int64), ids)
     assert seen == {0, 1, 2, 3}
-    kept = obs
-    del obs
-    assert kept.base is not None  # the holder keeps the sample mapped
+    snapshot = obs.copy()
+    env.close()
+    gc.collect()
+    assert np.array_equal(obs, snapshot)  # the view's base still owns the sample after close
 
 
 def test_make_vec_through_gymnasium() -> None:
@@ -303,3 +326,75 @@ def test_render_call_get_attr(make_vec) -> None:
     assert env.call("render") == frames
     with pytest.raises(AttributeError):
         env.get_attr("nonexistent")
+
+
+def test_ctrl_c_interrupts_a_stepping_loop(make_vec) -> None:
+    """SIGINT reaches Python while the pool steps (iceoryx2 must not take the handler)."""
+    import threading
+    import time
+
+    env = make_vec(4, max_steps=100)
+    env.reset(seed=0)
+    timer = threading.Timer(0.3, lambda: os.kill(os.getpid(), signal.SIGINT))
+    with pytest.raises(KeyboardInterrupt):
+        timer.start()  # inside the block: a loaded machine may stall us for longer than 0.3 s
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline:
+            env.step(np.zeros(4, np.int64))
+    timer.cancel()
+    env.step(np.zeros(4, np.int64))  # still usable after the interrupt
+
+
+def test_worker_module_rejects_bad_arguments() -> None:
+    import subprocess
+    import sys
+
+    r = subprocess.run(
+        [sys.executable, "-m", "rogue_gym.worker", "--bogus"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert r.returncode == 2 and "usage" in r.stderr
+
+
+def test_worker_that_cannot_start_reports_its_stderr() -> None:
+    import sys
+
+    bad = [
+        sys.executable,
+        "-c",
+        "import sys; sys.stderr.write('boom from the worker'); sys.exit(3)",
+    ]
+    with pytest.raises(RuntimeError, match="boom from the worker"):
+        rogue_gym.make_vec(2, num_workers=1, seed=0, worker_command=bad)
+
+
+def test_async_matches_sync_trajectories(make_vec) -> None:
+    acts = _actions(4, 30, seed=7)
+    sync = make_vec(4, num_workers=2, max_steps=12, seed=3)
+    obs, _ = sync.reset()
+    want = [obs.copy()]
+    for a in acts:
+        want.append(sync.step(a)[0].copy())
+    env = make_vec(4, num_workers=2, max_steps=12, seed=3, batch_size=2)
+    env.async_reset()
+    got: dict[int, list[np.ndarray]] = {i: [] for i in range(4)}
+    while min(len(v) for v in got.values()) <= len(acts):
+        obs, _, _, _, infos = env.recv()  # one worker block, in arrival order
+        ids = infos["env_id"]
+        for r, i in enumerate(ids):
+            got[int(i)].append(obs[r].copy())
+        t = len(got[int(ids[0])]) - 1  # index of the next action for these envs
+        if t < len(acts):
+            env.send(acts[t][ids], ids)
+    for i in range(4):
+        for t in range(len(acts) + 1):
+            assert np.array_equal(got[i][t], want[t][i]), (i, t)
+
+
+def test_record_dtype_matches_the_native_layout() -> None:
+    from rogue_gym import _native
+    from rogue_gym._records import RECORD_DTYPE
+
+    assert RECORD_DTYPE.itemsize == _native.RECORD_BYTES == 104

@@ -35,6 +35,7 @@ pub(crate) struct BuiltinEnemy {
     pub rarity: u8,
 }
 
+#[allow(clippy::too_many_arguments)]
 const fn e(
     tile: u8,
     name: &'static str,

@@ -23,7 +23,7 @@ pub enum ConfigError {
         message: String,
     },
     /// A value that parses but is not allowed.
-    #[error("`{key}` = {value} is invalid: {reason}")]
+    #[error("`{key}` = {value} {}", phrase(.reason))]
     Invalid {
         /// Dotted key, e.g. `dungeon.maze_rate_inv`.
         key: String,
@@ -42,6 +42,15 @@ pub enum ConfigError {
         /// Explanation.
         reason: String,
     },
+}
+
+/// "must be ..." and "is ..." reasons read on directly; others follow "is invalid:".
+fn phrase(reason: &str) -> String {
+    if reason.starts_with("must") || reason.starts_with("is ") {
+        reason.to_string()
+    } else {
+        format!("is invalid: {reason}")
+    }
 }
 
 fn at_path(path: &str) -> String {
@@ -71,16 +80,16 @@ impl ConfigError {
         let path = err.path().to_string();
         let inner = err.into_inner();
         let msg = inner.to_string();
-        if let Some(rest) = msg.strip_prefix("unknown field `") {
-            if let Some(end) = rest.find('`') {
-                let key = rest[..end].to_string();
-                // serde_path_to_error's path ends with the unknown key itself.
-                let parent = match path.rfind('.') {
-                    Some(i) => path[..i].to_string(),
-                    None => String::new(),
-                };
-                return ConfigError::UnknownKey { key, path: parent };
-            }
+        if let Some(rest) = msg.strip_prefix("unknown field `")
+            && let Some(end) = rest.find('`')
+        {
+            let key = rest[..end].to_string();
+            // serde_path_to_error's path ends with the unknown key itself.
+            let parent = match path.rfind('.') {
+                Some(i) => path[..i].to_string(),
+                None => String::new(),
+            };
+            return ConfigError::UnknownKey { key, path: parent };
         }
         ConfigError::Parse { path, message: msg }
     }

@@ -631,24 +631,24 @@ impl GameConfig {
             return Err(ConfigError::invalid(
                 "width",
                 self.width,
-                "out of range: must be 32..=160",
+                "is out of range: must be 32..=160",
             ));
         }
         if !(16..=48).contains(&self.height) {
             return Err(ConfigError::invalid(
                 "height",
                 self.height,
-                "out of range: must be 16..=48",
+                "is out of range: must be 16..=48",
             ));
         }
-        if let Some([lo, hi]) = self.seed_range {
-            if lo >= hi {
-                return Err(ConfigError::invalid(
-                    "seed_range",
-                    format!("[{lo}, {hi}]"),
-                    "must be [lo, hi) with lo < hi",
-                ));
-            }
+        if let Some([lo, hi]) = self.seed_range
+            && lo >= hi
+        {
+            return Err(ConfigError::invalid(
+                "seed_range",
+                format!("[{lo}, {hi}]"),
+                "must be [lo, hi) with lo < hi",
+            ));
         }
         let d = &self.dungeon;
         if d.style != "rogue" {
@@ -691,7 +691,7 @@ impl GameConfig {
                 "dungeon.min_room_size.x",
                 d.min_room_size.x,
                 format!(
-                    "rooms too small for their slots: must be < slot width {sw} (= width {} / room_num_x {})",
+                    "is too large: the room slots are too small for it: must be < the slot width {sw} (= width {} / room_num_x {})",
                     self.width, d.room_num_x
                 ),
             ));
@@ -701,7 +701,7 @@ impl GameConfig {
                 "dungeon.min_room_size.y",
                 d.min_room_size.y,
                 format!(
-                    "rooms too small for their slots: must be < the smallest slot height {min_sh} (height {} / room_num_y {}, minus border rows)",
+                    "is too large: the room slots are too small for it: must be < the smallest slot height {min_sh} (height {} / room_num_y {}, minus border rows)",
                     self.height, d.room_num_y
                 ),
             ));
@@ -745,14 +745,14 @@ impl GameConfig {
             ));
         }
         for (i, a) in self.item.armor.armors.iter().enumerate() {
-            if let ArmorPreset::Builtin(idx) = a {
-                if *idx >= 8 {
-                    return Err(ConfigError::invalid(
-                        &format!("item.armor.armors[{i}]"),
-                        idx,
-                        "builtin armour index must be 0..8",
-                    ));
-                }
+            if let ArmorPreset::Builtin(idx) = a
+                && *idx >= 8
+            {
+                return Err(ConfigError::invalid(
+                    &format!("item.armor.armors[{i}]"),
+                    idx,
+                    "builtin armour index must be 0..8",
+                ));
             }
         }
         for (i, w) in self.item.weapon.weapons.iter().enumerate() {

@@ -80,16 +80,25 @@ impl Generator {
             if floor.rooms[id].kind == RoomKind::Gone {
                 continue;
             }
-            if let Some(cell) = self.random_empty_cell(floor, &mut rng, id) {
-                if item_rng.one_in(g.rate_inv) {
-                    let span = g.base.saturating_add(g.per_level.saturating_mul(level));
-                    floor.gold[cell] = g.minimum + item_rng.below(span);
-                    floor.rooms[id].has_gold = floor.gold[cell] > 0;
-                }
+            if let Some(cell) = self.random_empty_cell(floor, &mut rng, id)
+                && item_rng.one_in(g.rate_inv)
+            {
+                let span = g.base.saturating_add(g.per_level.saturating_mul(level));
+                floor.gold[cell] = g.minimum.saturating_add(item_rng.below(span));
+                floor.rooms[id].has_gold = floor.gold[cell] > 0;
             }
         }
         // Stairs, then the amulet (from amulet_level on): uniform room, then uniform cell.
-        if let Some(cell) = self.random_room_cell(floor, &mut rng) {
+        // Fallback (tiny rooms all taken by gold): any floor or passage cell, gold allowed.
+        let stairs = self.random_room_cell(floor, &mut rng).or_else(|| {
+            self.cells.clear();
+            let cells = (0..floor.surface.len())
+                .filter(|&i| matches!(floor.surface[i], Surface::Floor | Surface::Passage));
+            self.cells.extend(cells.map(|i| i as u32));
+            let n = self.cells.len() as u32;
+            (n > 0).then(|| self.cells[rng.below(n) as usize] as usize)
+        });
+        if let Some(cell) = stairs {
             floor.surface[cell] = Surface::Stair;
             floor.stairs = cell;
         }

@@ -24,22 +24,22 @@ impl Game {
 
     /// The player enters cell `pos` (`initial`: placed on a new floor).
     pub(crate) fn player_in(&mut self, pos: usize, initial: bool) {
-        if initial || self.floor.flags[pos] & flag::DOOR != 0 {
-            if let Some(r) = self.floor.room_at(pos) {
-                let room = self.floor.rooms[r];
-                if !room.visited {
-                    self.floor.rooms[r].visited = true;
-                    if room.is_lit_normal() {
-                        for y in room.rect.y0..room.rect.y1 {
-                            for x in room.rect.x0..room.rect.x1 {
-                                let i = self.floor.idx(x, y);
-                                self.reveal(i);
-                            }
+        if (initial || self.floor.flags[pos] & flag::DOOR != 0)
+            && let Some(r) = self.floor.room_at(pos)
+        {
+            let room = self.floor.rooms[r];
+            if !room.visited {
+                self.floor.rooms[r].visited = true;
+                if room.is_lit_normal() {
+                    for y in room.rect.y0..room.rect.y1 {
+                        for x in room.rect.x0..room.rect.x1 {
+                            let i = self.floor.idx(x, y);
+                            self.reveal(i);
                         }
                     }
                 }
-                self.wake_mean_enemies(r);
             }
+            self.wake_mean_enemies(r);
         }
         self.floor.visited[pos] = 1;
         let (x, y) = self.floor.xy(pos);
@@ -63,16 +63,16 @@ impl Game {
         if !self.cfg.hide_dungeon {
             return;
         }
-        if self.floor.flags[pos] & flag::DOOR != 0 {
-            if let Some(r) = self.floor.room_at(pos) {
-                let room = self.floor.rooms[r];
-                if room.visited && room.dark && room.kind == RoomKind::Normal {
-                    let rect = room.rect;
-                    for y in rect.y0 + 1..rect.y1 - 1 {
-                        for x in rect.x0 + 1..rect.x1 - 1 {
-                            let i = self.floor.idx(x, y);
-                            self.hide_dark_floor(i);
-                        }
+        if self.floor.flags[pos] & flag::DOOR != 0
+            && let Some(r) = self.floor.room_at(pos)
+        {
+            let room = self.floor.rooms[r];
+            if room.visited && room.dark && room.kind == RoomKind::Normal {
+                let rect = room.rect;
+                for y in rect.y0 + 1..rect.y1 - 1 {
+                    for x in rect.x0 + 1..rect.x1 - 1 {
+                        let i = self.floor.idx(x, y);
+                        self.hide_dark_floor(i);
                     }
                 }
             }

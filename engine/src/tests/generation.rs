@@ -1,5 +1,6 @@
 //! Generation invariants and statistics against engine-spec §18 (the original, measured over
 //! 20k floors). Each test generates >= 2,000 floors; tolerances are stated next to each check.
+#![allow(clippy::needless_range_loop)]
 
 use crate::config::EnemiesConfig;
 use crate::dungeon::{RoomKind, Surface, flag};
@@ -50,11 +51,11 @@ fn bfs_to_stairs(g: &Game) -> Option<u32> {
             return Some(dist[c]);
         }
         for d in Dir::ALL {
-            if let Some(t) = g.can_move(c, d) {
-                if dist[t] == u32::MAX {
-                    dist[t] = dist[c] + 1;
-                    queue.push_back(t);
-                }
+            if let Some(t) = g.can_move(c, d)
+                && dist[t] == u32::MAX
+            {
+                dist[t] = dist[c] + 1;
+                queue.push_back(t);
             }
         }
     }
@@ -111,7 +112,7 @@ fn check_and_count(g: &Game, stats: &mut Stats) {
             RoomKind::Normal => {
                 assert!(r.rect.w() >= min.x && r.rect.h() >= min.y);
                 assert!(
-                    r.rect.x1 <= r.slot.x1 - 1 && r.rect.y1 <= r.slot.y1 - 1,
+                    r.rect.x1 < r.slot.x1 && r.rect.y1 < r.slot.y1,
                     "gap to the next slot"
                 );
                 assert!((r.rect.w() - 2) * (r.rect.h() - 2) >= 4);
@@ -215,7 +216,7 @@ fn paper_level_10() {
     near("maze rooms", s.mean(s.maze), 0.166, 0.05);
     near("gold piles", s.mean(s.gold_piles), 1.25, 0.08);
     near("mean pile", s.gold_total / s.gold_piles, 76.3, 4.0);
-    near("secret doors", s.mean(s.secret_doors), 0.85, 0.85 * 0.25);
+    near("secret doors", s.mean(s.secret_doors), 0.85, 0.85 * 0.2);
     near(
         "hidden passage cells",
         s.mean(s.hidden_passages),
@@ -235,7 +236,7 @@ fn default_80x24_level_1() {
     near("gold piles", s.mean(s.gold_piles), 3.75, 0.15);
     near("doors", s.mean(s.doors), 15.2, 15.2 * 0.15);
     near("passage cells", s.mean(s.passages), 119.0, 119.0 * 0.15);
-    near("BFS start-stairs", s.bfs_sum / s.bfs_n, 45.0, 45.0 * 0.20);
+    near("BFS start-stairs", s.bfs_sum / s.bfs_n, 45.0, 45.0 * 0.15);
 }
 
 #[test]
@@ -245,12 +246,12 @@ fn default_80x24_level_10() {
     near("maze rooms", s.mean(s.maze), 0.50, 0.08);
     near("dark rooms", s.mean(s.dark), 7.52, 0.15);
     near("mean pile", s.gold_total / s.gold_piles, 76.6, 3.0);
-    near("secret doors", s.mean(s.secret_doors), 2.88, 2.88 * 0.25);
+    near("secret doors", s.mean(s.secret_doors), 2.88, 2.88 * 0.2);
     near(
         "hidden passage cells",
         s.mean(s.hidden_passages),
         3.91,
         3.91 * 0.35,
     );
-    near("BFS start-stairs", s.bfs_sum / s.bfs_n, 29.9, 29.9 * 0.25);
+    near("BFS start-stairs", s.bfs_sum / s.bfs_n, 29.9, 29.9 * 0.15);
 }

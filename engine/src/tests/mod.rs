@@ -3,4 +3,5 @@
 
 mod builder;
 mod generation;
+mod random_agent;
 mod rules;

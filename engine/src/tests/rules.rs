@@ -316,3 +316,91 @@ fn every_symbol_channel_is_live() {
         assert_eq!((0..43).map(|c| buf[c * hw + i] as usize).sum::<usize>(), 1);
     }
 }
+
+#[test]
+fn deep_floors_have_the_amulet_and_never_panic() {
+    let mut cfg = GameConfig::default();
+    cfg.dungeon.amulet_level = 5;
+    let mut g = Game::new(
+        &cfg,
+        EpisodeConfig {
+            max_steps: 100_000,
+            stair_reward: 50.0,
+        },
+    )
+    .unwrap();
+    let mut state = 3u64;
+    let mut deepest = 0;
+    for seed in 0..40 {
+        g.reset(seed);
+        g.player.max_hp = 1_000_000;
+        g.player.hp = 1_000_000;
+        for _ in 1..40u32 {
+            let floor = g.info().floor;
+            deepest = deepest.max(floor);
+            assert_eq!(
+                g.floor.amulet.is_some(),
+                floor >= 5,
+                "amulet from amulet_level on"
+            );
+            for _ in 0..20 {
+                state = splitmix64(state);
+                g.step(Action::ALL[(state % 11) as usize]);
+            }
+            if g.is_over() {
+                break;
+            }
+            // Teleport to the stairs (a monster may stand there: then skip the floor check).
+            let stairs = g.floor.stairs;
+            if g.enemy_at[stairs] != 0 {
+                break;
+            }
+            g.player.pos = stairs;
+            let r = g.step(Action::DownStair);
+            assert!(r.reward >= 50.0 || r.terminated, "{r:?}");
+            if g.is_over() {
+                break;
+            }
+        }
+    }
+    assert!(deepest >= 30, "deepest floor {deepest}");
+}
+
+#[test]
+fn corridors_are_revealed_orthogonally() {
+    let rows = ["-----", "|...|", "|..@+##", "|...| ##", "-----  #"];
+    let mut g = Game::from_layout(&quiet(), EpisodeConfig::default(), &rows, false);
+    g.step(Action::Right); // onto the door (4,3)
+    assert_eq!(g.tile_at(5, 3), b'#');
+    assert_eq!(g.tile_at(6, 3), b' ', "two cells away");
+    g.step(Action::Right); // (5,3)
+    assert_eq!(g.tile_at(6, 3), b'#');
+    assert_eq!(g.tile_at(6, 4), b' ', "diagonal corridor cell stays unseen");
+    g.step(Action::Right); // (6,3)
+    assert_eq!(g.tile_at(6, 4), b'#');
+    // Seen corridor cells stay visible.
+    assert_eq!(g.tile_at(5, 3), b'#');
+}
+
+#[test]
+fn run_stops_at_a_door() {
+    let rows = ["--------", "|......|", "|@.....+##", "|......|", "--------"];
+    let mut g = Game::from_layout(&quiet(), EpisodeConfig::default(), &rows, false);
+    g.step_command(Command::Run(Action::Right));
+    assert_eq!(g.player_position(), (7, 3), "the run stops on the door");
+    assert_eq!(g.info().steps, 6);
+}
+
+#[test]
+fn hide_dungeon_false_shows_the_floor() {
+    let cfg = GameConfig {
+        hide_dungeon: false,
+        ..GameConfig::paper()
+    };
+    let mut g = Game::new(&cfg, EpisodeConfig::default()).unwrap();
+    g.reset(4);
+    let stairs = g.floor.xy(g.floor.stairs);
+    assert_eq!(g.tile_at(stairs.0, stairs.1), b'%');
+    let walls = g.ascii.iter().filter(|&&t| t == b'-' || t == b'|').count();
+    assert!(walls > 20);
+}

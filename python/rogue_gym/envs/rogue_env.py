@@ -235,11 +235,9 @@ class RogueEnv(gym.Env):
         return "\n".join([*self.game.screen(), self.game.status_line()])
 
     def __repr__(self) -> str:
-        return (
-            self.screen_text()
-            if not self._needs_reset or self._episode_seed is not None
-            else "RogueEnv()"
-        )
+        if self._episode_seed is None:
+            return f"RogueEnv(config={self.config!r}, max_steps={self.max_steps})"
+        return self.screen_text()
 
     @property
     def episode_seed(self) -> Optional[int]:

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use rogue_gym_pool::{
-    BatchOutput, EnvRegistry, Pool, PoolConfig, SeedSchedule, WaitPolicy, WorkerCommand,
+    BatchOutput, Env, EnvRegistry, Pool, PoolConfig, SeedSchedule, WaitPolicy, WorkerCommand,
 };
 use serde_json::{Value, json};
 
@@ -16,6 +16,8 @@ pub enum Mode {
     Sync,
     /// `send`/`recv` with a batch of `--batch-size` envs.
     Async,
+    /// Sync `step_shared`: workers write into the pool's shared batch slots (no copy).
+    Shared,
 }
 
 /// Options of `pool-bench`.
@@ -51,9 +53,18 @@ pub struct Args {
     /// Worker yield-poll budget, µs.
     #[arg(long, default_value_t = 50)]
     worker_poll_us: u64,
+    /// Supervisor polls by spinning instead of yielding.
+    #[arg(long)]
+    spin: bool,
+    /// Workers poll by spinning instead of yielding.
+    #[arg(long)]
+    worker_spin: bool,
     /// Base seed.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Raw and pool run alternately in this many chunks (fair under changing machine load).
+    #[arg(long, default_value_t = 10)]
+    rounds: u64,
 }
 
 struct Rng(u64);
@@ -100,137 +111,173 @@ fn pct(v: &mut [Duration], p: f64) -> f64 {
 }
 
 /// The raw loop: the same envs stepped in this process, one after another, with autoreset.
-fn raw_loop(spec: &Value, a: &Args, reg: &EnvRegistry) -> Result<f64, String> {
-    let mut envs = (0..a.envs)
-        .map(|_| reg.make(spec))
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| e.to_string())?;
-    let s = envs[0].spec();
-    let ob = s.obs_bytes();
-    let na = s.num_actions as u64;
-    let seeds = SeedSchedule::from_base(a.seed);
-    // f32 observations need 4-byte alignment: allocate as u64 words.
-    let mut words = vec![0u64; (a.envs * ob).div_ceil(8)];
-    let buf = rogue_gym_ipc::words_as_bytes_mut(&mut words);
-    let mut episode = vec![0u64; a.envs];
-    for (i, e) in envs.iter_mut().enumerate() {
-        e.reset(
-            seeds.seed(i as u64, 0, a.envs as u64),
-            &mut buf[i * ob..(i + 1) * ob],
-        )
-        .map_err(|e| e.to_string())?;
+struct Raw {
+    envs: Vec<Box<dyn Env>>,
+    words: Vec<u64>,
+    episode: Vec<u64>,
+    seeds: SeedSchedule,
+    rng: Rng,
+    ob: usize,
+    na: u64,
+}
+
+impl Raw {
+    fn new(spec: &Value, a: &Args, reg: &EnvRegistry) -> Result<Raw, String> {
+        let mut envs = (0..a.envs)
+            .map(|_| reg.make(spec))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| e.to_string())?;
+        let s = envs[0].spec();
+        let ob = s.obs_bytes();
+        let seeds = SeedSchedule::from_base(a.seed);
+        // f32 observations need 4-byte alignment: allocate as u64 words.
+        let mut words = vec![0u64; (a.envs * ob).div_ceil(8)];
+        let buf = rogue_gym_ipc::words_as_bytes_mut(&mut words);
+        for (i, e) in envs.iter_mut().enumerate() {
+            e.reset(
+                seeds.seed(i as u64, 0, a.envs as u64),
+                &mut buf[i * ob..(i + 1) * ob],
+            )
+            .map_err(|e| e.to_string())?;
+        }
+        Ok(Raw {
+            envs,
+            words,
+            episode: vec![0; a.envs],
+            seeds,
+            rng: Rng(0x9E37_79B9_7F4A_7C15 ^ a.seed),
+            ob,
+            na: s.num_actions as u64,
+        })
     }
-    let mut rng = Rng(0x9E37_79B9_7F4A_7C15 ^ a.seed);
-    let mut run = |n: u64, buf: &mut [u8]| -> Result<(), String> {
-        for _ in 0..n {
-            for (i, e) in envs.iter_mut().enumerate() {
+
+    /// Step every env `batches` times; returns the time taken.
+    fn run(&mut self, batches: u64) -> Result<Duration, String> {
+        let n = self.envs.len() as u64;
+        let ob = self.ob;
+        let buf = rogue_gym_ipc::words_as_bytes_mut(&mut self.words);
+        let t0 = Instant::now();
+        for _ in 0..batches {
+            for (i, e) in self.envs.iter_mut().enumerate() {
                 let obs = &mut buf[i * ob..(i + 1) * ob];
                 let o = e
-                    .step((rng.next() % na) as usize, obs)
+                    .step((self.rng.next() % self.na) as usize, obs)
                     .map_err(|e| e.to_string())?;
                 if o.terminated || o.truncated {
-                    episode[i] += 1;
-                    e.reset(seeds.seed(i as u64, episode[i], a.envs as u64), obs)
+                    self.episode[i] += 1;
+                    let seed = self.seeds.seed(i as u64, self.episode[i], n);
+                    e.reset(seed, obs).map_err(|e| e.to_string())?;
+                }
+            }
+        }
+        Ok(t0.elapsed())
+    }
+}
+
+/// The pool side of the benchmark.
+struct PoolRun {
+    pool: Pool,
+    mode: Mode,
+    obs: Vec<u8>,
+    out: BatchOutput,
+    actions: Vec<i64>,
+    rng: Rng,
+    lat: Vec<Duration>,
+    n_info: usize,
+    na: u64,
+}
+
+impl PoolRun {
+    fn new(spec: &Value, a: &Args, reg: &EnvRegistry) -> Result<PoolRun, String> {
+        let worker = WorkerCommand::current_exe(&["worker"]).map_err(|e| e.to_string())?;
+        let mut cfg = PoolConfig::new(spec.clone(), a.envs, a.workers, worker);
+        cfg.seeds.base = a.seed;
+        cfg.wait = WaitPolicy {
+            poll_budget: Duration::from_micros(a.poll_us),
+            yield_cpu: !a.spin,
+            ..cfg.wait
+        };
+        cfg.worker_wait = WaitPolicy {
+            poll_budget: Duration::from_micros(a.worker_poll_us),
+            yield_cpu: !a.worker_spin,
+            ..cfg.worker_wait
+        };
+        let epw = a.envs / a.workers.max(1);
+        if a.mode == Mode::Async {
+            let b = a.batch_size.unwrap_or(if a.workers >= 2 {
+                (a.workers / 2) * epw
+            } else {
+                a.envs
+            });
+            cfg.batch_size = Some(b);
+        }
+        let mut pool = Pool::new(cfg, reg).map_err(|e| e.to_string())?;
+        let n = a.envs;
+        let mut obs = vec![0u8; n * pool.obs_bytes()];
+        let mut out = BatchOutput::default();
+        match a.mode {
+            Mode::Sync => pool.reset(&mut obs, &mut out).map(|_| ()),
+            Mode::Shared => pool.reset_shared(&mut out).map(|_| ()),
+            Mode::Async => pool.async_reset(),
+        }
+        .map_err(|e| e.to_string())?;
+        let n_info = pool.spec().info_names.len();
+        let na = pool.spec().num_actions as u64;
+        Ok(PoolRun {
+            pool,
+            mode: a.mode,
+            obs,
+            out,
+            actions: vec![0; n],
+            rng: Rng(0x2545_F491_4F6C_DD1D ^ a.seed),
+            lat: Vec::new(),
+            n_info,
+            na,
+        })
+    }
+
+    /// Run `batches` batches; returns (time, env steps).
+    fn run(&mut self, batches: u64) -> Result<(Duration, u64), String> {
+        let mut env_steps = 0u64;
+        let t0 = Instant::now();
+        for _ in 0..batches {
+            let t = Instant::now();
+            match self.mode {
+                Mode::Sync | Mode::Shared => {
+                    for x in self.actions.iter_mut() {
+                        *x = (self.rng.next() % self.na) as i64;
+                    }
+                    if self.mode == Mode::Shared {
+                        self.pool
+                            .step_shared(&self.actions, &mut self.out)
+                            .map(|_| ())
+                    } else {
+                        self.pool.step(&self.actions, &mut self.obs, &mut self.out)
+                    }
+                    .map_err(|e| e.to_string())?;
+                    env_steps += self.actions.len() as u64;
+                    self.lat.push(t.elapsed());
+                }
+                Mode::Async => {
+                    let batch = self.pool.recv().map_err(|e| e.to_string())?;
+                    self.lat.push(t.elapsed());
+                    // Zero-copy: read the records; observations stay in shared memory.
+                    batch.fill(self.n_info, &mut self.out);
+                    let ids = batch.env_ids();
+                    drop(batch);
+                    env_steps += ids.len() as u64;
+                    self.actions.clear();
+                    for _ in &ids {
+                        self.actions.push((self.rng.next() % self.na) as i64);
+                    }
+                    self.pool
+                        .send(&self.actions, &ids)
                         .map_err(|e| e.to_string())?;
                 }
             }
         }
-        Ok(())
-    };
-    run((a.steps / 10).max(1), buf)?;
-    let t0 = Instant::now();
-    run(a.steps, buf)?;
-    Ok((a.envs as u64 * a.steps) as f64 / t0.elapsed().as_secs_f64())
-}
-
-fn pool_loop(spec: &Value, a: &Args, reg: &EnvRegistry) -> Result<(f64, f64, f64, usize), String> {
-    let worker = WorkerCommand::current_exe(&["worker"]).map_err(|e| e.to_string())?;
-    let mut cfg = PoolConfig::new(spec.clone(), a.envs, a.workers, worker);
-    cfg.seeds.base = a.seed;
-    cfg.wait = WaitPolicy {
-        poll_budget: Duration::from_micros(a.poll_us),
-        ..cfg.wait
-    };
-    cfg.worker_wait = WaitPolicy {
-        poll_budget: Duration::from_micros(a.worker_poll_us),
-        ..cfg.worker_wait
-    };
-    let epw = a.envs / a.workers.max(1);
-    if a.mode == Mode::Async {
-        let b = a.batch_size.unwrap_or(if a.workers >= 2 {
-            (a.workers / 2) * epw
-        } else {
-            a.envs
-        });
-        cfg.batch_size = Some(b);
+        Ok((t0.elapsed(), env_steps))
     }
-    let mut pool = Pool::new(cfg, reg).map_err(|e| e.to_string())?;
-    let n = a.envs;
-    let na = pool.spec().num_actions as u64;
-    let mut rng = Rng(0x2545_F491_4F6C_DD1D ^ a.seed);
-    let mut lat = Vec::with_capacity(a.steps as usize);
-    let warm = (a.steps / 10).max(1);
-    let mut env_steps = 0u64;
-    let t0;
-    match a.mode {
-        Mode::Sync => {
-            let mut obs = vec![0u8; n * pool.obs_bytes()];
-            let mut out = BatchOutput::default();
-            pool.reset(&mut obs, &mut out).map_err(|e| e.to_string())?;
-            let mut actions = vec![0i64; n];
-            let mut start = Instant::now();
-            for i in 0..warm + a.steps {
-                if i == warm {
-                    start = Instant::now();
-                    lat.clear();
-                }
-                for x in actions.iter_mut() {
-                    *x = (rng.next() % na) as i64;
-                }
-                let t = Instant::now();
-                pool.step(&actions, &mut obs, &mut out)
-                    .map_err(|e| e.to_string())?;
-                lat.push(t.elapsed());
-            }
-            env_steps = n as u64 * a.steps;
-            t0 = start;
-        }
-        Mode::Async => {
-            let n_info = pool.spec().info_names.len();
-            let mut out = BatchOutput::default();
-            pool.async_reset().map_err(|e| e.to_string())?;
-            let mut start = Instant::now();
-            let mut actions = Vec::new();
-            for i in 0..warm + a.steps {
-                if i == warm {
-                    start = Instant::now();
-                    lat.clear();
-                    env_steps = 0;
-                }
-                let t = Instant::now();
-                let batch = pool.recv().map_err(|e| e.to_string())?;
-                lat.push(t.elapsed());
-                // Zero-copy: read the records; observations stay in shared memory.
-                batch.fill(n_info, &mut out);
-                let ids = batch.env_ids();
-                drop(batch);
-                env_steps += ids.len() as u64;
-                actions.clear();
-                actions.extend(ids.iter().map(|_| (rng.next() % na) as i64));
-                pool.send(&actions, &ids).map_err(|e| e.to_string())?;
-            }
-            t0 = start;
-        }
-    }
-    let el = t0.elapsed().as_secs_f64();
-    let bs = pool.batch_size();
-    pool.close().map_err(|e| e.to_string())?;
-    Ok((
-        env_steps as f64 / el,
-        pct(&mut lat, 0.5),
-        pct(&mut lat, 0.99),
-        if a.mode == Mode::Sync { n } else { bs },
-    ))
 }
 
 /// Run the benchmark; returns the exit code.
@@ -254,8 +301,9 @@ fn bench(a: &Args) -> Result<(), String> {
     let reg = EnvRegistry::with_defaults();
     let spec = env_spec(a)?;
     let s = reg.make(&spec).map_err(|e| e.to_string())?.spec();
+    let rounds = a.rounds.max(1);
     println!(
-        "pool-bench: env={} envs={} workers={} mode={:?} steps={} obs={:?} {} ({} B)",
+        "pool-bench: env={} envs={} workers={} mode={:?} steps={} (in {rounds} interleaved rounds) obs={:?} {} ({} B)",
         a.env,
         a.envs,
         a.workers,
@@ -265,13 +313,38 @@ fn bench(a: &Args) -> Result<(), String> {
         s.dtype.numpy_name(),
         s.obs_bytes()
     );
-    let raw = raw_loop(&spec, a, &reg)?;
-    let (pool, p50, p99, bs) = pool_loop(&spec, a, &reg)?;
-    println!("raw single-process loop: {raw:>12.0} env-steps/s");
+    let mut raw = Raw::new(&spec, a, &reg)?;
+    let mut pool = PoolRun::new(&spec, a, &reg)?;
+    // Warm up both, then alternate raw and pool chunks so that both see the same machine load.
+    let warm = (a.steps / 10).max(1);
+    raw.run(warm)?;
+    pool.run(warm)?;
+    pool.lat.clear();
+    let chunk = (a.steps / rounds).max(1);
+    let (mut raw_t, mut pool_t, mut pool_steps) = (Duration::ZERO, Duration::ZERO, 0u64);
+    for _ in 0..rounds {
+        raw_t += raw.run(chunk)?;
+        let (t, n) = pool.run(chunk)?;
+        pool_t += t;
+        pool_steps += n;
+    }
+    let raw_rate = (a.envs as u64 * chunk * rounds) as f64 / raw_t.as_secs_f64();
+    let pool_rate = pool_steps as f64 / pool_t.as_secs_f64();
+    let bs = if a.mode == Mode::Async {
+        pool.pool.batch_size()
+    } else {
+        a.envs
+    };
+    let (p50, p99) = (pct(&mut pool.lat, 0.5), pct(&mut pool.lat, 0.99));
+    pool.pool.close().map_err(|e| e.to_string())?;
+    println!("raw single-process loop: {raw_rate:>12.0} env-steps/s");
     println!(
-        "pool ({:<5})            : {pool:>12.0} env-steps/s   batch of {bs}: p50 {p50:.1} us, p99 {p99:.1} us",
+        "pool ({:<6})           : {pool_rate:>12.0} env-steps/s   batch of {bs}: p50 {p50:.1} us, p99 {p99:.1} us",
         format!("{:?}", a.mode).to_lowercase()
     );
-    println!("pool / raw             : {:>11.1} %", 100.0 * pool / raw);
+    println!(
+        "pool / raw             : {:>11.1} %",
+        100.0 * pool_rate / raw_rate
+    );
     Ok(())
 }

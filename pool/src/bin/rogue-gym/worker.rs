@@ -4,7 +4,7 @@
 use rogue_gym_pool::{EnvRegistry, worker_main};
 
 /// Arguments are passed through to the worker loop unchanged.
-#[derive(clap::Args)]
+#[derive(clap::Args, Debug)]
 pub struct Args {
     /// `--config <file> --index <k> --generation <g> --ppid <pid>`
     #[arg(trailing_var_arg = true, allow_hyphen_values = true)]

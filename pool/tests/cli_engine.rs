@@ -1,0 +1,161 @@
+//! Tests of the engine-facing `rogue-gym` subcommands: play/bench/replay config errors,
+//! replay reproducing a recorded game, and bench with few steps.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+use rogue_gym_engine::{Action, EpisodeConfig, Game, GameConfig};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_rogue-gym"))
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("rogue-gym-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn text(o: &Output) -> (String, String) {
+    (
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn bad_config_is_reported_with_the_key() {
+    let path = tmp("bad.json");
+    std::fs::write(&path, r#"{"widht": 80}"#).unwrap();
+    for sub in ["play", "bench"] {
+        let o = bin().args([sub, "--config"]).arg(&path).output().unwrap();
+        let (_, err) = text(&o);
+        assert!(!o.status.success(), "{sub}");
+        assert!(err.contains("`widht`"), "{sub}: {err}");
+        assert!(
+            !err.contains("panicked") && !err.contains("backtrace"),
+            "{err}"
+        );
+    }
+    std::fs::write(
+        &path,
+        r#"{"dungeon": {"style": "rogue", "maze_rate_inv": 0}}"#,
+    )
+    .unwrap();
+    let o = bin()
+        .args(["bench", "--steps", "10", "--config"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(text(&o).1.contains("dungeon.maze_rate_inv"));
+    let o = bin()
+        .args(["bench", "--config", "/nonexistent/x.json"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(text(&o).1.contains("cannot read config"));
+}
+
+#[test]
+fn bench_runs() {
+    let o = bin().args(["bench", "--steps", "2000"]).output().unwrap();
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        out.contains("steps/s") && out.contains("[17, 16, 32]"),
+        "{out}"
+    );
+    let o = bin()
+        .args([
+            "bench",
+            "--steps",
+            "500",
+            "--encoding",
+            "gray",
+            "--dtype",
+            "f32",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    let o = bin().args(["bench", "--encoding", "rgb"]).output().unwrap();
+    assert!(!o.status.success());
+}
+
+#[test]
+fn replay_reproduces_the_final_state() {
+    let cfg = GameConfig::paper();
+    let keys = "llllljjjjjhhhhkkkk>s.ynbuLJHK".repeat(8);
+    // The reference game, played through the library.
+    let mut game = Game::new(
+        &cfg,
+        EpisodeConfig {
+            max_steps: 400,
+            stair_reward: 50.0,
+        },
+    )
+    .unwrap();
+    game.reset(11);
+    for c in keys.chars() {
+        game.step_command(rogue_gym_engine::Command::from_key(c).unwrap());
+    }
+    let log = serde_json::json!({
+        "config": serde_json::from_str::<serde_json::Value>(&cfg.to_json()).unwrap(),
+        "seed": 11,
+        "max_steps": 400,
+        "actions": keys.chars().map(|c| c.to_string()).collect::<Vec<_>>(),
+    });
+    let path = tmp("log.json");
+    std::fs::write(&path, log.to_string()).unwrap();
+    let o = bin()
+        .arg("replay")
+        .arg(&path)
+        .arg("--no-tty")
+        .output()
+        .unwrap();
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    let screen: Vec<String> = game
+        .screen_rows()
+        .skip(1)
+        .take(game.height() - 2)
+        .map(|r| String::from_utf8_lossy(r).into_owned())
+        .collect();
+    for row in &screen {
+        assert!(out.contains(row.as_str()), "row {row:?} missing in\n{out}");
+    }
+    assert!(out.contains(&game.status_line()));
+    assert!(
+        out.contains(&format!("steps {}", game.info().steps)),
+        "{out}"
+    );
+    let _ = Action::NoOp;
+}
+
+#[test]
+fn replay_rejects_bad_logs() {
+    let path = tmp("badlog.json");
+    std::fs::write(
+        &path,
+        r#"{"config": {"widht": 3}, "seed": 1, "actions": []}"#,
+    )
+    .unwrap();
+    let o = bin()
+        .arg("replay")
+        .arg(&path)
+        .arg("--no-tty")
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(text(&o).1.contains("widht"));
+    std::fs::write(&path, r#"{"config": {}, "seed": 1, "actions": ["x"]}"#).unwrap();
+    let o = bin()
+        .arg("replay")
+        .arg(&path)
+        .arg("--no-tty")
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(text(&o).1.contains("unknown key"));
+}
