@@ -519,6 +519,12 @@ def _write_csv(path: Path, rows: List[Dict[str, Any]]) -> None:
         w.writerows(rows)
 
 
+def _compact_json(doc: Dict[str, Any]) -> str:
+    """One line per top-level key: readable, without one line per number."""
+    body = ",\n".join(f"{json.dumps(k)}: {json.dumps(v)}" for k, v in doc.items())
+    return "{\n" + body + "\n}\n"
+
+
 def per_seed_rows(result: Dict[str, Any]) -> List[Dict[str, Any]]:
     """One row per seed: each agent's mean/std/min/max, then the manifest columns."""
     seeds = result["settings"]["seeds"]
@@ -547,7 +553,7 @@ def write_results(result: Dict[str, Any], out: Path) -> List[Path]:
     _write_csv(per_seed, per_seed_rows(result))
     summary = out / "summary.json"
     clean = {k: v for k, v in result.items() if not k.startswith("_")}
-    summary.write_text(json.dumps(clean, indent=1) + "\n")
+    summary.write_text(_compact_json(clean))
     return [per_seed, summary]
 
 
@@ -556,7 +562,7 @@ def write_manifest(rows: List[Dict[str, Any]], out: Path) -> List[Path]:
     out.mkdir(parents=True, exist_ok=True)
     csv_path, json_path = out / "manifest.csv", out / "manifest.json"
     _write_csv(csv_path, rows)
-    json_path.write_text(json.dumps(rows, indent=1) + "\n")
+    json_path.write_text("[\n" + ",\n".join(json.dumps(r) for r in rows) + "\n]\n")
     return [csv_path, json_path]
 
 
@@ -567,8 +573,11 @@ def _describe_manifest(rows: List[Dict[str, Any]]) -> str:
             continue
         vals = np.asarray([r[key] for r in rows if r[key] is not None], dtype=np.float64)
         if vals.size:
+            missing = len(rows) - vals.size
+            note = f"  ({missing} seeds: none)" if missing else ""
             lines.append(
                 f"  {key:24s} mean {vals.mean():8.3f}  min {vals.min():6g}  max {vals.max():6g}"
+                + note
             )
     return "\n".join(lines)
 
