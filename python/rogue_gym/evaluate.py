@@ -25,7 +25,8 @@ the random agent), so the two numbers are directly comparable.
 **Policy interface.** ``--policy module:attr`` (or ``path/to/file.py:attr``) names a Python
 object. If it is a class it is instantiated with no arguments. The result must be callable as
 ``policy(obs) -> actions``: ``obs`` is a numpy array of shape ``(N, *obs_shape)`` (one row per
-environment of the pool, in environment order; the observation encoding is ``--obs``), and
+environment of the pool, in environment order; the encoding is ``--obs ENCODING[:DTYPE]``,
+default ``symbol_onehot`` in uint8, ``symbol_onehot:float32`` for the paper's input), and
 ``actions`` an integer array-like of shape ``(N,)`` with values in ``[0, 11)``. The array
 ``obs`` is only valid during the call: copy what you keep. If the policy has a
 ``seed(seed: int)`` method it is called once before evaluation with ``--policy-seed``; a
@@ -178,6 +179,12 @@ def _seed_policy(policy: Policy, seed: int) -> None:
 # running episodes through the pool
 
 
+def _obs_kwargs(obs: str) -> Dict[str, Any]:
+    """``"symbol_onehot"`` or ``"symbol_onehot:float32"`` -> ``{"obs": ..., "dtype": ...}``."""
+    name, _, dtype = obs.partition(":")
+    return {"obs": name, "dtype": dtype or "uint8"}
+
+
 def _make_pool(
     suite: Suite,
     seeds: List[int],
@@ -196,7 +203,7 @@ def _make_pool(
         "stair_reward": suite.stair_reward,
         "seeds": seeds,
         "seed_policy": "sequential",
-        "obs": obs,
+        **_obs_kwargs(obs),
         "autoreset_mode": AutoresetMode.SAME_STEP,
     }
     if num_workers is not None:
@@ -222,7 +229,7 @@ class InProcessVec:
                 config_dict=suite.config,
                 max_steps=suite.max_steps,
                 stair_reward=suite.stair_reward,
-                obs=obs,
+                **_obs_kwargs(obs),
             )
             for _ in range(num_envs)
         ]
@@ -598,7 +605,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--num-envs", type=int, default=64)
     p.add_argument("--num-workers", type=int, default=None, help="default: the pool's")
     p.add_argument("--seeds-limit", type=int, default=None, help="first K test seeds only")
-    p.add_argument("--obs", default="symbol_onehot", help="observation encoding for the policy")
+    p.add_argument(
+        "--obs",
+        default="symbol_onehot",
+        help="observation for the policy: ENCODING[:DTYPE], e.g. symbol_onehot:float32 (the "
+        "paper's), symbol_onehot (uint8), symbol_index",
+    )
     p.add_argument("--confidence", type=float, default=0.95)
     p.add_argument("--bootstrap-seed", type=int, default=0)
     p.add_argument("--no-random", action="store_true", help="skip the random-agent baseline")

@@ -293,3 +293,36 @@ def test_cli_policy_with_random_baseline(tmp_path: Path, capsys) -> None:
     rows = list(csv.DictReader((tmp_path / "o" / "per_seed.csv").open()))
     assert {"policy_mean", "random_mean", "rooms", "stairs_distance"} <= set(rows[0])
     assert len(rows) == 3
+
+
+class _ObsPolicy:
+    """Deterministic and observation-dependent: exercises the observations themselves."""
+
+    def __init__(self) -> None:
+        self.seen: list = []
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        self.seen.append((obs.shape, obs.dtype))
+        flat = obs.reshape(len(obs), -1).astype(np.int64)
+        return (flat * np.arange(1, flat.shape[1] + 1)).sum(axis=1) % ev.NUM_ACTIONS
+
+
+@pytest.mark.parametrize(
+    ("obs", "shape", "dtype"),
+    [
+        ("symbol_onehot:float32", (17, 16, 32), np.float32),
+        ("symbol_onehot", (17, 16, 32), np.uint8),
+        ("symbol_index", (16, 32), np.uint8),
+    ],
+)
+def test_policy_gets_the_requested_observation(obs: str, shape: tuple, dtype) -> None:
+    results = []
+    for backend in ["inprocess", "pool"] if _pool_available() else ["inprocess"]:
+        pol = _ObsPolicy()
+        out = ev.run_episodes(
+            SUITE, pol, SEEDS[:2], 1, num_envs=2, obs=obs, progress=False, backend=backend
+        )
+        assert set(pol.seen) == {((2, *shape), np.dtype(dtype))}
+        results.append(out)
+    # Observation-dependent actions: the pool's observations equal the in-process engine's.
+    assert all(np.array_equal(results[0], r) for r in results)
