@@ -205,6 +205,8 @@ def _make_pool(
         "seed_policy": "sequential",
         **_obs_kwargs(obs),
         "autoreset_mode": AutoresetMode.SAME_STEP,
+        # A restarted worker would cut episodes short: an evaluation must fail loudly instead.
+        "on_worker_failure": "raise",
     }
     if num_workers is not None:
         kwargs["num_workers"] = num_workers
