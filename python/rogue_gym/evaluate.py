@@ -288,7 +288,11 @@ def run_episodes(
     if k == 0 or e_per <= 0:
         raise ValueError("need at least one seed and one episode per seed")
     total = k * e_per
+    # No more envs than episodes; keep a multiple of the worker count (the pool needs one).
     num_envs = max(1, min(int(num_envs), total))
+    if num_workers is not None and backend == "pool":
+        w = int(num_workers)
+        num_envs = max(w, num_envs // w * w)
     _seed_policy(policy, policy_seed)
     returns = np.full(total, np.nan, dtype=np.float64)
     if backend == "pool":

@@ -233,6 +233,15 @@ def test_pool_is_deterministic_and_independent_of_workers() -> None:
 
 
 @needs_pool
+def test_few_episodes_keep_a_worker_multiple() -> None:
+    # 3 episodes with 2 workers: 2 envs (a multiple of 2), not 3.
+    out = ev.run_episodes(
+        SUITE, ev.RandomPolicy(), SEEDS[:3], 1, num_envs=64, num_workers=2, progress=False
+    )
+    assert out.shape == (3, 1) and not np.isnan(out).any()
+
+
+@needs_pool
 def test_pool_matches_inprocess_engine() -> None:
     assert np.array_equal(_run("pool", num_workers=2), _run("inprocess"))
 
