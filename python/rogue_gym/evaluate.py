@@ -309,11 +309,16 @@ def run_episodes(
         done_count = 0
         while done_count < total:
             actions = np.asarray(policy(obs_batch), dtype=np.int64).reshape(num_envs)
-            obs_batch, reward, terminated, truncated, _ = env.step(actions)
+            obs_batch, reward, terminated, truncated, info = env.step(actions)
             ep_return += np.asarray(reward, dtype=np.float64)
             finished = np.flatnonzero(np.logical_or(terminated, truncated))
+            played = _final_seeds(info)
             for i in finished:
                 j = int(ep_index[i])
+                if played is not None and int(played[i]) != seeds[j % k]:
+                    raise RuntimeError(
+                        f"env {i} played seed {int(played[i])}, the schedule says {seeds[j % k]}"
+                    )
                 if j < total:
                     returns[j] = ep_return[i]
                     done_count += 1
@@ -325,6 +330,14 @@ def run_episodes(
         env.close()
     # schedule index j = r * k + s  ->  (seed s, repetition r)
     return returns.reshape(e_per, k).T.copy()
+
+
+def _final_seeds(info: Any) -> Optional[np.ndarray]:
+    """The seeds of the episodes that just ended, when the vector env reports them."""
+    final = info.get("final_info") if isinstance(info, dict) else None
+    if isinstance(final, dict) and "seed" in final:
+        return np.asarray(final["seed"])
+    return None
 
 
 class _NoBar:

@@ -133,6 +133,7 @@ class _FakePool:
         self.episode = np.zeros(num_envs, np.int64)
         self.t = np.zeros(num_envs, np.int64)
         self.acc = np.zeros(num_envs)
+        self.report = None  # a wrong seed to report in final_info, if set
 
     def _seed(self, i: int) -> int:
         return self.seeds[(i + int(self.episode[i]) * self.n) % len(self.seeds)]
@@ -152,7 +153,10 @@ class _FakePool:
                 done[i] = True
                 self.t[i], self.acc[i] = 0, 0.0
                 self.episode[i] += 1
-        return np.zeros((self.n, 1)), rew, done, np.zeros(self.n, bool), {}
+        info = {}
+        if self.report is not None:
+            info = {"final_info": {"seed": np.full(self.n, self.report)}}
+        return np.zeros((self.n, 1)), rew, done, np.zeros(self.n, bool), info
 
     def close(self) -> None:
         pass
@@ -335,3 +339,21 @@ def test_policy_gets_the_requested_observation(obs: str, shape: tuple, dtype) ->
         results.append(out)
     # Observation-dependent actions: the pool's observations equal the in-process engine's.
     assert all(np.array_equal(results[0], r) for r in results)
+
+
+def test_run_episodes_checks_the_played_seeds(monkeypatch) -> None:
+    def fake(suite, schedule, n, workers, obs):
+        pool = _FakePool(n, schedule)
+        pool.report = 7  # never a scheduled seed
+        return pool
+
+    monkeypatch.setattr(ev, "_make_pool", fake)
+    with pytest.raises(RuntimeError, match="played seed 7"):
+        ev.run_episodes(
+            get_suite("paper-10"),
+            lambda o: np.zeros(len(o), np.int64),
+            [1000, 1001],
+            1,
+            num_envs=2,
+            progress=False,
+        )
