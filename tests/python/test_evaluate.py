@@ -357,3 +357,22 @@ def test_run_episodes_checks_the_played_seeds(monkeypatch) -> None:
             num_envs=2,
             progress=False,
         )
+
+
+def test_example_policy_runs_and_is_deterministic() -> None:
+    root = Path(__file__).resolve().parents[2]
+    spec = f"{root / 'benchmarks' / 'example_policies.py'}:StairsSeeker"
+    runs = [
+        ev.run_episodes(
+            SUITE,
+            ev.load_policy(spec),
+            SEEDS[:2],
+            2,
+            num_envs=4,
+            obs="symbol_index",
+            progress=False,
+            backend="inprocess",
+        )
+        for _ in range(2)
+    ]
+    assert runs[0].shape == (2, 2) and np.array_equal(runs[0], runs[1])
