@@ -490,3 +490,39 @@ def test_partial_reset_rules(make_vec) -> None:
     obs, rew, term, trunc, infos = env.step(np.zeros(4, np.int64))
     assert (infos["episode_index"] == 1).all() and (infos["episode_length"][1:] == 0).all()
     assert infos["episode_length"][0] == 1 and (rew[1:] == 0).all()
+
+
+@pytest.mark.parametrize("mode", ["next_step", "same_step"])
+def test_native_step_decoding_matches_the_records(make_vec, mode) -> None:
+    """step()'s arrays (decoded natively) equal a numpy decoding of the raw records."""
+    from rogue_gym._core import PoolCore
+
+    env = make_vec(4, num_workers=2, max_steps=7, autoreset_mode=mode, seed=3)
+    env.reset()
+    for a in _actions(4, 40, seed=8):
+        obs, rew, term, trunc, infos = env.step(a)
+        recs = env._last_recs
+        t, tr, _, _ = PoolCore.flags(recs)
+        assert rew.dtype == np.float64 and term.dtype == np.bool_ and trunc.dtype == np.bool_
+        assert np.array_equal(rew, recs["reward"].astype(np.float64))
+        assert np.array_equal(term, t) and np.array_equal(trunc, tr)
+        for key, arr in env._core.info_arrays(recs).items():
+            assert infos[key].dtype == arr.dtype and np.array_equal(infos[key], arr), key
+            assert infos[f"_{key}"].all()
+
+
+def test_step_info_arrays_live_until_the_second_following_step(make_vec) -> None:
+    env = make_vec(4, num_workers=2, max_steps=5, seed=1)
+    env.reset()
+    acts = _actions(4, 12, seed=2)
+    *_, prev = env.step(acts[0])
+    kept = {k: v.copy() for k, v in prev.items()}
+    for a in acts[1:]:
+        *_, infos = env.step(a)
+        assert infos["seed"] is not prev["seed"]
+        assert all(np.array_equal(prev[k], kept[k]) for k in kept), "step t+1 overwrote step t"
+        prev, kept = infos, {k: v.copy() for k, v in infos.items()}
+    fresh = make_vec(4, num_workers=2, max_steps=5, seed=1, copy=True)
+    fresh.reset()
+    seen = [fresh.step(a)[4]["episode_length"] for a in acts[:6]]
+    assert [int(x[0]) for x in seen] == [1, 2, 3, 4, 5, 0]  # none rewritten later
