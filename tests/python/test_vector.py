@@ -526,3 +526,21 @@ def test_step_info_arrays_live_until_the_second_following_step(make_vec) -> None
     fresh.reset()
     seen = [fresh.step(a)[4]["episode_length"] for a in acts[:6]]
     assert [int(x[0]) for x in seen] == [1, 2, 3, 4, 5, 0]  # none rewritten later
+
+
+def test_render_replay_follows_a_partial_reset(make_vec) -> None:
+    mask = np.array([True, False, True, False])
+    acts = _actions(4, 14, seed=6)
+    screens = []
+    for m in (None, mask):
+        env = make_vec(4, num_workers=2, max_steps=4, seed=5, render_mode="ansi")
+        env.reset()
+        for t, a in enumerate(acts):
+            env.step(a)
+            # The replay history follows every env's episode (length as the records say).
+            assert np.array_equal(env._history.length, env._last_recs["episode_length"]), t
+            if m is not None and t == 3:  # all envs just ended: unmasked ones autoreset next
+                env.reset(options={"reset_mask": m})
+        screens.append(env.render())
+    for i in np.flatnonzero(~mask):
+        assert screens[0][i] == screens[1][i]
