@@ -601,8 +601,7 @@ fn partial_reset_resets_exactly_the_masked_envs() {
     // Unmasked envs continue exactly as in the run without the partial reset; masked envs
     // diverge (they play another episode).
     let mut diverged = [false; 8];
-    for t in 0..steps as usize + 1 {
-        let (ro, rr) = &reference[t];
+    for (t, (ro, rr)) in reference.iter().enumerate() {
         let k = if t <= at as usize + 1 { t } else { t + 1 };
         let (o, r) = &run[k];
         for i in 0..8 {
