@@ -258,6 +258,10 @@ pub enum PoolError {
         /// The failure that exceeded it.
         last: Box<WorkerFailure>,
     },
+    /// The interrupt check ([`Pool::set_interrupt_check`]) asked to abort a wait. Outstanding
+    /// requests are abandoned: call a reset to go on.
+    #[error("interrupted while waiting for the workers; call reset() to continue")]
+    Interrupted,
     /// The pool is closed.
     #[error("the pool is closed")]
     Closed,
@@ -495,7 +499,16 @@ struct Core {
 pub struct Pool {
     listener: Option<BlockListener>,
     core: Core,
+    interrupt: Option<InterruptCheck>,
 }
+
+/// A callback run between the slices of a long wait (see [`Pool::set_interrupt_check`]);
+/// returning `true` aborts the call with [`PoolError::Interrupted`].
+pub type InterruptCheck = Box<dyn FnMut() -> bool + Send>;
+
+/// How long a wait must have lasted before the interrupt check runs (it runs between blocking
+/// wait slices, every `PoolConfig::wait.block_slice`, so the hot path never calls it).
+const INTERRUPT_AFTER: Duration = Duration::from_millis(5);
 
 impl std::fmt::Debug for Pool {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -604,6 +617,7 @@ impl Pool {
         let num_workers = cfg.num_workers;
         let mut pool = Pool {
             listener: None,
+            interrupt: None,
             core: Core {
                 cfg,
                 spec,
@@ -743,13 +757,31 @@ impl Pool {
         &self.core.cfg
     }
 
+    /// Install (or remove) a check run between the slices of any wait that has lasted at least
+    /// 5 ms (every `PoolConfig::wait.block_slice`, 10 ms by default): if it returns `true`, the
+    /// call fails with [`PoolError::Interrupted`] and the pool needs a reset (outstanding
+    /// requests are abandoned and drained by the reset). Bindings use it to deliver Ctrl-C
+    /// during a long wait (e.g. Python's `check_signals` with the GIL re-acquired briefly).
+    pub fn set_interrupt_check(&mut self, check: Option<InterruptCheck>) {
+        self.interrupt = check;
+    }
+
     fn wait_until(&mut self, done: impl Fn(&Core) -> bool) -> Result<(), PoolError> {
         let listener = self.listener.as_ref().ok_or(PoolError::Closed)?;
         let core = &mut self.core;
+        let interrupt = &mut self.interrupt;
         let policy = core.cfg.wait;
+        let t0 = Instant::now();
         let out = hybrid_wait::<PoolError>(listener.listener(), &policy, None, |call| {
             if call == WaitCall::Idle {
                 core.check_liveness()?;
+                if let Some(check) = interrupt.as_mut()
+                    && t0.elapsed() >= INTERRUPT_AFTER
+                    && check()
+                {
+                    core.must_reset = true;
+                    return Err(PoolError::Interrupted);
+                }
             }
             core.poll_all()?;
             Ok(done(core))

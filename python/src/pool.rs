@@ -1,7 +1,7 @@
 //! `rogue_gym._native.Pool`: the environment pool (supervisor in this process, workers spawned
 //! as `python -m rogue_gym.worker`), with zero-copy views of worker blocks for the async API.
 
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use numpy::ndarray::ArrayView1;
@@ -15,8 +15,8 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
 use rogue_gym_pool::layout::{FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED};
 use rogue_gym_pool::{
-    AutoresetMode, Batch, BatchOutput, Block, EnvRecord, EnvRegistry, FailurePolicy, Pool,
-    PoolConfig, PoolError, SeedSchedule, WorkerCommand, WorkerFailure,
+    AutoresetMode, Batch, BatchOutput, Block, EnvRecord, EnvRegistry, FailurePolicy,
+    InterruptCheck, Pool, PoolConfig, PoolError, SeedSchedule, WorkerCommand, WorkerFailure,
 };
 use serde::Deserialize;
 use serde_json::Value;
@@ -237,6 +237,25 @@ pub struct PyPool {
     /// Column buffers bound by `bind_columns` (one per shared batch slot): the arrays (kept
     /// alive here) and their data pointers.
     columns: Mutex<Vec<(Py<PyAny>, usize)>>,
+    /// The exception raised by a signal handler during a wait (see `interrupt_check`).
+    interrupted: Arc<Mutex<Option<PyErr>>>,
+}
+
+/// The pool's interrupt check: between the slices of a long wait (GIL released), re-acquire
+/// the GIL briefly and run Python's signal handlers; an exception (KeyboardInterrupt from
+/// Ctrl-C) is kept in `slot` and aborts the wait.
+fn interrupt_check(slot: Arc<Mutex<Option<PyErr>>>) -> InterruptCheck {
+    Box::new(move || {
+        Python::attach(|py| match py.check_signals() {
+            Ok(()) => false,
+            Err(e) => {
+                if let Ok(mut s) = slot.lock() {
+                    *s = Some(e);
+                }
+                true
+            }
+        })
+    })
 }
 
 /// The column layout of a `bind_columns` buffer: `(name, numpy dtype, byte offset, rows)`; each
@@ -330,7 +349,15 @@ impl PyPool {
                 .map_err(|_| PoolError::State("the pool lock is poisoned".into()))?;
             f(pool, &mut out)
         });
-        res.map_err(|e| pool_error(py, e))
+        res.map_err(|e| match e {
+            PoolError::Interrupted => self
+                .interrupted
+                .lock()
+                .ok()
+                .and_then(|mut s| s.take())
+                .unwrap_or_else(|| pool_error(py, PoolError::Interrupted)),
+            e => pool_error(py, e),
+        })
     }
 
     fn fill_outputs(
@@ -410,9 +437,11 @@ impl PyPool {
         if let Some(d) = s.base_dir {
             cfg.base_dir = d.into();
         }
-        let pool = py
+        let mut pool = py
             .detach(|| Pool::new(cfg, &EnvRegistry::with_defaults()))
             .map_err(|e| pool_error(py, e))?;
+        let interrupted = Arc::new(Mutex::new(None));
+        pool.set_interrupt_check(Some(interrupt_check(interrupted.clone())));
         let spec = pool.spec().clone();
         Ok(PyPool {
             num_envs: pool.num_envs(),
@@ -423,6 +452,7 @@ impl PyPool {
             dtype: spec.dtype.numpy_name(),
             info_names: spec.info_names.clone(),
             columns: Mutex::new(Vec::new()),
+            interrupted,
             pool: Mutex::new(Some(pool)),
             out: Mutex::new(BatchOutput::default()),
         })

@@ -544,3 +544,31 @@ def test_render_replay_follows_a_partial_reset(make_vec) -> None:
         screens.append(env.render())
     for i in np.flatnonzero(~mask):
         assert screens[0][i] == screens[1][i]
+
+
+def test_ctrl_c_interrupts_a_long_wait_and_reset_recovers(make_vec) -> None:
+    """SIGINT during a wait for a stopped worker raises KeyboardInterrupt from step() at once
+    (the pool runs the signal handlers between wait slices), not after step_timeout."""
+    import threading
+    import time
+
+    env = make_vec(4, num_workers=2, step_timeout=None)
+    env.reset(seed=0)
+    pid = env.worker_pids[0]
+    os.kill(pid, signal.SIGSTOP)
+    try:
+        timer = threading.Timer(0.3, lambda: os.kill(os.getpid(), signal.SIGINT))
+        t0 = time.monotonic()
+        with pytest.raises(KeyboardInterrupt):
+            timer.start()
+            env.step(np.zeros(4, np.int64))  # waits for the stopped worker
+        assert time.monotonic() - t0 < 20
+    finally:
+        timer.cancel()
+        os.kill(pid, signal.SIGCONT)
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.zeros(4, np.int64))
+    env.reset()
+    obs, rew, term, trunc, infos = env.step(np.zeros(4, np.int64))
+    assert (infos["episode_length"] == 1).all()
+    assert env.worker_pids[0] == pid  # the worker was not restarted
