@@ -509,3 +509,156 @@ fn set_seeds_then_reset_replays_a_fresh_pool() {
     );
     assert_eq!(run_sync(&mut p, 20).unwrap(), reference);
 }
+
+/// One sync batch as seen by the caller: observations and the per-env arrays.
+type Frame = (Vec<u8>, BatchOutput);
+
+/// Reset, `steps` steps with the deterministic actions, then (if `mask`) a partial reset after
+/// step `at`; shared-slot sync API (`copy`: the copying API instead). All frames returned.
+fn masked_run(workers: usize, steps: u64, mask: Option<(u64, &[bool])>, copy: bool) -> Vec<Frame> {
+    let mut p = pool(config(EXE, test_env(), 8, workers));
+    let n = p.num_envs();
+    let ob = p.obs_bytes();
+    let mut obs = vec![0u8; n * ob];
+    let mut out = BatchOutput::default();
+    let mut frames = Vec::new();
+    let mut grab = |p: &Pool, slot: Option<usize>, obs: &[u8], out: &BatchOutput| {
+        let o = slot.map_or_else(|| obs.to_vec(), |s| p.shared_obs(s).to_vec());
+        frames.push((o, out.clone()));
+    };
+    if copy {
+        p.reset(&mut obs, &mut out).unwrap();
+        grab(&p, None, &obs, &out);
+    } else {
+        let s = p.reset_shared(&mut out).unwrap();
+        grab(&p, Some(s), &obs, &out);
+    }
+    for t in 0..steps {
+        let actions: Vec<i64> = (0..n).map(|i| action(i, t, 5)).collect();
+        if copy {
+            p.step(&actions, &mut obs, &mut out).unwrap();
+            grab(&p, None, &obs, &out);
+        } else {
+            let s = p.step_shared(&actions, &mut out).unwrap();
+            grab(&p, Some(s), &obs, &out);
+        }
+        if let Some((at, m)) = mask
+            && at == t
+        {
+            if copy {
+                p.reset_envs_into(m, &mut obs, &mut out).unwrap();
+                grab(&p, None, &obs, &out);
+            } else {
+                let s = p.reset_envs(m, &mut out).unwrap();
+                grab(&p, Some(s), &obs, &out);
+            }
+        }
+    }
+    frames
+}
+
+#[test]
+fn partial_reset_resets_exactly_the_masked_envs() {
+    let (steps, at) = (30, 14);
+    let mask = [false, true, true, false, false, false, true, false];
+    let reference = masked_run(2, steps, None, false);
+    let run = masked_run(2, steps, Some((at, &mask)), false);
+    assert_eq!(run.len(), reference.len() + 1);
+    let ob = {
+        let p = pool(config(EXE, test_env(), 1, 1));
+        p.obs_bytes()
+    };
+    let seeds = rogue_gym_pool::SeedSchedule::from_base(1234);
+    // Frame `at + 1` is the last step before the partial reset, `at + 2` the reset itself.
+    let (before_obs, before) = &run[at as usize + 1];
+    let (obs, out) = &run[at as usize + 2];
+    assert_eq!(out.env_ids, (0..8).collect::<Vec<_>>());
+    for i in 0..8 {
+        let o = &obs[i * ob..(i + 1) * ob];
+        assert_eq!(out.reward[i], 0.0);
+        assert!(!out.terminated[i] && !out.truncated[i] && !out.restarted[i]);
+        if mask[i] {
+            assert_eq!(
+                out.episode[i],
+                before.episode[i] + 1,
+                "env {i}: next episode"
+            );
+            assert_eq!(out.seed[i], seeds.seed(i as u64, out.episode[i], 8));
+            assert_eq!(out.episode_length[i], 0);
+            assert_eq!(out.episode_return[i], 0.0);
+        } else {
+            assert_eq!(
+                o,
+                &before_obs[i * ob..(i + 1) * ob],
+                "env {i}: obs unchanged"
+            );
+            assert_eq!(out.episode[i], before.episode[i]);
+            assert_eq!(out.seed[i], before.seed[i]);
+            assert_eq!(out.episode_length[i], before.episode_length[i]);
+            assert_eq!(out.episode_return[i], before.episode_return[i]);
+        }
+    }
+    // Unmasked envs continue exactly as in the run without the partial reset; masked envs
+    // diverge (they play another episode).
+    let mut diverged = [false; 8];
+    for (t, (ro, rr)) in reference.iter().enumerate() {
+        let k = if t <= at as usize + 1 { t } else { t + 1 };
+        let (o, r) = &run[k];
+        for i in 0..8 {
+            let same = ro[i * ob..(i + 1) * ob] == o[i * ob..(i + 1) * ob]
+                && rr.reward[i] == r.reward[i]
+                && rr.terminated[i] == r.terminated[i]
+                && rr.truncated[i] == r.truncated[i]
+                && rr.episode[i] == r.episode[i]
+                && rr.seed[i] == r.seed[i]
+                && rr.info[i * 2..i * 2 + 2] == r.info[i * 2..i * 2 + 2];
+            if mask[i] {
+                diverged[i] |= !same;
+            } else {
+                assert!(same, "unmasked env {i} differs at frame {t}");
+            }
+        }
+    }
+    for i in 0..8 {
+        assert_eq!(diverged[i], mask[i], "env {i}");
+    }
+}
+
+#[test]
+fn partial_reset_is_deterministic_for_1_2_4_workers_and_copy_or_shared() {
+    let mask = [true, false, false, true, false, true, true, false];
+    let reference = masked_run(1, 25, Some((9, &mask)), false);
+    for workers in [2, 4] {
+        assert_eq!(
+            masked_run(workers, 25, Some((9, &mask)), false),
+            reference,
+            "{workers} workers"
+        );
+    }
+    assert_eq!(
+        masked_run(2, 25, Some((9, &mask)), true),
+        reference,
+        "copying API"
+    );
+}
+
+#[test]
+fn partial_reset_needs_a_started_pool_and_a_full_mask() {
+    let mut p = pool(config(EXE, test_env(), 4, 2));
+    let mut out = BatchOutput::default();
+    let m = [true, false, true, false];
+    assert!(matches!(
+        p.reset_envs(&m, &mut out),
+        Err(PoolError::State(_))
+    ));
+    p.reset_shared(&mut out).unwrap();
+    assert!(matches!(
+        p.reset_envs(&m[..3], &mut out),
+        Err(PoolError::BadBuffer { .. })
+    ));
+    p.reset_envs(&m, &mut out).unwrap();
+    assert_eq!(out.episode, vec![1, 0, 1, 0]);
+    p.reset_envs(&[false; 4], &mut out).unwrap();
+    assert_eq!(out.episode, vec![1, 0, 1, 0]);
+    p.step_shared(&[0; 4], &mut out).unwrap();
+}

@@ -891,7 +891,8 @@ pub enum WaitCall {
 /// Wait until `f(WaitCall::Poll)` returns `true`: poll with `yield_now` for the policy's
 /// budget, then block on `listener` (in slices of `block_slice`) and poll again after each
 /// wake-up. At least once per `block_slice` of blocking, `f(WaitCall::Idle)` runs instead (use
-/// it for liveness checks and timeouts). An error from `f` ends the wait. `deadline` bounds the
+/// it for liveness checks and timeouts); a signal interrupting the blocking wait (EINTR) is
+/// not an error but also leads to an `Idle` call. An error from `f` ends the wait. `deadline` bounds the
 /// whole wait. Never spins unboundedly: idle waiting uses no CPU.
 pub fn hybrid_wait<E: From<IpcError>>(
     listener: &Listener<Svc>,
@@ -925,10 +926,14 @@ pub fn hybrid_wait<E: From<IpcError>>(
             }
             slice = slice.min(d - now);
         }
-        let n = listener
-            .timed_wait(|_| {}, slice)
-            .map_err(ice("wait on event listener"))?;
-        let call = if n == 0 || last_idle.elapsed() >= policy.block_slice {
+        // A signal (e.g. SIGINT) interrupting the blocking wait is a wake-up, not an error:
+        // the Idle call below lets the caller react to it (run its signal check).
+        let (n, interrupted) = match listener.timed_wait(|_| {}, slice) {
+            Ok(n) => (n, false),
+            Err(iceoryx2::port::listener::ListenerWaitError::InterruptSignal) => (0, true),
+            Err(e) => return Err(ice("wait on event listener")(e).into()),
+        };
+        let call = if n == 0 || interrupted || last_idle.elapsed() >= policy.block_slice {
             last_idle = Instant::now();
             WaitCall::Idle
         } else {

@@ -113,6 +113,16 @@ pub trait Env {
     fn info(&self, out: &mut [f64]) {
         let _ = out;
     }
+    /// Re-write the current observation (the bytes the last `reset`/`step` wrote) without
+    /// changing any state. The pool's partial reset ([`crate::Pool::reset_envs`]) calls it for
+    /// the envs it does *not* reset, so that their current observation lands in the new batch.
+    /// The default says the env cannot: such envs support full resets only.
+    fn observe(&self, obs: &mut [u8]) -> Result<(), EnvError> {
+        let _ = obs;
+        Err(EnvError::new(
+            "this env kind cannot re-render its observation (Env::observe), which partial resets need",
+        ))
+    }
 }
 
 /// Builds an env from its JSON spec (the whole object, including `"kind"`).

@@ -37,8 +37,8 @@ pub use layout::EnvRecord;
 pub use rogue_gym_ipc::WaitPolicy;
 pub use seeds::{SeedPolicy, SeedSchedule, SeedSet};
 pub use supervisor::{
-    Batch, BatchOutput, Block, FailureCause, FailurePolicy, Pool, PoolConfig, PoolError,
-    WorkerCommand, WorkerFailure,
+    Batch, BatchOutput, Block, FailureCause, FailurePolicy, InterruptCheck, Pool, PoolConfig,
+    PoolError, WorkerCommand, WorkerFailure,
 };
 pub use test_env::TestEnv;
 pub use worker::{AutoresetMode, BATCH_SLOTS, WorkerConfig, worker_main};

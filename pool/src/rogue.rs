@@ -163,6 +163,10 @@ impl Env for RogueEnv {
         })
     }
 
+    fn observe(&self, obs: &mut [u8]) -> Result<(), EnvError> {
+        self.write(obs)
+    }
+
     fn info(&self, out: &mut [f64]) {
         let i = self.game.info();
         let vals = [

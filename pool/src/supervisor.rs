@@ -21,7 +21,7 @@ use crate::layout::{BlockLayout, EnvRecord, FLAG_RESTARTED, FLAG_TRUNCATED};
 use crate::seeds::SeedSchedule;
 use crate::worker::{
     AutoresetMode, BATCH_BUFFER, BATCH_SLOTS, BLOCK_DATA, BLOCK_READY, CMD_CLOSE, CMD_RESET,
-    CMD_STEP, RELOAD_SEEDS, TARGET_SHIFT, WorkerConfig, slot_bytes,
+    CMD_STEP, KEEP_EPISODE, RELOAD_SEEDS, TARGET_SHIFT, WorkerConfig, slot_bytes,
 };
 
 /// What to do when a worker dies or hangs.
@@ -258,6 +258,10 @@ pub enum PoolError {
         /// The failure that exceeded it.
         last: Box<WorkerFailure>,
     },
+    /// The interrupt check ([`Pool::set_interrupt_check`]) asked to abort a wait. Outstanding
+    /// requests are abandoned: call a reset to go on.
+    #[error("interrupted while waiting for the workers; call reset() to continue")]
+    Interrupted,
     /// The pool is closed.
     #[error("the pool is closed")]
     Closed,
@@ -495,7 +499,16 @@ struct Core {
 pub struct Pool {
     listener: Option<BlockListener>,
     core: Core,
+    interrupt: Option<InterruptCheck>,
 }
+
+/// A callback run between the slices of a long wait (see [`Pool::set_interrupt_check`]);
+/// returning `true` aborts the call with [`PoolError::Interrupted`].
+pub type InterruptCheck = Box<dyn FnMut() -> bool + Send>;
+
+/// How long a wait must have lasted before the interrupt check runs (it runs between blocking
+/// wait slices, every `PoolConfig::wait.block_slice`, so the hot path never calls it).
+const INTERRUPT_AFTER: Duration = Duration::from_millis(5);
 
 impl std::fmt::Debug for Pool {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -604,6 +617,7 @@ impl Pool {
         let num_workers = cfg.num_workers;
         let mut pool = Pool {
             listener: None,
+            interrupt: None,
             core: Core {
                 cfg,
                 spec,
@@ -743,13 +757,31 @@ impl Pool {
         &self.core.cfg
     }
 
+    /// Install (or remove) a check run between the slices of any wait that has lasted at least
+    /// 5 ms (every `PoolConfig::wait.block_slice`, 10 ms by default): if it returns `true`, the
+    /// call fails with [`PoolError::Interrupted`] and the pool needs a reset (outstanding
+    /// requests are abandoned and drained by the reset). Bindings use it to deliver Ctrl-C
+    /// during a long wait (e.g. Python's `check_signals` with the GIL re-acquired briefly).
+    pub fn set_interrupt_check(&mut self, check: Option<InterruptCheck>) {
+        self.interrupt = check;
+    }
+
     fn wait_until(&mut self, done: impl Fn(&Core) -> bool) -> Result<(), PoolError> {
         let listener = self.listener.as_ref().ok_or(PoolError::Closed)?;
         let core = &mut self.core;
+        let interrupt = &mut self.interrupt;
         let policy = core.cfg.wait;
+        let t0 = Instant::now();
         let out = hybrid_wait::<PoolError>(listener.listener(), &policy, None, |call| {
             if call == WaitCall::Idle {
                 core.check_liveness()?;
+                if let Some(check) = interrupt.as_mut()
+                    && t0.elapsed() >= INTERRUPT_AFTER
+                    && check()
+                {
+                    core.must_reset = true;
+                    return Err(PoolError::Interrupted);
+                }
             }
             core.poll_all()?;
             Ok(done(core))
@@ -886,6 +918,67 @@ impl Pool {
         self.gather_all(None, out)?;
         self.core.next_slot = (slot + 1) % BATCH_SLOTS;
         Ok(slot)
+    }
+
+    /// Partial sync reset (gymnasium's `reset(options={"reset_mask": mask})`), into the next
+    /// shared batch slot like [`Pool::reset_shared`]; returns the slot.
+    ///
+    /// * Envs with `mask[i] == true` start their next scheduled episode (episode index + 1, its
+    ///   seed from the schedule), exactly as a full reset would start it for them, so
+    ///   trajectories stay independent of the worker count.
+    /// * Envs with `mask[i] == false` keep their state (an episode that ended in NEXT_STEP mode
+    ///   is still autoreset by the next step); their current observation is re-written into
+    ///   the slot by the worker ([`crate::Env::observe`]), and their row in `out` describes
+    ///   their current episode with reward 0 and no flags.
+    ///
+    /// Needs a full reset first (after creation, [`Pool::set_seeds`] or a worker failure
+    /// under [`FailurePolicy::Raise`]) and no outstanding async requests (sync only; there is
+    /// no async partial reset). A worker restarted during the call resets all its envs (they
+    /// report `restarted`).
+    pub fn reset_envs(&mut self, mask: &[bool], out: &mut BatchOutput) -> Result<usize, PoolError> {
+        let slot = self.core.next_slot;
+        self.reset_masked(mask, slot as u32 + 1, None, out)?;
+        self.core.next_slot = (slot + 1) % BATCH_SLOTS;
+        Ok(slot)
+    }
+
+    /// [`Pool::reset_envs`], with the observations copied into `obs_out` (`num_envs x
+    /// obs_bytes`) like [`Pool::reset`].
+    pub fn reset_envs_into(
+        &mut self,
+        mask: &[bool],
+        obs_out: &mut [u8],
+        out: &mut BatchOutput,
+    ) -> Result<(), PoolError> {
+        self.check_obs_buf(obs_out)?;
+        self.reset_masked(mask, 0, Some(obs_out), out)
+    }
+
+    fn reset_masked(
+        &mut self,
+        mask: &[bool],
+        target: u32,
+        obs_out: Option<&mut [u8]>,
+        out: &mut BatchOutput,
+    ) -> Result<(), PoolError> {
+        self.check_usable()?;
+        if mask.len() != self.core.cfg.num_envs {
+            return Err(PoolError::BadBuffer {
+                what: "reset mask",
+                expected: self.core.cfg.num_envs,
+                got: mask.len(),
+            });
+        }
+        if self.core.must_reset {
+            return Err(PoolError::State(
+                "a partial reset needs every env started: call a full reset() first (after creation, set_seeds or a worker failure)".into(),
+            ));
+        }
+        self.all_idle()?;
+        for k in 0..self.core.slots.len() {
+            self.core.send_reset_masked(k, target, Some(mask))?;
+        }
+        self.gather_all(obs_out, out)
     }
 
     /// Like [`Pool::step`], but the workers write the observations straight into the next
@@ -1188,10 +1281,26 @@ impl Core {
     }
 
     fn send_reset(&mut self, k: usize, target: u32) -> Result<(), PoolError> {
+        self.send_reset_masked(k, target, None)
+    }
+
+    /// Reset command to worker `k`; with `mask` (the whole pool's), envs whose entry is false
+    /// get [`KEEP_EPISODE`] (keep state, re-write the current observation).
+    fn send_reset_masked(
+        &mut self,
+        k: usize,
+        target: u32,
+        mask: Option<&[bool]>,
+    ) -> Result<(), PoolError> {
         let range = self.env_range(k);
-        let eps: Vec<u64> = self.cur_episode[range]
-            .iter()
-            .map(|e| e.map_or(0, |e| e + 1))
+        let eps: Vec<u64> = range
+            .map(|i| {
+                if mask.is_some_and(|m| !m[i]) {
+                    KEEP_EPISODE
+                } else {
+                    self.cur_episode[i].map_or(0, |e| e + 1)
+                }
+            })
             .collect();
         let reload = if std::mem::take(&mut self.reload_seeds[k]) {
             RELOAD_SEEDS

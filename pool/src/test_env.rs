@@ -133,6 +133,10 @@ impl Env for TestEnv {
         })
     }
 
+    fn observe(&self, obs: &mut [u8]) -> Result<(), EnvError> {
+        self.write_obs(obs)
+    }
+
     fn info(&self, out: &mut [f64]) {
         if let [t, m, ..] = out {
             *t = f64::from(self.t);

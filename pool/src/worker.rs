@@ -22,6 +22,9 @@ use crate::seeds::SeedSchedule;
 
 /// Command: reset the block's envs; payload = episode index per env.
 pub(crate) const CMD_RESET: u32 = 1;
+/// Payload value of a `CMD_RESET` for an env that is *not* reset (partial reset): the env keeps
+/// its state and re-writes its current observation ([`Env::observe`]).
+pub(crate) const KEEP_EPISODE: u64 = u64::MAX;
 /// Command: step the block's envs; payload = action per env.
 pub(crate) const CMD_STEP: u32 = 2;
 /// Command: exit cleanly.
@@ -267,6 +270,15 @@ pub(crate) fn apply(
 ) -> Result<EnvRecord, String> {
     let mut rec = EnvRecord::default();
     match kind {
+        CMD_RESET if value == KEEP_EPISODE => {
+            // Partial reset, env not selected: no state change, same observation again.
+            s.env.observe(obs).map_err(|e| {
+                format!(
+                    "env {} (episode {}, seed {}): cannot keep it through a partial reset: {e}",
+                    s.global, s.episode, s.seed
+                )
+            })?;
+        }
         CMD_RESET => {
             s.episode = value;
             do_reset(s, obs, ctx)?;

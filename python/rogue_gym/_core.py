@@ -36,6 +36,11 @@ _BOOL_INFO = {"died", "won"}
 
 _FAILURE_POLICIES = ("restart", "raise")
 
+#: :meth:`PoolCore.step_columns` summary bit: some env's worker was restarted.
+SUMMARY_RESTARTED = 1 << 8
+#: :meth:`PoolCore.step_columns` summary bit: some env has a final observation (SAME_STEP).
+SUMMARY_FINAL = 1 << 9
+
 
 def _seed_set(seeds: SeedsLike, config: Mapping[str, Any]) -> Optional[dict[str, Any]]:
     """The pool's seed set from ``seeds`` (or the config's ``seed_range`` / ``seed``)."""
@@ -172,6 +177,11 @@ class PoolCore:
         self._recs = [np.zeros(num_envs, RECORD_DTYPE) for _ in range(2)]
         self._slot = 0
         self._actions = np.zeros(num_envs, np.int64)
+        self.last_actions = self._actions
+        self._cols: list[dict[str, np.ndarray]] = []
+        self._info_templates: list[dict[str, Any]] = []
+        self.info_keys: list[str] = []
+        self.mask_keys: list[str] = []
         self.info_names: list[str] = []
         self.name = ""
         self.start()
@@ -195,8 +205,66 @@ class PoolCore:
         self.info_names = list(pool.info_names)
         shape = (self.num_envs, *self.obs_shape)
         self._bufs = [v.view(self.obs_dtype).reshape(shape) for v in pool.shared_views()]
+        self._bind_columns(pool)
         #: The pool's name: the prefix of its /dev/shm files.
         self.name: str = pool.name()
+
+    def _bind_columns(self, pool: Any) -> None:
+        """Preallocate one column buffer per shared batch slot for :meth:`step_columns`."""
+        n = self.num_envs
+        layout, total = pool.column_layout()
+        buffers, self._cols, self._info_templates = [], [], []
+        for _ in self._bufs:
+            buf = np.zeros(total, np.uint8)
+            cols: dict[str, np.ndarray] = {}
+            for name, dt, off, rows in layout:
+                size = rows * n * np.dtype(dt).itemsize
+                col = buf[off : off + size].view(dt)
+                cols[name] = col.reshape(rows, n) if name.startswith("info_") else col
+            values: dict[str, np.ndarray] = {
+                "seed": cols["seed"],
+                "episode_index": cols["episode_index"],
+                "episode_return": cols["episode_return"],
+                "episode_length": cols["episode_length"],
+            }
+            for k, name in enumerate(self.info_names):
+                values[name] = cols["info_bool" if name in _BOOL_INFO else "info_int"][k]
+            template: dict[str, Any] = {}
+            for key, arr in values.items():
+                template[key] = arr
+                template[f"_{key}"] = None  # the step's mask, set per step
+            buffers.append(buf)
+            self._cols.append(cols)
+            self._info_templates.append(template)
+        self.info_keys = list(values)
+        self.mask_keys = [f"_{k}" for k in values]
+        pool.bind_columns(buffers)
+
+    def step_columns(
+        self, actions: Any
+    ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], dict[str, Any], int]:
+        """The fast sync step: ``(obs, records, columns, info template, summary)``.
+
+        One native call validates the actions, steps, and decodes every env's record into the
+        column arrays of the returned slot (``reward`` float64, ``terminated`` / ``truncated``
+        / ``restarted`` / ``has_final_obs`` bool, ``seed``, ``episode_index``,
+        ``episode_return``, ``episode_length``, ``info_int`` / ``info_bool`` rows). The columns
+        and the template's arrays are reused: like the observation slot, they stay unchanged
+        until the second following step. ``summary``: :data:`SUMMARY_RESTARTED` /
+        :data:`SUMMARY_FINAL` bits. The actions actually sent are kept in ``last_actions``.
+        """
+        self._check_open()
+        a = actions
+        if not (type(a) is np.ndarray and a.dtype == np.int64 and a.shape == (self.num_envs,)):
+            a = self.validate_actions(a, check_range=False)
+        self.last_actions = a
+        recs = self._recs[1 - self._slot]
+        r = self._pool.step_columns(a, recs, self._final)
+        slot = self._slot = r & 0xFF
+        if self._recs[slot] is not recs:
+            self._recs.reverse()
+        self._fresh = False
+        return self._bufs[slot], recs, self._cols[slot], self._info_templates[slot], r
 
     def _stop(self) -> None:
         if self._finalizer is not None:
@@ -274,27 +342,48 @@ class PoolCore:
         np.copyto(self._actions, a, casting="unsafe")
         return self._actions
 
+    def check_mask(self, mask: Any) -> Optional[np.ndarray]:
+        """Validate a gymnasium ``reset_mask``; returns it (bool, shape ``(num_envs,)``), or
+        ``None`` when it selects every env (a full reset)."""
+        if not isinstance(mask, np.ndarray):
+            raise ValueError(
+                f"reset_mask must be a numpy bool array of shape ({self.num_envs},), got {type(mask).__name__}"
+            )
+        if mask.shape != (self.num_envs,) or mask.dtype != np.bool_:
+            raise ValueError(
+                f"reset_mask must be a bool array of shape ({self.num_envs},), got {mask.dtype} {mask.shape}"
+            )
+        if not mask.any():
+            raise ValueError("reset_mask selects no env: at least one entry must be True")
+        return None if mask.all() else mask
+
     def reset(
         self, seed: Optional[int] = None, mask: Optional[np.ndarray] = None
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Reset every env; returns (obs batch, records) written into the next slot.
+        """Reset every env (or the envs of ``mask``); returns (obs batch, records) written into
+        the next slot.
 
         With ``seed``, the episode schedule restarts from base seed ``seed`` (env ``i``'s episode
-        ``e`` plays the same dungeon whatever the worker count), as in a fresh pool. ``mask`` must select every env (partial resets are not
-        supported by the pool yet).
+        ``e`` plays the same dungeon whatever the worker count), as in a fresh pool. With a
+        partial ``mask`` (see :meth:`check_mask`), the masked envs start their next scheduled
+        episode and the others keep their state; their current observation and records are
+        returned again (reward 0, no flags). A partial reset cannot take a ``seed`` (the seed
+        restarts every env's schedule) and needs a full reset before it.
         """
         self._check_open()
         if mask is not None:
-            mask = np.asarray(mask)
-            if mask.shape != (self.num_envs,) or mask.dtype != np.bool_:
+            mask = self.check_mask(mask)
+        if mask is not None:
+            if seed is not None:
                 raise ValueError(
-                    f"reset_mask must be a bool array of shape ({self.num_envs},), got {mask.dtype} {mask.shape}"
+                    "reset(seed=...) restarts every env's seed schedule and cannot be combined "
+                    "with a partial reset_mask; reset with the seed first, then use the mask"
                 )
-            if not mask.all():
-                raise NotImplementedError(
-                    "partial resets (reset_mask with False entries) are not supported by the pool yet: "
-                    "reset all envs, or rely on autoreset"
-                )
+            recs = self._recs[1 - self._slot]
+            slot = self._slot = self._pool.reset_envs_shared(mask, recs)
+            if self._recs[slot] is not recs:
+                self._recs.reverse()
+            return self._bufs[slot], recs
         if seed is not None:
             seed = int(seed)
             if not 0 <= seed < 2**64:

@@ -11,7 +11,7 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from ._config import ConfigLike
-from ._core import ActionHistory, PoolCore, SeedsLike
+from ._core import SUMMARY_FINAL, SUMMARY_RESTARTED, ActionHistory, PoolCore, SeedsLike
 from ._records import RECORD_DTYPE
 from .envs.image import StatusFlag
 from .envs.rogue_env import ACTIONS
@@ -84,8 +84,12 @@ class RogueVectorEnv(gym.vector.VectorEnv):
     of the pool's two shared-memory batch slots, which the workers write directly (zero-copy)
     and alternately: it stays unchanged until the second following ``reset``/``step`` call (so
     the previous observation is still intact while you hold the new one), and readable even
-    after ``close()``. Pass ``copy=True`` to get a fresh array each call. Rewards, flags and
-    infos are fresh arrays. ``infos["final_obs"]`` entries are copies.
+    after ``close()``. Pass ``copy=True`` to get a fresh array each call. Rewards and flags
+    are fresh arrays. The value arrays of ``step()``'s ``infos`` (``seed``, ``episode_index``,
+    ..., not the dicts) are preallocated and reused with the same lifetime as the observation
+    (unchanged until the second following ``step``): copy the ones you keep longer, or pass
+    ``copy=True``, which copies them too. ``reset()``'s infos and ``infos["final_obs"]``
+    entries are fresh.
     """
 
     metadata: ClassVar[dict[str, Any]] = {
@@ -196,39 +200,98 @@ class RogueVectorEnv(gym.vector.VectorEnv):
         seed: Optional[Union[int, Sequence[int]]] = None,
         options: Optional[dict[str, Any]] = None,
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        """Reset all envs (or those in ``options["reset_mask"]``); returns ``(obs, infos)``."""
+        """Reset all envs (or those in ``options["reset_mask"]``); returns ``(obs, infos)``.
+
+        ``reset_mask`` (a ``np.bool_`` array of shape ``(num_envs,)``, at least one ``True``;
+        anything else raises ``ValueError``) resets only the masked envs, as gymnasium does:
+        they start their next scheduled episode, the others keep their state and their
+        current observation is returned unchanged (an unmasked env whose episode ended is
+        still autoreset by the next step). ``infos`` describe the reset envs only (the ``_key``
+        masks are the reset mask; other entries are 0). A partial reset cannot take ``seed``.
+        """
         if seed is not None and not isinstance(seed, (int, np.integer)):
             raise TypeError(
                 f"seed must be an int (the base of every env's episode-seed schedule), got {type(seed).__name__}; "
                 "use make_vec(seeds=[...]) to choose the dungeons"
             )
+        raw_mask = (
+            None if not options or options.get("reset_mask") is None else options["reset_mask"]
+        )
+        mask = None if raw_mask is None else self._core.check_mask(raw_mask)
+        if mask is not None and seed is not None:
+            raise ValueError(
+                "reset(seed=...) restarts every env's seed schedule and cannot be combined with a "
+                "partial reset_mask; reset with the seed first, then use the mask"
+            )
+        if mask is not None and self._last_recs is None:
+            raise RuntimeError("call reset() (all envs) before a partial reset")
         super().reset(seed=None if seed is None else int(seed))
-        mask = None if not options or options.get("reset_mask") is None else options["reset_mask"]
+        carry = None
+        if mask is not None and self._history is not None:
+            carry = self._prev_done() & ~mask  # unmasked envs still to be autoreset
         obs, recs = self._core.reset(seed, mask)
         self._last_recs = recs
-        reset_envs = np.ones(self.num_envs, bool) if mask is None else np.asarray(mask, bool)
+        _, _, restarted, _ = PoolCore.flags(recs)
+        if mask is None:
+            reset_envs = np.ones(self.num_envs, bool)
+            infos = self._infos(recs, restarted)
+        else:
+            # A worker restarted during the call reset all its envs: report them too.
+            reset_envs = mask | restarted
+            infos = self._infos(recs, restarted, reset_envs)
         if self._history is not None:
             self._history.on_reset(recs, reset_envs)
-        _, _, restarted, _ = PoolCore.flags(recs)
-        return self._out(obs), self._infos(recs, restarted & reset_envs)
+            self._carry_done = carry
+        return self._out(obs), infos
+
+    def _infos(
+        self, recs: np.ndarray, restarted: np.ndarray, only: Optional[np.ndarray] = None
+    ) -> dict[str, Any]:
+        """Infos of a reset: every env, or (partial reset) the envs of ``only``."""
+        infos: dict[str, Any] = {}
+        mask = np.ones(self.num_envs, bool) if only is None else only
+        for key, arr in self._core.info_arrays(recs).items():
+            if only is not None:
+                arr[~only] = 0
+            infos[key] = arr
+            infos[f"_{key}"] = mask
+        if restarted.any():
+            infos["worker_restarted"] = restarted.copy()
+            infos["_worker_restarted"] = restarted.copy()
+        return infos
 
     def step(
         self, actions: Any
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        """Step every env; returns ``(obs, rewards, terminations, truncations, infos)``."""
+        """Step every env; returns ``(obs, rewards, terminations, truncations, infos)``.
+
+        One native call checks the actions, steps and decodes the records into preallocated
+        arrays; rewards, terminations and truncations are fresh copies (as gymnasium's), the
+        info value arrays are reused (see the class docs for their lifetime).
+        """
         if self._last_recs is None:
             raise RuntimeError("call reset() before step()")
-        prev_done = self._prev_done() if self._history is not None else None
-        obs, recs = self._core.step(actions)
+        history = self._history
+        prev_done = self._prev_done() if history is not None else None
+        core = self._core
+        obs, recs, cols, template, summary = core.step_columns(actions)
         self._last_recs = recs
-        terminated, truncated, restarted, has_final = PoolCore.flags(recs)
-        if self._history is not None and prev_done is not None:
-            self._history.on_step(self._core._actions, ~prev_done & ~restarted, recs)
-            self._history.on_reset(recs, prev_done | restarted)
-        rewards = recs["reward"].astype(np.float64)
-        infos = self._infos(recs, restarted)
-        if self.autoreset_mode == AutoresetMode.SAME_STEP and has_final.any():
-            final = self._core.final_obs
+        infos = template.copy()
+        infos.update(dict.fromkeys(core.mask_keys, np.ones(self.num_envs, bool)))
+        if self.copy:
+            for key in core.info_keys:
+                infos[key] = infos[key].copy()
+        if summary & SUMMARY_RESTARTED:
+            restarted = cols["restarted"]
+            infos["worker_restarted"] = restarted.copy()
+            infos["_worker_restarted"] = restarted.copy()
+        if history is not None and prev_done is not None:
+            restarted = cols["restarted"]
+            history.on_step(core.last_actions, ~prev_done & ~restarted, recs)
+            history.on_reset(recs, prev_done | restarted)
+        if summary & SUMMARY_FINAL and self.autoreset_mode == AutoresetMode.SAME_STEP:
+            has_final = cols["has_final_obs"]
+            final = core.final_obs
             assert final is not None
             final_obs = np.full(self.num_envs, None, dtype=object)
             for i in np.flatnonzero(has_final):
@@ -237,15 +300,26 @@ class RogueVectorEnv(gym.vector.VectorEnv):
             infos["_final_obs"] = has_final.copy()
             infos["final_info"] = {k: v for k, v in infos.items() if not k.startswith("final")}
             infos["_final_info"] = has_final.copy()
-            if self._history is not None:
-                self._history.on_reset(recs, has_final, seed_known=False)
-        return self._out(obs), rewards, terminated.copy(), truncated.copy(), infos
+            if history is not None:
+                history.on_reset(recs, has_final, seed_known=False)
+        return (
+            self._out(obs),
+            cols["reward"].copy(),
+            cols["terminated"].copy(),
+            cols["truncated"].copy(),
+            infos,
+        )
 
     def _prev_done(self) -> np.ndarray:
         if self._last_recs is None or self.autoreset_mode == AutoresetMode.SAME_STEP:
             return np.zeros(self.num_envs, bool)
         f = self._last_recs["flags"]
-        return (f & 3) != 0
+        done = (f & 3) != 0
+        carry = getattr(self, "_carry_done", None)
+        if carry is not None:  # ended before a partial reset that kept them
+            done |= carry
+            self._carry_done = None
+        return done
 
     # ------------------------------------------------------------------------------------
     # EnvPool-style async API

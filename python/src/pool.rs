@@ -1,7 +1,7 @@
 //! `rogue_gym._native.Pool`: the environment pool (supervisor in this process, workers spawned
 //! as `python -m rogue_gym.worker`), with zero-copy views of worker blocks for the async API.
 
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use numpy::ndarray::ArrayView1;
@@ -15,8 +15,8 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
 use rogue_gym_pool::layout::{FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED};
 use rogue_gym_pool::{
-    AutoresetMode, Batch, BatchOutput, Block, EnvRecord, EnvRegistry, FailurePolicy, Pool,
-    PoolConfig, PoolError, SeedSchedule, WorkerCommand, WorkerFailure,
+    AutoresetMode, Batch, BatchOutput, Block, EnvRecord, EnvRegistry, FailurePolicy,
+    InterruptCheck, Pool, PoolConfig, PoolError, SeedSchedule, WorkerCommand, WorkerFailure,
 };
 use serde::Deserialize;
 use serde_json::Value;
@@ -234,6 +234,101 @@ pub struct PyPool {
     obs_shape: Vec<usize>,
     dtype: &'static str,
     info_names: Vec<String>,
+    /// Column buffers bound by `bind_columns` (one per shared batch slot): the arrays (kept
+    /// alive here) and their data pointers.
+    columns: Mutex<Vec<(Py<PyAny>, usize)>>,
+    /// The exception raised by a signal handler during a wait (see `interrupt_check`).
+    interrupted: Arc<Mutex<Option<PyErr>>>,
+}
+
+/// The pool's interrupt check: between the slices of a long wait (GIL released), re-acquire
+/// the GIL briefly and run Python's signal handlers; an exception (KeyboardInterrupt from
+/// Ctrl-C) is kept in `slot` and aborts the wait.
+fn interrupt_check(slot: Arc<Mutex<Option<PyErr>>>) -> InterruptCheck {
+    Box::new(move || {
+        Python::attach(|py| match py.check_signals() {
+            Ok(()) => false,
+            Err(e) => {
+                if let Ok(mut s) = slot.lock() {
+                    *s = Some(e);
+                }
+                true
+            }
+        })
+    })
+}
+
+/// The column layout of a `bind_columns` buffer: `(name, numpy dtype, byte offset, rows)`; each
+/// column is `rows x num_envs` C-contiguous. Eight-byte columns come first (8-aligned).
+fn column_layout(
+    n: usize,
+    n_info: usize,
+) -> (Vec<(&'static str, &'static str, usize, usize)>, usize) {
+    let cols: [(&'static str, &'static str, usize, usize); 11] = [
+        ("reward", "float64", 8, 1),
+        ("seed", "uint64", 8, 1),
+        ("episode_index", "int64", 8, 1),
+        ("episode_return", "float64", 8, 1),
+        ("episode_length", "int64", 8, 1),
+        ("info_int", "int64", 8, n_info),
+        ("terminated", "bool", 1, 1),
+        ("truncated", "bool", 1, 1),
+        ("restarted", "bool", 1, 1),
+        ("has_final_obs", "bool", 1, 1),
+        ("info_bool", "bool", 1, n_info),
+    ];
+    let mut off = 0;
+    let mut v = Vec::with_capacity(cols.len());
+    for (name, dt, size, rows) in cols {
+        v.push((name, dt, off, rows));
+        off += size * rows * n;
+    }
+    (v, off)
+}
+
+/// Summary bit of `step_columns`: some env's worker was restarted.
+const SUMMARY_RESTARTED: usize = 1 << 8;
+/// Summary bit of `step_columns`: some env has a final observation (SAME_STEP).
+const SUMMARY_FINAL: usize = 1 << 9;
+
+/// Write the rows of `out` into a column buffer (see [`column_layout`]); returns the
+/// `SUMMARY_*` bits.
+///
+/// # Safety
+/// `base` must point to a live, 8-aligned, writable buffer of the layout's size.
+unsafe fn write_columns(out: &BatchOutput, n: usize, n_info: usize, base: *mut u8) -> usize {
+    let w = |col: usize| unsafe { base.cast::<u64>().add(col * n) };
+    let b8 = 8 * n * (5 + n_info);
+    let b = |col: usize| unsafe { base.add(b8 + col * n) };
+    let mut summary = 0;
+    for (r, &i) in out.env_ids.iter().enumerate() {
+        if i >= n {
+            continue;
+        }
+        unsafe {
+            *w(0).add(i) = f64::from(out.reward[r]).to_bits();
+            *w(1).add(i) = out.seed[r];
+            *w(2).add(i) = out.episode[r];
+            *w(3).add(i) = out.episode_return[r].to_bits();
+            *w(4).add(i) = u64::from(out.episode_length[r]);
+            for k in 0..n_info {
+                let v = out.info[r * n_info + k];
+                *w(5 + k).add(i) = (v as i64) as u64;
+                *b(4 + k).add(i) = u8::from(v != 0.0);
+            }
+            *b(0).add(i) = u8::from(out.terminated[r]);
+            *b(1).add(i) = u8::from(out.truncated[r]);
+            *b(2).add(i) = u8::from(out.restarted[r]);
+            *b(3).add(i) = u8::from(out.has_final_obs[r]);
+        }
+        if out.restarted[r] {
+            summary |= SUMMARY_RESTARTED;
+        }
+        if out.has_final_obs[r] {
+            summary |= SUMMARY_FINAL;
+        }
+    }
+    summary
 }
 
 impl PyPool {
@@ -254,7 +349,15 @@ impl PyPool {
                 .map_err(|_| PoolError::State("the pool lock is poisoned".into()))?;
             f(pool, &mut out)
         });
-        res.map_err(|e| pool_error(py, e))
+        res.map_err(|e| match e {
+            PoolError::Interrupted => self
+                .interrupted
+                .lock()
+                .ok()
+                .and_then(|mut s| s.take())
+                .unwrap_or_else(|| pool_error(py, PoolError::Interrupted)),
+            e => pool_error(py, e),
+        })
     }
 
     fn fill_outputs(
@@ -334,9 +437,11 @@ impl PyPool {
         if let Some(d) = s.base_dir {
             cfg.base_dir = d.into();
         }
-        let pool = py
+        let mut pool = py
             .detach(|| Pool::new(cfg, &EnvRegistry::with_defaults()))
             .map_err(|e| pool_error(py, e))?;
+        let interrupted = Arc::new(Mutex::new(None));
+        pool.set_interrupt_check(Some(interrupt_check(interrupted.clone())));
         let spec = pool.spec().clone();
         Ok(PyPool {
             num_envs: pool.num_envs(),
@@ -346,6 +451,8 @@ impl PyPool {
             obs_shape: spec.obs_shape.clone(),
             dtype: spec.dtype.numpy_name(),
             info_names: spec.info_names.clone(),
+            columns: Mutex::new(Vec::new()),
+            interrupted,
             pool: Mutex::new(Some(pool)),
             out: Mutex::new(BatchOutput::default()),
         })
@@ -419,6 +526,96 @@ impl PyPool {
         let slot = self.with_pool(py, move |p, out| p.step_shared(&acts, out))?;
         self.fill_outputs(py, recs_out, final_out)?;
         Ok(slot)
+    }
+
+    /// Partial sync reset (gymnasium `reset_mask`) straight into the next shared batch slot:
+    /// envs with `mask[i]` start their next scheduled episode, the others keep their state and
+    /// their current observation is written again. `mask`: bool array, one per env. Records of
+    /// every env into `recs_out`. Returns the slot index. Needs a full reset first.
+    fn reset_envs_shared(
+        &self,
+        py: Python<'_>,
+        mask: &Bound<'_, PyAny>,
+        recs_out: &Bound<'_, PyUntypedArray>,
+    ) -> PyResult<usize> {
+        let arr: PyReadonlyArray1<'_, bool> = mask.extract().map_err(|_| {
+            PyValueError::new_err(format!(
+                "reset_mask must be a 1-D bool numpy array of shape ({},)",
+                self.num_envs
+            ))
+        })?;
+        let m: Vec<bool> = arr.as_array().to_vec();
+        if m.len() != self.num_envs {
+            return Err(PyValueError::new_err(format!(
+                "reset_mask must have shape ({},), got ({},)",
+                self.num_envs,
+                m.len()
+            )));
+        }
+        let slot = self.with_pool(py, move |p, out| p.reset_envs(&m, out))?;
+        self.fill_outputs(py, recs_out, None)?;
+        Ok(slot)
+    }
+
+    /// The layout of a column buffer for `bind_columns`: `(list of (name, dtype, byte offset,
+    /// rows), total bytes)`. Each column is `rows x num_envs`, C-contiguous.
+    fn column_layout(&self) -> (Vec<(&'static str, &'static str, usize, usize)>, usize) {
+        column_layout(self.num_envs, self.n_info)
+    }
+
+    /// Bind one preallocated column buffer per shared batch slot (writable, C-contiguous,
+    /// 8-aligned uint8 arrays of `column_layout()[1]` bytes). The pool keeps references to
+    /// them; `step_columns` rewrites the buffer of the slot it returns.
+    fn bind_columns(&self, buffers: Vec<Bound<'_, PyUntypedArray>>) -> PyResult<()> {
+        let (_, total) = column_layout(self.num_envs, self.n_info);
+        let mut v = Vec::with_capacity(buffers.len());
+        for b in &buffers {
+            let raw = raw_bytes(b, "column buffer", total)?;
+            if !(raw.0 as usize).is_multiple_of(8) {
+                return Err(PyValueError::new_err(
+                    "column buffers must be 8-byte aligned",
+                ));
+            }
+            v.push((b.clone().into_any().unbind(), raw.0 as usize));
+        }
+        *self
+            .columns
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))? = v;
+        Ok(())
+    }
+
+    /// The sync step of the gymnasium facade in one call: like `step_shared` (`actions`: int64,
+    /// one per env, range-checked here; records into `recs_out`; SAME_STEP final observations
+    /// into `final_out`), and the per-env values decoded into the column buffer bound for the
+    /// returned slot (rewards as float64, flags as bool, info values as int64 and bool).
+    /// Returns `slot | summary` where bit 8 = some worker restarted, bit 9 = some final obs.
+    #[pyo3(signature = (actions, recs_out, final_out = None))]
+    fn step_columns(
+        &self,
+        py: Python<'_>,
+        actions: &Bound<'_, PyAny>,
+        recs_out: &Bound<'_, PyUntypedArray>,
+        final_out: Option<&Bound<'_, PyUntypedArray>>,
+    ) -> PyResult<usize> {
+        let acts = actions_vec(actions)?;
+        let slot = self.with_pool(py, move |p, out| p.step_shared(&acts, out))?;
+        self.fill_outputs(py, recs_out, final_out)?;
+        let cols = self
+            .columns
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        let &(_, ptr) = cols.get(slot).ok_or_else(|| {
+            PyRuntimeError::new_err("step_columns needs bind_columns() with one buffer per slot")
+        })?;
+        let out = self
+            .out
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        // SAFETY: the buffer is kept alive by `cols` and was checked (size, alignment,
+        // writeable) by `bind_columns`; we hold the GIL, so Python cannot touch it meanwhile.
+        let summary = unsafe { write_columns(&out, self.num_envs, self.n_info, ptr as *mut u8) };
+        Ok(slot | summary)
     }
 
     /// Zero-copy uint8 views of the shared batch slots (`num_envs x obs_bytes` bytes each), in

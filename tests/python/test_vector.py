@@ -149,8 +149,6 @@ def test_reset_with_seed_reproduces(make_vec) -> None:
     assert np.array_equal(a, b) and np.array_equal(ia["seed"], ib["seed"])
     c, ic = env.reset()
     assert not np.array_equal(ia["seed"], ic["seed"])  # next episodes
-    with pytest.raises(NotImplementedError, match="partial"):
-        env.reset(options={"reset_mask": np.array([True, False, True, True])})
     env.reset(options={"reset_mask": np.ones(4, bool)})
 
 
@@ -398,3 +396,179 @@ def test_record_dtype_matches_the_native_layout() -> None:
     from rogue_gym._records import RECORD_DTYPE
 
     assert RECORD_DTYPE.itemsize == _native.RECORD_BYTES == 104
+
+
+def _run(env, acts, mask_at=None, mask=None):
+    """Reset, step through ``acts`` (partial reset with ``mask`` after step ``mask_at``)."""
+    obs, infos = env.reset()
+    frames = [(obs.copy(), None, None, None, {k: np.copy(v) for k, v in infos.items()})]
+    for t, a in enumerate(acts):
+        obs, rew, term, trunc, infos = env.step(a)
+        frames.append((obs.copy(), rew, term, trunc, {k: np.copy(v) for k, v in infos.items()}))
+        if t == mask_at:
+            obs, infos = env.reset(options={"reset_mask": mask})
+            frames.append((obs.copy(), None, None, None, {k: np.copy(v) for k, v in infos.items()}))
+    return frames
+
+
+def test_partial_reset_mask_follows_gymnasium(make_vec) -> None:
+    n, at = 4, 7
+    mask = np.array([True, False, False, True])
+    acts = _actions(n, 20, seed=3)
+    ref = _run(make_vec(n, num_workers=2, max_steps=6, seed=11), acts)
+    run = _run(make_vec(n, num_workers=2, max_steps=6, seed=11), acts, at, mask)
+    before, reset = run[at + 1], run[at + 2]
+    obs, infos = reset[0], reset[4]
+    # Infos only for the reset envs, with the mask in every _key array.
+    assert set(infos) >= INFO_KEYS
+    for key in INFO_KEYS:
+        assert np.array_equal(infos[f"_{key}"], mask), key
+        assert (infos[key][~mask] == 0).all(), key
+    assert (infos["episode_length"][mask] == 0).all()
+    assert np.array_equal(infos["episode_index"][mask], before[4]["episode_index"][mask] + 1)
+    # Unmasked envs: observation unchanged, and they continue as if nothing happened.
+    assert np.array_equal(obs[~mask], before[0][~mask])
+    for t in range(len(ref)):
+        r = ref[t]
+        f = run[t if t <= at + 1 else t + 1]
+        assert np.array_equal(r[0][~mask], f[0][~mask]), t
+        if r[1] is not None:
+            for k in (1, 2, 3):
+                assert np.array_equal(r[k][~mask], f[k][~mask]), (t, k)
+            for key in INFO_KEYS:
+                assert np.array_equal(r[4][key][~mask], f[4][key][~mask]), (t, key)
+    # The masked envs played their next episode.
+    assert any(
+        not np.array_equal(ref[t][0][mask], run[t + 1][0][mask]) for t in range(at + 2, len(ref))
+    )
+
+
+def test_partial_reset_is_the_same_for_one_and_two_workers(make_vec) -> None:
+    mask = np.array([False, True, True, False])
+    acts = _actions(4, 15, seed=4)
+    runs = [_run(make_vec(4, num_workers=w, max_steps=5, seed=2), acts, 6, mask) for w in (1, 2)]
+    for a, b in zip(*runs):
+        for x, y in zip(a[:4], b[:4]):
+            assert (x is None and y is None) or np.array_equal(x, y)
+        assert a[4].keys() == b[4].keys()
+        assert all(np.array_equal(a[4][k], b[4][k]) for k in a[4])
+
+
+@pytest.mark.parametrize(
+    "mask",
+    [
+        np.array([True, False, True]),
+        np.ones((4, 1), bool),
+        np.array([1, 0, 1, 0]),
+        np.array([1.0, 0.0, 1.0, 0.0]),
+        [True, False, True, False],
+        np.zeros(4, bool),
+    ],
+)
+def test_bad_reset_masks_are_value_errors(make_vec, mask) -> None:
+    env = make_vec(4, num_workers=2)
+    env.reset(seed=1)
+    with pytest.raises(ValueError, match="reset_mask"):
+        env.reset(options={"reset_mask": mask})
+    env.step(np.zeros(4, np.int64))  # still usable
+
+
+def test_partial_reset_rules(make_vec) -> None:
+    env = make_vec(4, num_workers=2, max_steps=3)
+    m = np.array([True, False, False, False])
+    with pytest.raises(RuntimeError, match="before a partial reset"):
+        env.reset(options={"reset_mask": m})
+    env.reset(seed=1)
+    with pytest.raises(ValueError, match="seed"):
+        env.reset(seed=2, options={"reset_mask": m})
+    # An unmasked env whose episode ended is still autoreset by the next step.
+    for _ in range(3):
+        *_, trunc, infos = env.step(np.zeros(4, np.int64))
+    assert trunc.all()
+    obs, infos = env.reset(options={"reset_mask": m})
+    assert infos["episode_index"][0] == 1 and infos["episode_length"][0] == 0
+    obs, rew, term, trunc, infos = env.step(np.zeros(4, np.int64))
+    assert (infos["episode_index"] == 1).all() and (infos["episode_length"][1:] == 0).all()
+    assert infos["episode_length"][0] == 1 and (rew[1:] == 0).all()
+
+
+@pytest.mark.parametrize("mode", ["next_step", "same_step"])
+def test_native_step_decoding_matches_the_records(make_vec, mode) -> None:
+    """step()'s arrays (decoded natively) equal a numpy decoding of the raw records."""
+    from rogue_gym._core import PoolCore
+
+    env = make_vec(4, num_workers=2, max_steps=7, autoreset_mode=mode, seed=3)
+    env.reset()
+    for a in _actions(4, 40, seed=8):
+        obs, rew, term, trunc, infos = env.step(a)
+        recs = env._last_recs
+        t, tr, _, _ = PoolCore.flags(recs)
+        assert rew.dtype == np.float64 and term.dtype == np.bool_ and trunc.dtype == np.bool_
+        assert np.array_equal(rew, recs["reward"].astype(np.float64))
+        assert np.array_equal(term, t) and np.array_equal(trunc, tr)
+        for key, arr in env._core.info_arrays(recs).items():
+            assert infos[key].dtype == arr.dtype and np.array_equal(infos[key], arr), key
+            assert infos[f"_{key}"].all()
+
+
+def test_step_info_arrays_live_until_the_second_following_step(make_vec) -> None:
+    env = make_vec(4, num_workers=2, max_steps=5, seed=1)
+    env.reset()
+    acts = _actions(4, 12, seed=2)
+    *_, prev = env.step(acts[0])
+    kept = {k: v.copy() for k, v in prev.items()}
+    for a in acts[1:]:
+        *_, infos = env.step(a)
+        assert infos["seed"] is not prev["seed"]
+        assert all(np.array_equal(prev[k], kept[k]) for k in kept), "step t+1 overwrote step t"
+        prev, kept = infos, {k: v.copy() for k, v in infos.items()}
+    fresh = make_vec(4, num_workers=2, max_steps=5, seed=1, copy=True)
+    fresh.reset()
+    seen = [fresh.step(a)[4]["episode_length"] for a in acts[:6]]
+    assert [int(x[0]) for x in seen] == [1, 2, 3, 4, 5, 0]  # none rewritten later
+
+
+def test_render_replay_follows_a_partial_reset(make_vec) -> None:
+    mask = np.array([True, False, True, False])
+    acts = _actions(4, 14, seed=6)
+    screens = []
+    for m in (None, mask):
+        env = make_vec(4, num_workers=2, max_steps=4, seed=5, render_mode="ansi")
+        env.reset()
+        for t, a in enumerate(acts):
+            env.step(a)
+            # The replay history follows every env's episode (length as the records say).
+            assert np.array_equal(env._history.length, env._last_recs["episode_length"]), t
+            if m is not None and t == 3:  # all envs just ended: unmasked ones autoreset next
+                env.reset(options={"reset_mask": m})
+        screens.append(env.render())
+    for i in np.flatnonzero(~mask):
+        assert screens[0][i] == screens[1][i]
+
+
+def test_ctrl_c_interrupts_a_long_wait_and_reset_recovers(make_vec) -> None:
+    """SIGINT during a wait for a stopped worker raises KeyboardInterrupt from step() at once
+    (the pool runs the signal handlers between wait slices), not after step_timeout."""
+    import threading
+    import time
+
+    env = make_vec(4, num_workers=2, step_timeout=None)
+    env.reset(seed=0)
+    pid = env.worker_pids[0]
+    os.kill(pid, signal.SIGSTOP)
+    try:
+        timer = threading.Timer(0.3, lambda: os.kill(os.getpid(), signal.SIGINT))
+        t0 = time.monotonic()
+        with pytest.raises(KeyboardInterrupt):
+            timer.start()
+            env.step(np.zeros(4, np.int64))  # waits for the stopped worker
+        assert time.monotonic() - t0 < 20
+    finally:
+        timer.cancel()
+        os.kill(pid, signal.SIGCONT)
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.zeros(4, np.int64))
+    env.reset()
+    obs, rew, term, trunc, infos = env.step(np.zeros(4, np.int64))
+    assert (infos["episode_length"] == 1).all()
+    assert env.worker_pids[0] == pid  # the worker was not restarted

@@ -1,0 +1,128 @@
+"""Per-batch cost of the gymnasium facade's sync ``step()``, before/after side by side.
+
+Times, in interleaved rounds on the same machine state (64 envs, 2 workers, paper config,
+random actions):
+
+* ``step``: ``RogueVectorEnv.step`` (one native call decodes the records into reused arrays);
+* ``native``: the bare native ``step_shared`` call from Python (no decoding at all: the floor
+  of any facade);
+* ``legacy``: the previous Python-side decoding (``PoolCore.step`` + per-step numpy decoding
+  of the records into fresh info arrays), kept here only as the "before" reference;
+* with ``--pool-bench PATH``: ``rogue-gym pool-bench --mode shared`` (raw single-process
+  engine loop and the Rust pool alone) in the same rounds.
+
+    python python/examples/step_overhead.py --rounds 5 --pool-bench target/release/rogue-gym
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import statistics
+import subprocess
+import time
+from typing import Any
+
+import numpy as np
+
+import rogue_gym
+from rogue_gym._core import PoolCore
+
+
+def legacy_step(env: Any, actions: np.ndarray) -> tuple[Any, ...]:
+    """The facade's step() before the native decoding (NEXT_STEP, no render history)."""
+    obs, recs = env._core.step(actions)
+    env._last_recs = recs
+    terminated, truncated, restarted, _ = PoolCore.flags(recs)
+    rewards = recs["reward"].astype(np.float64)
+    infos = env._infos(recs, restarted)
+    return env._out(obs), rewards, terminated.copy(), truncated.copy(), infos
+
+
+def time_loop(env: Any, step: Any, actions: np.ndarray, batches: int) -> float:
+    for i in range(20):
+        step(actions[i % len(actions)])
+    t0 = time.perf_counter()
+    for i in range(batches):
+        _, _, term, trunc, infos = step(actions[i % len(actions)])
+        done = term | trunc
+        if done.any():
+            infos["episode_return"][done].tolist()
+    return batches * env.num_envs / (time.perf_counter() - t0)
+
+
+def pool_bench(path: str, envs: int, workers: int, steps: int) -> tuple[float, float]:
+    out = subprocess.run(
+        [
+            path,
+            "pool-bench",
+            "--envs",
+            str(envs),
+            "--workers",
+            str(workers),
+            "--mode",
+            "shared",
+            "--steps",
+            str(steps),
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    nums = [float(x.replace(",", "")) for x in re.findall(r"([\d,.]+) env-steps/s", out)]
+    if len(nums) < 2:
+        raise RuntimeError(f"cannot parse pool-bench output:\n{out}")
+    return nums[0], nums[1]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--num-envs", type=int, default=64)
+    ap.add_argument("--num-workers", type=int, default=2)
+    ap.add_argument("--batches", type=int, default=3000, help="batches per timed chunk")
+    ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--pool-bench", default=None, help="path of the rogue-gym binary")
+    args = ap.parse_args()
+    env = rogue_gym.make_vec(args.num_envs, config="paper", num_workers=args.num_workers, seed=0)
+    actions = np.random.default_rng(0).integers(0, 11, size=(256, args.num_envs))
+    env.reset()
+    res: dict[str, list[float]] = {"step": [], "native": [], "legacy": [], "raw": [], "pool": []}
+    core = env._core
+
+    def native(a: np.ndarray) -> tuple[Any, ...]:
+        core._pool.step_shared(a, core._recs[0], None)
+        return None, None, np.zeros(1, bool), np.zeros(1, bool), {}
+
+    try:
+        for r in range(args.rounds):
+            res["step"].append(time_loop(env, env.step, actions, args.batches))
+            res["legacy"].append(
+                time_loop(env, lambda a: legacy_step(env, a), actions, args.batches)
+            )
+            res["native"].append(time_loop(env, native, actions, args.batches))
+            line = (
+                f"round {r}: step {res['step'][-1]:,.0f}  native {res['native'][-1]:,.0f}  "
+                f"legacy {res['legacy'][-1]:,.0f}"
+            )
+            if args.pool_bench:
+                raw, pool = pool_bench(
+                    args.pool_bench, args.num_envs, args.num_workers, args.batches
+                )
+                res["raw"].append(raw)
+                res["pool"].append(pool)
+                line += f"  raw loop {raw:,.0f}  rust pool (shared) {pool:,.0f}"
+            print(line + " env-steps/s", flush=True)
+    finally:
+        env.close()
+    med = {k: statistics.median(v) for k, v in res.items() if v}
+    print("medians: " + ", ".join(f"{k} {v:,.0f}" for k, v in med.items()))
+    if "raw" in med:
+        print(
+            f"python step / raw loop: {med['step'] / med['raw']:.0%} "
+            f"(native call alone {med['native'] / med['raw']:.0%}, legacy {med['legacy'] / med['raw']:.0%}); "
+            f"rust pool / raw: {med['pool'] / med['raw']:.0%}"
+        )
+
+
+if __name__ == "__main__":
+    main()
