@@ -568,8 +568,11 @@ def render_plot(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    width = max(8.0, 5.2 * len(encodings))
+    ncol = len(backends) if len(encodings) > 1 else 3
+    rows = -(-len(backends) // ncol)
     fig, axes = plt.subplots(
-        1, len(encodings), figsize=(5.2 * len(encodings), 4.2), squeeze=False, sharey=True
+        1, len(encodings), figsize=(width, 4.0 + 0.3 * rows), squeeze=False, sharey=True
     )
     for ax, enc in zip(axes[0], encodings):
         for b in backends:
@@ -592,9 +595,9 @@ def render_plot(
         ax.grid(True, which="both", alpha=0.3)
     axes[0][0].set_ylabel("env steps/s (median, min-max)")
     handles, labels = axes[0][0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=9, frameon=False)
+    fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=9, frameon=False)
     fig.suptitle("Rogue-Gym paper config, random actions: vector-env throughput")
-    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    fig.tight_layout(rect=(0, 0.05 + 0.045 * rows, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
