@@ -52,3 +52,29 @@ def test_short_benchmark_writes_table_and_plot(tmp_path: Path) -> None:
     subprocess.run([*cmd, "--out", str(again)], check=True, capture_output=True, timeout=120)
     assert (again / "throughput.md").read_text() == md
     assert (again / "throughput.png").stat().st_size > 1000
+
+
+def test_a_cell_past_its_time_limit_is_skipped_not_hung(tmp_path: Path) -> None:
+    pytest.importorskip("stable_baselines3")
+    pytest.importorskip("matplotlib")
+    cmd = [
+        sys.executable,
+        str(SCRIPT),
+        "--backends",
+        "sb3-subproc",
+        "--num-envs",
+        "8",
+        "--obs",
+        "symbol_index",
+        "--reps",
+        "2",
+        "--cell-timeout",
+        "0.5",
+        "--out",
+        str(tmp_path),
+    ]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    runs = json.loads((tmp_path / "throughput.json").read_text())["runs"]
+    assert [r["status"] for r in runs] == ["skipped", "skipped"]  # not retried in rep 2
+    assert "**skipped**" in (tmp_path / "throughput.md").read_text()
