@@ -1,8 +1,9 @@
 //! `rogue-gym play`: the game in the terminal (crossterm raw mode). vi keys `hjklyubn` move,
 //! `HJKLYUBN` run, `s` searches, `>` descends, `.` rests, `q` quits (a config `keymap`
 //! replaces these keys; Esc always quits). Messages are shown on row
-//! 0 and the status line at the bottom, as in the original. `--save LOG` writes the action log
-//! (config, seed, keys) on quit.
+//! 0 and the status line at the bottom, as in the original. On quit the action log (config,
+//! seed, keys) is written to `--save LOG` (default `rogue-gym-actions.json`; `--no-save` skips
+//! it).
 
 use std::io::{Stdout, Write, stdout};
 use std::path::PathBuf;
@@ -23,9 +24,12 @@ pub(crate) struct Args {
     /// Seed. Default: the config's `seed`, else the low end of `seed_range`, else 0.
     #[arg(long)]
     seed: Option<u64>,
-    /// Write the action log here on quit.
+    /// Where the action log is written on quit (replay it with `rogue-gym replay`).
+    #[arg(long, default_value = "rogue-gym-actions.json")]
+    save: PathBuf,
+    /// Do not write the action log.
     #[arg(long)]
-    save: Option<PathBuf>,
+    no_save: bool,
     /// Step limit (default: none).
     #[arg(long, default_value_t = u32::MAX)]
     max_steps: u32,
@@ -132,7 +136,8 @@ pub(crate) fn run(args: Args) -> Result<(), String> {
         }
     }
     println!("{}", game.status_line());
-    if let Some(path) = args.save {
+    if !args.no_save {
+        let path = args.save;
         let log = ActionLog {
             config,
             seed,
