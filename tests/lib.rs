@@ -1,5 +1,7 @@
 //! Shared helpers for the end-to-end tests in this folder.
 
+#![deny(missing_docs)]
+
 use std::path::PathBuf;
 use std::process::Child;
 

@@ -3,9 +3,9 @@
 use serde::{Deserialize, Serialize};
 
 use crate::action::{Action, Command};
+use crate::actors::{Enemy, Player};
 use crate::config::{ConfigError, EnemyKind, GameConfig, InitItem, armor_by_name, weapon_by_name};
 use crate::dungeon::{Floor, Generator, Surface, flag};
-use crate::enemies::Enemy;
 use crate::obs::{self, ObsBufMut, ObsError, ObsSource, ObsSpec, Status};
 use crate::rng::{GameRng, Stream};
 use crate::symbol::SYMBOL_OF_TILE;
@@ -61,25 +61,6 @@ pub struct EpisodeInfo {
     pub died: bool,
     /// The player picked up the amulet.
     pub won: bool,
-}
-
-/// The player's state.
-#[derive(Debug, Clone, Copy, Default)]
-pub(crate) struct Player {
-    pub pos: usize,
-    pub hp: i32,
-    pub max_hp: i32,
-    pub str_cur: i32,
-    pub str_max: i32,
-    pub level: u32,
-    pub exp: u32,
-    pub food: u32,
-    pub quiet: u32,
-    pub gold: u32,
-    pub defense: i32,
-    pub weapon: (u32, u32),
-    pub hit_plus: i32,
-    pub dam_plus: i32,
 }
 
 /// One game. Create it once, then `reset(seed)` for each episode; buffers are reused.

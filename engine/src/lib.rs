@@ -24,7 +24,7 @@
 //! draws from its own ChaCha8 stream derived from the seed (floor k's layout from (seed, k)),
 //! there is no `HashMap` iteration and no float in the game logic.
 
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 pub mod action;
 pub mod config;
@@ -33,7 +33,7 @@ pub mod game;
 pub mod geometry;
 pub mod obs;
 
-mod enemies;
+mod actors;
 mod rng;
 mod rules;
 mod symbol;

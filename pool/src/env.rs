@@ -1,6 +1,4 @@
-//! The [`Env`] trait hosted by the pool, and the registry that builds envs from a JSON spec.
-
-use serde_json::Value;
+//! The [`Env`] trait hosted by the pool, and what describes an env from outside ([`EnvSpec`]).
 
 /// Element type of an observation tensor.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -122,59 +120,6 @@ pub trait Env {
         Err(EnvError::new(
             "this env kind cannot re-render its observation (Env::observe), which partial resets need",
         ))
-    }
-}
-
-/// Builds an env from its JSON spec (the whole object, including `"kind"`).
-pub type EnvCtor = fn(&Value) -> Result<Box<dyn Env>, EnvError>;
-
-/// The env kinds a worker (and the supervisor, to learn the spec) can build, by name. The JSON
-/// spec of an env is an object whose `"kind"` field selects the constructor, e.g.
-/// `{"kind": "rogue", "config": {...}, "max_steps": 500}`.
-#[derive(Debug, Clone, Default)]
-pub struct EnvRegistry {
-    kinds: Vec<(String, EnvCtor)>,
-}
-
-impl EnvRegistry {
-    /// An empty registry.
-    pub fn new() -> Self {
-        Self::default()
-    }
-    /// The registry with every env kind of this crate: `"rogue"` (the Rogue-Gym game) and
-    /// `"test"` (the deterministic [`crate::TestEnv`]).
-    pub fn with_defaults() -> Self {
-        let mut r = Self::new();
-        r.register("rogue", crate::rogue::make_rogue_env);
-        r.register("test", crate::test_env::make_test_env);
-        r
-    }
-    /// Add (or replace) a kind.
-    pub fn register(&mut self, kind: &str, ctor: EnvCtor) {
-        self.kinds.retain(|(k, _)| k != kind);
-        self.kinds.push((kind.to_string(), ctor));
-    }
-    /// The registered kinds.
-    pub fn kinds(&self) -> Vec<&str> {
-        self.kinds.iter().map(|(k, _)| k.as_str()).collect()
-    }
-    /// Build an env from its JSON spec.
-    pub fn make(&self, spec: &Value) -> Result<Box<dyn Env>, EnvError> {
-        let kind = spec.get("kind").and_then(Value::as_str).ok_or_else(|| {
-            EnvError::new(format!(
-                "env spec must be a JSON object with a \"kind\" string (one of {:?}); got {spec}",
-                self.kinds()
-            ))
-        })?;
-        let (_, ctor) = self.kinds.iter().find(|(k, _)| k == kind).ok_or_else(|| {
-            EnvError::new(format!(
-                "unknown env kind {kind:?}; known kinds: {:?}",
-                self.kinds()
-            ))
-        })?;
-        let env = ctor(spec)?;
-        env.spec().validate()?;
-        Ok(env)
     }
 }
 

@@ -11,34 +11,59 @@
 //! [`Pool::step_shared`], has the workers write straight into one of two pool-owned shared
 //! batch slots (double buffering).
 //!
-//! * Envs: anything implementing [`Env`]; the Rogue-Gym game (`"rogue"` kind) and a
-//!   deterministic [`TestEnv`] (`"test"`) are built in.
-//! * Seeding: [`SeedSchedule`]: the seed of env `i`'s `e`-th episode depends only on
+//! Modules, one job each:
+//!
+//! * [`config`]: [`PoolConfig`] and its enums; [`error`]: [`PoolError`], [`WorkerFailure`];
+//!   [`batch`]: what a step returns.
+//! * [`env`]: the [`Env`] trait and [`EnvSpec`]; [`registry`]: kinds by name; [`kinds`]: the
+//!   built-in kinds (the game, `"rogue"`, and a deterministic [`TestEnv`], `"test"`),
+//!   registered here by [`EnvRegistry::with_defaults`].
+//! * [`seeds`]: the [`SeedSchedule`]: the seed of env `i`'s `e`-th episode depends only on
 //!   (schedule, `i`, `e`), never on worker count or timing.
-//! * Autoreset: [`AutoresetMode::NextStep`] (default) or [`AutoresetMode::SameStep`].
-//! * Crashes: dead (waitpid) or hung (`step_timeout`) workers are killed, cleaned up and
-//!   respawned; per [`FailurePolicy`] the affected envs report `truncated` + `restarted`, or the
-//!   call fails with [`PoolError::WorkerFailed`].
-//! * Cleanup: [`Pool::close`] (and `Drop`) removes every `/dev/shm` file and directory of the
-//!   pool; [`Pool::new`] sweeps pools left behind by dead processes.
+//! * [`wire`]: the protocol both sides import; [`supervisor`]: the [`Pool`]; [`worker`]: the
+//!   worker loop.
+//!
+//! Crashes: dead (waitpid) or hung (`step_timeout`) workers are killed, cleaned up and
+//! respawned; per [`FailurePolicy`] the affected envs report `truncated` + `restarted`, or the
+//! call fails with [`PoolError::WorkerFailed`]. Cleanup: [`Pool::close`] (and `Drop`) removes
+//! every `/dev/shm` file and directory of the pool; [`Pool::new`] sweeps pools left behind by
+//! dead processes.
 
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
+pub mod batch;
+pub mod config;
 pub mod env;
-pub mod layout;
-pub mod rogue;
+pub mod error;
+pub mod kinds;
+pub mod registry;
 pub mod seeds;
 pub mod supervisor;
-pub mod test_env;
+pub mod wire;
 pub mod worker;
 
-pub use env::{Dtype, Env, EnvCtor, EnvError, EnvRegistry, EnvSpec, MAX_INFO, StepOutcome};
-pub use layout::EnvRecord;
+pub use batch::{Batch, BatchOutput, Block};
+pub use config::{AutoresetMode, FailurePolicy, PoolConfig, WorkerCommand};
+pub use env::{Dtype, Env, EnvError, EnvSpec, MAX_INFO, StepOutcome};
+pub use error::{FailureCause, PoolError, WorkerFailure};
+pub use kinds::test_env::TestEnv;
+pub use registry::{EnvCtor, EnvRegistry};
 pub use rogue_gym_ipc::WaitPolicy;
 pub use seeds::{SeedPolicy, SeedSchedule, SeedSet};
-pub use supervisor::{
-    Batch, BatchOutput, Block, FailureCause, FailurePolicy, InterruptCheck, Pool, PoolConfig,
-    PoolError, WorkerCommand, WorkerFailure,
+pub use supervisor::{InterruptCheck, Pool, validate_actions};
+pub use wire::layout::{
+    EnvRecord, FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED,
 };
-pub use test_env::TestEnv;
-pub use worker::{AutoresetMode, BATCH_SLOTS, WorkerConfig, worker_main};
+pub use wire::{BATCH_SLOTS, WorkerConfig};
+pub use worker::worker_main;
+
+impl EnvRegistry {
+    /// The registry with every env kind of this crate: `"rogue"` (the Rogue-Gym game) and
+    /// `"test"` (the deterministic [`TestEnv`]).
+    pub fn with_defaults() -> Self {
+        let mut r = Self::new();
+        r.register("rogue", kinds::rogue::make_rogue_env);
+        r.register("test", kinds::test_env::make_test_env);
+        r
+    }
+}

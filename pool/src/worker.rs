@@ -9,101 +9,20 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use rogue_gym_ipc::{
-    BlockHeader, ChannelSettings, IpcError, PoolId, WaitCall, WaitPolicy, WorkerPorts, hybrid_wait,
+    BlockHeader, IpcError, PoolId, WaitCall, WaitPolicy, WorkerPorts, hybrid_wait,
 };
-use serde::{Deserialize, Serialize};
-use serde_json::Value;
 
-use crate::env::{Env, EnvRegistry, MAX_INFO};
-use crate::layout::{
+use crate::config::AutoresetMode;
+use crate::env::{Env, MAX_INFO};
+use crate::registry::EnvRegistry;
+use crate::seeds::SeedSchedule;
+use crate::wire::layout::{
     BlockLayout, EnvRecord, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED, write_record_words,
 };
-use crate::seeds::SeedSchedule;
-
-/// Command: reset the block's envs; payload = episode index per env.
-pub(crate) const CMD_RESET: u32 = 1;
-/// Payload value of a `CMD_RESET` for an env that is *not* reset (partial reset): the env keeps
-/// its state and re-writes its current observation ([`Env::observe`]).
-pub(crate) const KEEP_EPISODE: u64 = u64::MAX;
-/// Command: step the block's envs; payload = action per env.
-pub(crate) const CMD_STEP: u32 = 2;
-/// Command: exit cleanly.
-pub(crate) const CMD_CLOSE: u32 = 3;
-/// Command kinds carry the observation target in bits 8..: 0 = the block's own obs area,
-/// `s + 1` = slot `s` of the shared batch buffer.
-pub(crate) const TARGET_SHIFT: u32 = 8;
-/// Flag of a reset command: re-read the seed schedule from the config file first.
-pub(crate) const RELOAD_SEEDS: u32 = 1 << 16;
-/// Name of the shared batch buffer (`/dev/shm/<prefix>batch`).
-pub(crate) const BATCH_BUFFER: &str = "batch";
-/// Number of slots of the shared batch buffer (double buffering).
-pub const BATCH_SLOTS: usize = 2;
-
-/// Bytes of one slot of the shared batch buffer (64-byte aligned).
-pub(crate) fn slot_bytes(num_envs: usize, obs_bytes: usize) -> usize {
-    (num_envs * obs_bytes).div_ceil(64) * 64
-}
-/// Block: the worker is up (no payload meaning).
-pub(crate) const BLOCK_READY: u32 = 1;
-/// Block: records and observations.
-pub(crate) const BLOCK_DATA: u32 = 2;
-
-/// When an env whose episode ended is reset.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum AutoresetMode {
-    /// gymnasium/EnvPool default: the step after an episode ends ignores the env's action and
-    /// returns the reset observation with reward 0 and `terminated = truncated = false`.
-    #[default]
-    NextStep,
-    /// The step that ends an episode returns its reward and flags with the *reset* observation;
-    /// the final observation is returned separately (SB3 `terminal_observation`).
-    SameStep,
-}
-
-/// Everything a worker needs, written by the supervisor to a JSON file in the pool's directory.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct WorkerConfig {
-    /// Pool name (`rg<8hex>`).
-    pub pool_name: String,
-    /// Base dir of the pool's files.
-    pub base_dir: PathBuf,
-    /// Envs of the whole pool.
-    pub num_envs: usize,
-    /// Workers of the pool.
-    pub num_workers: usize,
-    /// Envs per worker (worker `k` hosts envs `k*epw .. (k+1)*epw`).
-    pub envs_per_worker: usize,
-    /// JSON spec of the env (see [`EnvRegistry`]).
-    pub env: Value,
-    /// Episode seed schedule.
-    pub seeds: SeedSchedule,
-    /// Autoreset mode.
-    pub autoreset: AutoresetMode,
-    /// Samples of one worker the supervisor may hold at once.
-    pub max_borrowed: usize,
-    /// Yield-poll budget of the worker's wait, µs.
-    pub poll_budget_us: u64,
-    /// Longest blocking wait slice of the worker, ms (parent liveness is checked between).
-    pub block_slice_ms: u64,
-    /// Whether the worker's poll yields the CPU (see `WaitPolicy::yield_cpu`).
-    #[serde(default = "default_true")]
-    pub poll_yield: bool,
-}
-
-fn default_true() -> bool {
-    true
-}
-
-impl WorkerConfig {
-    /// The channel settings both sides use.
-    pub fn channel_settings(&self) -> ChannelSettings {
-        ChannelSettings {
-            num_workers: self.num_workers,
-            max_borrowed: self.max_borrowed,
-        }
-    }
-}
+use crate::wire::{
+    BATCH_BUFFER, BATCH_SLOTS, BLOCK_DATA, BLOCK_READY, CMD_CLOSE, CMD_RESET, CMD_STEP,
+    KEEP_EPISODE, RELOAD_SEEDS, TARGET_SHIFT, WorkerConfig, slot_bytes,
+};
 
 #[derive(Debug, thiserror::Error)]
 enum WorkerError {
@@ -457,7 +376,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_env::TestEnv;
+    use crate::kinds::test_env::TestEnv;
 
     fn slot() -> Slot {
         let env =

@@ -4,7 +4,7 @@
 //!
 //! Every Rust error is mapped to a Python exception; nothing panics across the FFI boundary.
 
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 
 use pyo3::prelude::*;
 

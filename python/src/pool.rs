@@ -13,11 +13,11 @@ use numpy::{
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
-use rogue_gym_pool::layout::{FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED};
 use rogue_gym_pool::{
     AutoresetMode, Batch, BatchOutput, Block, EnvRecord, EnvRegistry, FailurePolicy,
     InterruptCheck, Pool, PoolConfig, PoolError, SeedSchedule, WorkerCommand, WorkerFailure,
 };
+use rogue_gym_pool::{FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED};
 use serde::Deserialize;
 use serde_json::Value;
 

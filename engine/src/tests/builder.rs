@@ -5,9 +5,9 @@
 //! `A`..`Z` an awake monster of that letter (on floor; the config must enable it).
 //! The whole dungeon area is one room slot whose room is the bounding box of the walls.
 
+use crate::actors::Enemy;
 use crate::dungeon::floor::Room;
 use crate::dungeon::{Floor, RoomKind, Surface, flag};
-use crate::enemies::Enemy;
 use crate::geometry::Rect;
 use crate::{EpisodeConfig, Game, GameConfig};
 

@@ -3,25 +3,12 @@
 //! Fixes: real HP, the diagonal rule applies to chase steps, no border panic, no monster is
 //! lost on collision (a monster never moves onto another).
 
+use crate::actors::Enemy;
 use crate::config::{CONFUSED, RANDOM};
 use crate::dungeon::RoomKind;
 use crate::game::Game;
 use crate::geometry::Dir;
 use crate::rng::{GameRng, Stream};
-
-/// One monster on the current floor.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct Enemy {
-    /// Index into `Game::kinds`.
-    pub kind: u16,
-    pub pos: usize,
-    pub hp: i32,
-    pub level: u32,
-    pub defense: i32,
-    pub exp: u32,
-    pub awake: bool,
-    pub alive: bool,
-}
 
 impl Game {
     /// Places monsters on the new floor: one roll per real room (monster stream of the floor).

@@ -1,11 +1,14 @@
 //! The `rogue-gym` command-line tool: play in the terminal, replay an action log, and
-//! benchmark the engine. Each subcommand lives in its own module; adding one is a variant in
+//! benchmark the engine and the pool. It lives in its own crate so that the libraries carry no
+//! CLI dependencies (clap, crossterm). Each subcommand lives in its own module; adding one is a variant in
 //! [`Cmd`] plus an arm in `main`.
 
+mod action_log;
 mod bench;
 mod play;
 mod pool_bench;
 mod replay;
+mod terminal;
 mod worker;
 
 use std::path::Path;

@@ -1,0 +1,143 @@
+//! Cleanup: removing a pool's `/dev/shm` files and directories, sweeping pools whose owner
+//! died, and removing dead iceoryx2 nodes.
+
+use std::fs;
+use std::path::{Path as StdPath, PathBuf};
+use std::time::Duration;
+
+use crate::error::ice;
+use crate::*;
+use iceoryx2::prelude::*;
+
+pub(crate) const SHM_DIR: &str = "/dev/shm";
+
+/// The `/dev/shm` files whose name starts with the pool's prefix.
+pub fn pool_shm_files(id: &PoolId) -> Vec<PathBuf> {
+    let prefix = id.prefix();
+    let mut out = Vec::new();
+    if let Ok(rd) = fs::read_dir(SHM_DIR) {
+        for e in rd.flatten() {
+            if e.file_name().to_string_lossy().starts_with(&prefix) {
+                out.push(e.path());
+            }
+        }
+    }
+    out
+}
+
+/// Remove every file of a pool: `/dev/shm/<prefix>*` (including iceoryx2's `*.global_mgmt`
+/// counter), the iceoryx2 root and the pool's own directory. Call only once no process of the
+/// pool is alive. Missing files are not an error.
+pub fn remove_pool_files(id: &PoolId) -> Result<(), IpcError> {
+    for p in pool_shm_files(id) {
+        match fs::remove_file(&p) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(source) => {
+                return Err(IpcError::Io {
+                    what: "remove shared-memory file",
+                    path: p,
+                    source,
+                });
+            }
+        }
+    }
+    for dir in [id.root(), id.aux_dir()] {
+        match fs::remove_dir_all(&dir) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(source) => {
+                return Err(IpcError::Io {
+                    what: "remove pool directory",
+                    path: dir,
+                    source,
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Whether the owner recorded in a pool's owner file is still running.
+fn owner_alive(id: &PoolId) -> bool {
+    let Ok(s) = fs::read_to_string(id.aux_dir().join("owner")) else {
+        return false;
+    };
+    let mut it = s.split_whitespace();
+    let (Some(Ok(pid)), Some(Ok(start))) = (
+        it.next().map(str::parse::<u32>),
+        it.next().map(str::parse::<u64>),
+    ) else {
+        return false;
+    };
+    match process_start_time(pid) {
+        Some(t) => start == 0 || t == start,
+        None => false,
+    }
+}
+
+/// A pool whose owner file is not written yet but whose directory is only seconds old is being
+/// created by a live process: leave it alone.
+fn young_without_owner(id: &PoolId) -> bool {
+    if id.aux_dir().join("owner").exists() {
+        return false;
+    }
+    let dir = if id.aux_dir().exists() {
+        id.aux_dir()
+    } else {
+        id.root()
+    };
+    fs::metadata(dir)
+        .and_then(|m| m.modified())
+        .ok()
+        .and_then(|t| t.elapsed().ok())
+        .is_some_and(|age| age < Duration::from_secs(10))
+}
+
+pub(crate) fn is_pool_name(s: &str) -> bool {
+    s.len() == 10 && s.starts_with("rg") && s[2..].bytes().all(|b| b.is_ascii_hexdigit())
+}
+
+/// Remove the files of every pool under `base` whose owner process is dead (pools left behind
+/// by a killed supervisor). A pool's aux directory (with the owner file) is created before and
+/// removed after all its other files, so every leftover is found through it. Returns the names of the pools removed. Safe to run while other live pools exist.
+pub fn sweep_stale_pools(base: &StdPath) -> Vec<String> {
+    let mut removed = Vec::new();
+    let mut seen = std::collections::BTreeSet::new();
+    if let Ok(rd) = fs::read_dir(base) {
+        for e in rd.flatten() {
+            let fname = e.file_name().to_string_lossy().into_owned();
+            let name = fname.strip_suffix(".d").unwrap_or(&fname).to_string();
+            if !is_pool_name(&name) || !seen.insert(name.clone()) {
+                continue;
+            }
+            if let Ok(id) = PoolId::from_parts(&name, base) {
+                // A pool creates its aux dir (with the owner file) before anything else.
+                if young_without_owner(&id) {
+                    continue; // being created right now
+                }
+                if !owner_alive(&id) && remove_pool_files(&id).is_ok() {
+                    removed.push(name);
+                }
+            }
+        }
+    }
+    removed
+}
+
+/// Remove the iceoryx2 resources of this pool's dead nodes (e.g. a killed worker). Returns the
+/// number of nodes cleaned.
+pub fn cleanup_dead_nodes(id: &PoolId) -> Result<usize, IpcError> {
+    let cfg = id.config()?;
+    let mut n = 0;
+    Node::<Svc>::list(&cfg, |state| {
+        if let NodeState::Dead(d) = state
+            && d.try_remove_stale_resources().is_ok()
+        {
+            n += 1;
+        }
+        CallbackProgression::Continue
+    })
+    .map_err(ice("list nodes"))?;
+    Ok(n)
+}

@@ -1,0 +1,40 @@
+//! The transport's error type.
+
+use std::path::PathBuf;
+
+/// Errors of the transport layer. Every message says which resource failed and why.
+#[derive(Debug, thiserror::Error)]
+pub enum IpcError {
+    /// An iceoryx2 call failed.
+    #[error("iceoryx2: {what} failed: {detail}")]
+    Iceoryx {
+        /// What was attempted (service or port name included).
+        what: String,
+        /// iceoryx2's error.
+        detail: String,
+    },
+    /// A file-system operation on the pool's files failed.
+    #[error("{what} ({path}): {source}")]
+    Io {
+        /// What was attempted.
+        what: &'static str,
+        /// The path involved.
+        path: PathBuf,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// A name or path does not fit iceoryx2's limits.
+    #[error("invalid pool name or path: {0}")]
+    InvalidName(String),
+    /// A shared resource does not have the size this side expects.
+    #[error("size mismatch: {0}")]
+    SizeMismatch(String),
+}
+
+pub(crate) fn ice<E: std::fmt::Debug>(what: impl Into<String>) -> impl FnOnce(E) -> IpcError {
+    let what = what.into();
+    move |e| IpcError::Iceoryx {
+        what,
+        detail: format!("{e:?}"),
+    }
+}

@@ -1,0 +1,136 @@
+//! Headers and service settings: every iceoryx2 service of a pool is built by exactly one
+//! function per service kind, so both sides always agree on the settings.
+
+use crate::error::ice;
+use crate::*;
+use iceoryx2::prelude::*;
+
+/// Header of a command (supervisor → worker). The payload's meaning depends on `kind`, which the
+/// pool defines.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
+#[repr(C)]
+pub struct CmdHeader {
+    /// Sequence number of the command for this worker (echoed in the reply's [`BlockHeader`]).
+    pub seq: u64,
+    /// Command kind (defined by the pool).
+    pub kind: u32,
+    /// Number of meaningful payload words.
+    pub len: u32,
+}
+
+/// Header of a block (worker → supervisor).
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq, ZeroCopySend)]
+#[repr(C)]
+pub struct BlockHeader {
+    /// Sequence number of the command this block answers (0 for the start-up message).
+    pub seq: u64,
+    /// Incarnation of the worker (incremented at each respawn), to drop stale blocks.
+    pub generation: u64,
+    /// Index of the worker that sent the block.
+    pub worker: u32,
+    /// Block kind (defined by the pool).
+    pub kind: u32,
+}
+
+/// Settings that both sides of a pool must agree on (pass them to the worker unchanged).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ChannelSettings {
+    /// Number of workers of the pool (event ids `0..num_workers`).
+    pub num_workers: usize,
+    /// Samples of one worker the supervisor side may hold at once (e.g. zero-copy numpy views
+    /// kept alive by a trainer). Receiving more fails with a "borrow" error.
+    pub max_borrowed: usize,
+}
+
+impl ChannelSettings {
+    fn max_event_ports(&self) -> usize {
+        // Dead notifiers of crashed workers may linger until cleanup: leave room.
+        2 * self.num_workers + 4
+    }
+}
+
+/// Publish-subscribe service of a worker's commands.
+pub fn cmd_service(
+    node: &Node<Svc>,
+    worker: usize,
+) -> Result<
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u64], CmdHeader>,
+    IpcError,
+> {
+    let name = format!("w{worker}c");
+    let sn =
+        ServiceName::new(&name).map_err(|e| IpcError::InvalidName(format!("{name}: {e:?}")))?;
+    node.service_builder(&sn)
+        .publish_subscribe::<[u64]>()
+        .user_header::<CmdHeader>()
+        .max_publishers(1)
+        .max_subscribers(1)
+        .max_nodes(4)
+        .history_size(0)
+        .subscriber_max_buffer_size(2)
+        .subscriber_max_borrowed_samples(1)
+        .enable_safe_overflow(true)
+        .open_or_create()
+        .map_err(ice(format!("open command service {name}")))
+}
+
+/// Publish-subscribe service of a worker's blocks (observations and per-env records).
+pub fn block_service(
+    node: &Node<Svc>,
+    worker: usize,
+    s: &ChannelSettings,
+) -> Result<
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u64], BlockHeader>,
+    IpcError,
+> {
+    let name = format!("w{worker}b");
+    let sn =
+        ServiceName::new(&name).map_err(|e| IpcError::InvalidName(format!("{name}: {e:?}")))?;
+    node.service_builder(&sn)
+        .publish_subscribe::<[u64]>()
+        .user_header::<BlockHeader>()
+        .max_publishers(1)
+        .max_subscribers(1)
+        .max_nodes(4)
+        .history_size(0)
+        .subscriber_max_buffer_size(4)
+        .subscriber_max_borrowed_samples(s.max_borrowed.max(1))
+        .enable_safe_overflow(true)
+        .open_or_create()
+        .map_err(ice(format!("open block service {name}")))
+}
+
+/// Event service a worker listens on for new commands.
+pub fn cmd_event_service(
+    node: &Node<Svc>,
+    worker: usize,
+) -> Result<iceoryx2::service::port_factory::event::PortFactory<Svc>, IpcError> {
+    let name = format!("w{worker}e");
+    let sn =
+        ServiceName::new(&name).map_err(|e| IpcError::InvalidName(format!("{name}: {e:?}")))?;
+    node.service_builder(&sn)
+        .event()
+        .max_notifiers(4)
+        .max_listeners(4)
+        .max_nodes(6)
+        .event_id_max_value(1)
+        .open_or_create()
+        .map_err(ice(format!("open command event service {name}")))
+}
+
+/// Event service the supervisor listens on for blocks (event id = worker index).
+pub fn block_event_service(
+    node: &Node<Svc>,
+    s: &ChannelSettings,
+) -> Result<iceoryx2::service::port_factory::event::PortFactory<Svc>, IpcError> {
+    let name = "be";
+    let sn = ServiceName::new(name).map_err(|e| IpcError::InvalidName(format!("{name}: {e:?}")))?;
+    node.service_builder(&sn)
+        .event()
+        .max_notifiers(s.max_event_ports())
+        .max_listeners(2)
+        .max_nodes(s.max_event_ports() + 2)
+        .event_id_max_value(s.num_workers.max(1))
+        .open_or_create()
+        .map_err(ice("open block event service be"))
+}

@@ -1,0 +1,198 @@
+//! What a step hands back: per-env arrays ([`BatchOutput`]) and zero-copy worker blocks
+//! ([`Block`], [`Batch`]).
+
+use std::ops::Range;
+
+use rogue_gym_ipc::BlockSample;
+
+use crate::error::PoolError;
+use crate::wire::layout::{BlockLayout, EnvRecord, FLAG_RESTARTED, FLAG_TRUNCATED};
+
+/// Per-env arrays of one batch (sync step/reset, or filled from an async [`Batch`]). Row `r`
+/// describes env `env_ids[r]`.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct BatchOutput {
+    /// Env ids of the rows.
+    pub env_ids: Vec<usize>,
+    /// Rewards.
+    pub reward: Vec<f32>,
+    /// Episode ended by the rules.
+    pub terminated: Vec<bool>,
+    /// Episode cut (step limit or worker restart).
+    pub truncated: Vec<bool>,
+    /// The env's worker was restarted (its episode was cut; the obs is a new episode's first).
+    pub restarted: Vec<bool>,
+    /// Episode return so far (of the ended episode on a final step).
+    pub episode_return: Vec<f64>,
+    /// Episode length so far.
+    pub episode_length: Vec<u32>,
+    /// Episode index (the `e` of the seed schedule).
+    pub episode: Vec<u64>,
+    /// Episode seed.
+    pub seed: Vec<u64>,
+    /// Env-defined info values, row-major `rows x info_names.len()`.
+    pub info: Vec<f64>,
+    /// (SAME_STEP) whether `final_obs` row `r` is valid.
+    pub has_final_obs: Vec<bool>,
+    /// (SAME_STEP) final observations, `rows x obs_bytes`; empty in NEXT_STEP mode.
+    pub final_obs: Vec<u8>,
+}
+
+impl BatchOutput {
+    pub(crate) fn clear(&mut self) {
+        self.env_ids.clear();
+        self.reward.clear();
+        self.terminated.clear();
+        self.truncated.clear();
+        self.restarted.clear();
+        self.episode_return.clear();
+        self.episode_length.clear();
+        self.episode.clear();
+        self.seed.clear();
+        self.info.clear();
+        self.has_final_obs.clear();
+        self.final_obs.clear();
+    }
+
+    pub(crate) fn push(&mut self, env: usize, r: &EnvRecord, n_info: usize, fin: Option<&[u8]>) {
+        self.env_ids.push(env);
+        self.reward.push(r.reward);
+        self.terminated.push(r.terminated());
+        self.truncated.push(r.truncated());
+        self.restarted.push(r.restarted());
+        self.episode_return.push(r.episode_return);
+        self.episode_length.push(r.episode_length);
+        self.episode.push(r.episode);
+        self.seed.push(r.seed);
+        self.info.extend_from_slice(&r.info[..n_info]);
+        if let Some(f) = fin {
+            self.has_final_obs.push(r.has_final_obs());
+            if r.has_final_obs() {
+                self.final_obs.extend_from_slice(f);
+            } else {
+                self.final_obs.resize(self.final_obs.len() + f.len(), 0);
+            }
+        } else {
+            self.has_final_obs.push(false);
+        }
+    }
+}
+
+/// One worker's block as received: an owned handle on the shared-memory sample (`Send`).
+///
+/// Lifetime: the observation bytes stay valid and unchanged for as long as the `Block` lives,
+/// even after the pool is closed. Each held block pins one of its worker's
+/// `max_borrowed` sample slots: holding `max_borrowed` blocks of one worker makes the next
+/// receive from that worker fail, so keep at most `max_borrowed - 1` per worker.
+pub struct Block {
+    pub(crate) worker: usize,
+    pub(crate) env_start: usize,
+    pub(crate) layout: BlockLayout,
+    pub(crate) restarted: bool,
+    pub(crate) sample: BlockSample,
+}
+
+impl std::fmt::Debug for Block {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Block")
+            .field("worker", &self.worker)
+            .field("env_ids", &self.env_ids())
+            .finish()
+    }
+}
+
+impl Block {
+    /// The worker that produced it.
+    pub fn worker(&self) -> usize {
+        self.worker
+    }
+    /// Env ids of its rows.
+    pub fn env_ids(&self) -> Range<usize> {
+        self.env_start..self.env_start + self.layout.envs
+    }
+    /// Its observations: `envs x obs_bytes` C-contiguous bytes in shared memory (read-only),
+    /// 8-byte aligned.
+    pub fn obs(&self) -> &[u8] {
+        self.layout.obs(self.sample.payload())
+    }
+    /// (SAME_STEP) its final observations, same layout as [`Block::obs`].
+    pub fn final_obs(&self) -> Option<&[u8]> {
+        self.layout.final_obs(self.sample.payload())
+    }
+    /// Record of row `j` (with the restart flags applied).
+    pub fn record(&self, j: usize) -> EnvRecord {
+        let mut r = self.layout.record(self.sample.payload(), j);
+        if self.restarted {
+            r.flags = FLAG_TRUNCATED | FLAG_RESTARTED;
+            r.reward = 0.0;
+        }
+        r
+    }
+    /// Whether this block answers a worker restart.
+    pub fn restarted(&self) -> bool {
+        self.restarted
+    }
+    /// The underlying iceoryx2 sample (records, then observations; see `layout`).
+    pub fn sample(&self) -> &BlockSample {
+        &self.sample
+    }
+    /// Give up the block, keeping only the iceoryx2 sample (the memory stays valid while it
+    /// lives). Note: restart flags are applied by [`Block::record`], not stored in the sample.
+    pub fn into_sample(self) -> BlockSample {
+        self.sample
+    }
+}
+
+/// The blocks returned by one async [`Pool::recv`], in arrival order.
+#[derive(Debug)]
+pub struct Batch {
+    /// The blocks.
+    pub blocks: Vec<Block>,
+}
+
+impl Batch {
+    /// Env ids of all rows, in block order.
+    pub fn env_ids(&self) -> Vec<usize> {
+        self.blocks.iter().flat_map(|b| b.env_ids()).collect()
+    }
+    /// Copy the observations into `out` (rows in [`Batch::env_ids`] order).
+    pub fn copy_obs_into(&self, out: &mut [u8]) -> Result<(), PoolError> {
+        let total: usize = self.blocks.iter().map(|b| b.obs().len()).sum();
+        if out.len() != total {
+            return Err(PoolError::BadBuffer {
+                what: "observation buffer",
+                expected: total,
+                got: out.len(),
+            });
+        }
+        let mut off = 0;
+        for b in &self.blocks {
+            let o = b.obs();
+            out[off..off + o.len()].copy_from_slice(o);
+            off += o.len();
+        }
+        Ok(())
+    }
+    /// Fill the per-env arrays (rows in [`Batch::env_ids`] order).
+    pub fn fill(&self, n_info: usize, out: &mut BatchOutput) {
+        out.clear();
+        self.fill_append(n_info, out);
+    }
+}
+
+impl Batch {
+    pub(crate) fn fill_append(&self, n_info: usize, out: &mut BatchOutput) {
+        for b in &self.blocks {
+            let fin = b.final_obs();
+            let ob = b.layout.obs_bytes;
+            for j in 0..b.layout.envs {
+                out.push(
+                    b.env_start + j,
+                    &b.record(j),
+                    n_info,
+                    fin.map(|f| &f[j * ob..(j + 1) * ob]),
+                );
+            }
+        }
+    }
+}

@@ -1,0 +1,131 @@
+//! How a pool is configured: sizes, seeding, autoreset, crash policy, waiting, worker command.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use rogue_gym_ipc::WaitPolicy;
+
+use crate::error::PoolError;
+use crate::seeds::SeedSchedule;
+
+/// When an env whose episode ended is reset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AutoresetMode {
+    /// gymnasium/EnvPool default: the step after an episode ends ignores the env's action and
+    /// returns the reset observation with reward 0 and `terminated = truncated = false`.
+    #[default]
+    NextStep,
+    /// The step that ends an episode returns its reward and flags with the *reset* observation;
+    /// the final observation is returned separately (SB3 `terminal_observation`).
+    SameStep,
+}
+
+/// What to do when a worker dies or hangs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FailurePolicy {
+    /// Respawn the worker and re-seed its envs from the schedule; the affected envs report
+    /// `truncated` plus the restart flag.
+    #[default]
+    Restart,
+    /// Respawn the worker (so the pool is usable after `reset`) but return
+    /// [`PoolError::WorkerFailed`].
+    Raise,
+}
+
+/// How to start a worker process: `program args... --config F --index K --generation G --ppid P`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct WorkerCommand {
+    /// The executable (e.g. the `rogue-gym` binary, or the Python interpreter).
+    pub program: PathBuf,
+    /// Leading arguments (e.g. `["worker"]`, or `["-m", "rogue_gym.worker"]`).
+    pub args: Vec<String>,
+}
+
+impl WorkerCommand {
+    /// The current executable with the given leading args (e.g. `["worker"]` for the CLI).
+    /// Inside a Python extension the current executable is the interpreter: build the command
+    /// explicitly there.
+    pub fn current_exe(args: &[&str]) -> Result<Self, PoolError> {
+        let program = std::env::current_exe()
+            .map_err(|e| PoolError::Config(format!("cannot locate the current executable: {e}")))?;
+        Ok(WorkerCommand {
+            program,
+            args: args.iter().map(|s| s.to_string()).collect(),
+        })
+    }
+}
+
+/// Configuration of a pool.
+#[derive(Debug, Clone)]
+pub struct PoolConfig {
+    /// JSON spec of the env (its `"kind"` selects the constructor in the [`EnvRegistry`]).
+    pub env: Value,
+    /// Total envs; must be a multiple of `num_workers`.
+    pub num_envs: usize,
+    /// Worker processes; each steps `num_envs / num_workers` envs.
+    pub num_workers: usize,
+    /// Envs returned by one async [`Pool::recv`]; a multiple of the envs per worker. `None`:
+    /// all envs.
+    pub batch_size: Option<usize>,
+    /// Episode seed schedule.
+    pub seeds: SeedSchedule,
+    /// Autoreset mode.
+    pub autoreset: AutoresetMode,
+    /// Policy on a worker failure.
+    pub on_worker_failure: FailurePolicy,
+    /// A worker that has not answered a command after this long is killed and treated as
+    /// failed (`None`: wait forever, but still detect deaths).
+    pub step_timeout: Option<Duration>,
+    /// Time a worker gets to start (open its ports and say it is ready).
+    pub start_timeout: Duration,
+    /// Worker restarts allowed over the pool's life; one more fails with
+    /// [`PoolError::RestartBudgetExceeded`].
+    pub max_restarts: u32,
+    /// Blocks of one worker the caller may hold at once, plus one (see [`Block`]).
+    pub max_borrowed: usize,
+    /// How to start a worker.
+    pub worker: WorkerCommand,
+    /// Supervisor's waiting policy.
+    pub wait: WaitPolicy,
+    /// Workers' waiting policy.
+    pub worker_wait: WaitPolicy,
+    /// Directory holding the pools' short roots (default `/tmp/rgp`).
+    pub base_dir: PathBuf,
+}
+
+impl PoolConfig {
+    /// A config with defaults: NEXT_STEP autoreset, restart policy, no step timeout, 30 s start
+    /// timeout, 100 restarts, 4 borrowed samples, base seed 0.
+    pub fn new(env: Value, num_envs: usize, num_workers: usize, worker: WorkerCommand) -> Self {
+        PoolConfig {
+            env,
+            num_envs,
+            num_workers,
+            batch_size: None,
+            seeds: SeedSchedule::default(),
+            autoreset: AutoresetMode::NextStep,
+            on_worker_failure: FailurePolicy::Restart,
+            step_timeout: None,
+            start_timeout: Duration::from_secs(30),
+            max_restarts: 100,
+            max_borrowed: 4,
+            worker,
+            wait: WaitPolicy {
+                poll_budget: Duration::from_micros(50),
+                block_slice: Duration::from_millis(10),
+                yield_cpu: true,
+            },
+            worker_wait: WaitPolicy {
+                poll_budget: Duration::from_micros(50),
+                block_slice: Duration::from_millis(100),
+                yield_cpu: true,
+            },
+            base_dir: PathBuf::from(rogue_gym_ipc::DEFAULT_BASE_DIR),
+        }
+    }
+}

@@ -1,0 +1,148 @@
+//! The pool's errors and the report on a failed worker.
+
+use std::ops::Range;
+use std::time::Duration;
+
+use rogue_gym_ipc::IpcError;
+
+use crate::env::EnvError;
+
+/// Why a worker failed.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum FailureCause {
+    /// The process exited or was killed.
+    Died,
+    /// It did not answer within the step timeout and was killed.
+    Hung(Duration),
+}
+
+/// Report on a failed worker.
+#[derive(Debug, Clone)]
+pub struct WorkerFailure {
+    /// Worker index.
+    pub worker: usize,
+    /// The envs it hosted.
+    pub env_ids: Range<usize>,
+    /// Its process id.
+    pub pid: u32,
+    /// Died or hung.
+    pub cause: FailureCause,
+    /// Exit code, if it exited.
+    pub exit_code: Option<i32>,
+    /// Signal number, if it was killed by one.
+    pub signal: Option<i32>,
+    /// Seeds of the episodes that were cut.
+    pub seeds: Vec<u64>,
+    /// The end of its stderr.
+    pub stderr_tail: String,
+}
+
+impl std::fmt::Display for WorkerFailure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "worker {} (pid {}, envs {}..{}) ",
+            self.worker, self.pid, self.env_ids.start, self.env_ids.end
+        )?;
+        match &self.cause {
+            FailureCause::Hung(t) => {
+                write!(f, "hung: no answer within step_timeout {t:?}, killed")?
+            }
+            FailureCause::Died => match (self.signal, self.exit_code) {
+                (Some(s), _) => write!(f, "was killed by signal {s} ({})", signal_name(s))?,
+                (None, Some(c)) => write!(f, "exited with code {c}")?,
+                _ => write!(f, "died")?,
+            },
+        }
+        if !self.seeds.is_empty() {
+            write!(f, "; episode seeds {:?}", self.seeds)?;
+        }
+        if self.stderr_tail.trim().is_empty() {
+            write!(f, "; its stderr was empty")
+        } else {
+            write!(f, "; end of its stderr:\n{}", self.stderr_tail.trim_end())
+        }
+    }
+}
+
+pub(crate) fn signal_name(s: i32) -> &'static str {
+    nix::sys::signal::Signal::try_from(s)
+        .map(|s| s.as_str())
+        .unwrap_or("unknown")
+}
+
+/// Errors of the pool. Messages say what was wrong and how to fix it.
+#[derive(Debug, thiserror::Error)]
+pub enum PoolError {
+    /// Invalid configuration.
+    #[error("invalid pool configuration: {0}")]
+    Config(String),
+    /// The env could not be built.
+    #[error("env: {0}")]
+    Env(#[from] EnvError),
+    /// Transport failure.
+    #[error("shared-memory transport: {0}")]
+    Ipc(#[from] IpcError),
+    /// Wrong number of actions.
+    #[error("got {got} actions for {expected} envs: pass exactly one action per env")]
+    BadActionsLength {
+        /// Expected count.
+        expected: usize,
+        /// Given count.
+        got: usize,
+    },
+    /// An action out of range.
+    #[error("env {env}: action {value} is out of range; valid actions are 0..{num_actions}")]
+    BadAction {
+        /// Env id.
+        env: usize,
+        /// The bad value.
+        value: i64,
+        /// Number of actions.
+        num_actions: usize,
+    },
+    /// A caller buffer has the wrong size.
+    #[error("{what} has {got} bytes, expected {expected}")]
+    BadBuffer {
+        /// Which buffer.
+        what: &'static str,
+        /// Expected size.
+        expected: usize,
+        /// Given size.
+        got: usize,
+    },
+    /// A call out of order (e.g. step before reset, send to envs still running).
+    #[error("{0}")]
+    State(String),
+    /// A worker could not be started.
+    #[error("worker {worker} failed to start: {reason}{}", if stderr_tail.trim().is_empty() { String::new() } else { format!("; end of its stderr:\n{}", stderr_tail.trim_end()) })]
+    StartFailed {
+        /// Worker index.
+        worker: usize,
+        /// What happened.
+        reason: String,
+        /// The end of its stderr.
+        stderr_tail: String,
+    },
+    /// A worker died or hung (policy `raise`). The pool respawned it: call `reset` to go on.
+    #[error("{0}; call reset() to continue")]
+    WorkerFailed(Box<WorkerFailure>),
+    /// Too many restarts.
+    #[error("restart budget exhausted ({max_restarts} restarts); last failure: {last}")]
+    RestartBudgetExceeded {
+        /// The budget.
+        max_restarts: u32,
+        /// The failure that exceeded it.
+        last: Box<WorkerFailure>,
+    },
+    /// The interrupt check ([`Pool::set_interrupt_check`]) asked to abort a wait. Outstanding
+    /// requests are abandoned: call a reset to go on.
+    #[error("interrupted while waiting for the workers; call reset() to continue")]
+    Interrupted,
+    /// The pool is closed.
+    #[error("the pool is closed")]
+    Closed,
+    /// File-system error on the pool's own files.
+    #[error("{0}")]
+    Io(String),
+}

@@ -1,0 +1,434 @@
+//! The supervisor ([`Pool`]): its state and life cycle (start, seeds, waiting, close).
+//!
+//! The rest of its job is split by concern: [`stepping`] (sync reset/step, into the caller's
+//! buffer or the shared batch slots), [`async_api`] (EnvPool-style `send`/`recv`) and
+//! [`workers`] (spawning, commanding and watching the worker processes).
+
+mod async_api;
+mod stepping;
+mod workers;
+
+use std::collections::VecDeque;
+use std::fs;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use rogue_gym_ipc::{
+    BlockListener, ChannelSettings, PoolId, SupervisorPorts, Svc, WaitCall, WaitOutcome,
+    hybrid_wait,
+};
+
+use crate::config::{AutoresetMode, PoolConfig};
+use crate::env::EnvSpec;
+use crate::error::PoolError;
+use crate::registry::EnvRegistry;
+use crate::seeds::SeedSchedule;
+use crate::wire::layout::BlockLayout;
+use crate::wire::{BATCH_BUFFER, BATCH_SLOTS, CMD_CLOSE, WorkerConfig, slot_bytes};
+
+pub use stepping::validate_actions;
+use workers::{SlotState, WorkerSlot};
+
+struct Core {
+    cfg: PoolConfig,
+    spec: EnvSpec,
+    layout: BlockLayout,
+    epw: usize,
+    id: PoolId,
+    config_path: PathBuf,
+    settings: ChannelSettings,
+    slots: Vec<WorkerSlot>,
+    node: Option<rogue_gym_ipc::iceoryx2::node::Node<Svc>>,
+    batch: Option<std::sync::Arc<rogue_gym_ipc::SharedBuffer>>,
+    slot_bytes: usize,
+    next_slot: usize,
+    ready_order: VecDeque<usize>,
+    cur_episode: Vec<Option<u64>>,
+    cur_seed: Vec<u64>,
+    restarts: u32,
+    must_reset: bool,
+    closed: bool,
+    /// Workers must re-read the seed schedule at their next reset.
+    reload_seeds: Vec<bool>,
+    worker_config: Option<WorkerConfig>,
+}
+
+/// A pool of envs stepped by worker processes, with observations in shared memory.
+///
+/// Thread-safety: `Pool` is `Send` (not `Sync`): use it from one thread at a time (a Python
+/// `#[pyclass]` can hold it behind a mutex). Workers are spawned from the thread that calls
+/// [`Pool::new`] and get `SIGKILL` when *that thread* exits (PDEATHSIG), besides watching the
+/// supervisor's pid: create the pool on a long-lived thread.
+pub struct Pool {
+    listener: Option<BlockListener>,
+    core: Core,
+    interrupt: Option<InterruptCheck>,
+}
+
+/// A callback run between the slices of a long wait (see [`Pool::set_interrupt_check`]);
+/// returning `true` aborts the call with [`PoolError::Interrupted`].
+pub type InterruptCheck = Box<dyn FnMut() -> bool + Send>;
+
+/// How long a wait must have lasted before the interrupt check runs (it runs between blocking
+/// wait slices, every `PoolConfig::wait.block_slice`, so the hot path never calls it).
+const INTERRUPT_AFTER: Duration = Duration::from_millis(5);
+
+impl std::fmt::Debug for Pool {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Pool")
+            .field("name", &self.core.id.name())
+            .field("num_envs", &self.core.cfg.num_envs)
+            .field("num_workers", &self.core.cfg.num_workers)
+            .finish()
+    }
+}
+
+impl Pool {
+    /// Start a pool: sweep stale pools, build one env locally to learn the spec, spawn the
+    /// workers and wait until all are ready. Call [`Pool::reset`] or [`Pool::async_reset`]
+    /// next.
+    pub fn new(cfg: PoolConfig, registry: &EnvRegistry) -> Result<Pool, PoolError> {
+        if cfg.num_workers == 0 || cfg.num_envs == 0 {
+            return Err(PoolError::Config(
+                "num_envs and num_workers must be at least 1".into(),
+            ));
+        }
+        if !cfg.num_envs.is_multiple_of(cfg.num_workers) {
+            return Err(PoolError::Config(format!(
+                "num_envs ({}) must be a multiple of num_workers ({}): each worker steps the same number of envs",
+                cfg.num_envs, cfg.num_workers
+            )));
+        }
+        let epw = cfg.num_envs / cfg.num_workers;
+        if let Some(b) = cfg.batch_size
+            && (b == 0 || !b.is_multiple_of(epw) || b > cfg.num_envs)
+        {
+            return Err(PoolError::Config(format!(
+                "batch_size ({b}) must be a positive multiple of the envs per worker ({epw}) and at most num_envs ({}): async batches are made of whole worker blocks",
+                cfg.num_envs
+            )));
+        }
+        if cfg.max_borrowed < 2 {
+            return Err(PoolError::Config(
+                "max_borrowed must be at least 2 (one sample being received, one held)".into(),
+            ));
+        }
+        cfg.seeds.validate().map_err(PoolError::Config)?;
+        let spec = registry.make(&cfg.env)?.spec();
+        let layout = BlockLayout {
+            envs: epw,
+            obs_bytes: spec.obs_bytes(),
+            final_obs: cfg.autoreset == AutoresetMode::SameStep,
+        };
+        rogue_gym_ipc::sweep_stale_pools(&cfg.base_dir);
+        let id = PoolId::new_unique(&cfg.base_dir)?;
+        id.create_dirs()?;
+        let settings = ChannelSettings {
+            num_workers: cfg.num_workers,
+            max_borrowed: cfg.max_borrowed,
+        };
+        let wcfg = WorkerConfig {
+            pool_name: id.name().to_string(),
+            base_dir: cfg.base_dir.clone(),
+            num_envs: cfg.num_envs,
+            num_workers: cfg.num_workers,
+            envs_per_worker: epw,
+            env: cfg.env.clone(),
+            seeds: cfg.seeds.clone(),
+            autoreset: cfg.autoreset,
+            max_borrowed: cfg.max_borrowed,
+            poll_budget_us: cfg.worker_wait.poll_budget.as_micros() as u64,
+            block_slice_ms: cfg.worker_wait.block_slice.as_millis() as u64,
+            poll_yield: cfg.worker_wait.yield_cpu,
+        };
+        let config_path = id.aux_dir().join("worker.json");
+        let num_envs = cfg.num_envs;
+        let num_workers = cfg.num_workers;
+        let mut pool = Pool {
+            listener: None,
+            interrupt: None,
+            core: Core {
+                cfg,
+                spec,
+                layout,
+                epw,
+                id,
+                config_path,
+                settings,
+                slots: Vec::new(),
+                node: None,
+                ready_order: VecDeque::new(),
+                cur_episode: vec![None; num_envs],
+                cur_seed: vec![0; num_envs],
+                batch: None,
+                slot_bytes: 0,
+                next_slot: 0,
+                restarts: 0,
+                must_reset: true,
+                closed: false,
+                reload_seeds: vec![false; num_workers],
+                worker_config: None,
+            },
+        };
+        // From here on, Drop cleans up whatever was created.
+        pool.start(&wcfg)?;
+        pool.core.worker_config = Some(wcfg);
+        Ok(pool)
+    }
+
+    fn start(&mut self, wcfg: &WorkerConfig) -> Result<(), PoolError> {
+        let c = &mut self.core;
+        let json = serde_json::to_string(wcfg)
+            .map_err(|e| PoolError::Config(format!("cannot serialize worker config: {e}")))?;
+        fs::write(&c.config_path, json)
+            .map_err(|e| PoolError::Io(format!("cannot write {}: {e}", c.config_path.display())))?;
+        c.slot_bytes = slot_bytes(c.cfg.num_envs, c.layout.obs_bytes);
+        c.batch = Some(std::sync::Arc::new(rogue_gym_ipc::SharedBuffer::create(
+            &c.id,
+            BATCH_BUFFER,
+            BATCH_SLOTS * c.slot_bytes,
+        )?));
+        let node = c.id.node("sup")?;
+        self.listener = Some(BlockListener::new(&node, &c.settings)?);
+        for k in 0..c.cfg.num_workers {
+            let ports = SupervisorPorts::new(&node, k, c.epw, &c.settings)?;
+            c.slots.push(WorkerSlot {
+                ports,
+                child: None,
+                pid: 0,
+                generation: 0,
+                seq: 0,
+                state: SlotState::Idle,
+                restarted: false,
+                stderr_path: PathBuf::new(),
+                target: 0,
+            });
+        }
+        c.node = Some(node);
+        for k in 0..c.cfg.num_workers {
+            c.spawn(k, false)?;
+        }
+        self.wait_until(|c| {
+            !c.slots
+                .iter()
+                .any(|s| matches!(s.state, SlotState::Starting { .. }))
+        })
+    }
+
+    /// Replace the seed schedule and restart every env's episode count: the next reset
+    /// ([`Pool::reset`], [`Pool::reset_shared`] or [`Pool::async_reset`], which you must call
+    /// next) starts episode 0 of every env under `seeds`, so the run continues exactly as a
+    /// fresh pool created with `seeds` would (gymnasium's `reset(seed=...)`). Outstanding
+    /// async results are discarded.
+    pub fn set_seeds(&mut self, seeds: SeedSchedule) -> Result<(), PoolError> {
+        self.check_usable()?;
+        seeds.validate().map_err(PoolError::Config)?;
+        self.drain()?;
+        let c = &mut self.core;
+        let mut wcfg = c
+            .worker_config
+            .clone()
+            .ok_or_else(|| PoolError::State("the pool is not started".into()))?;
+        wcfg.seeds = seeds.clone();
+        let json = serde_json::to_string(&wcfg)
+            .map_err(|e| PoolError::Config(format!("cannot serialize worker config: {e}")))?;
+        // Write then rename, so a worker (re)reading it never sees a partial file.
+        let tmp = c.config_path.with_extension("json.tmp");
+        fs::write(&tmp, json)
+            .and_then(|_| fs::rename(&tmp, &c.config_path))
+            .map_err(|e| PoolError::Io(format!("cannot write {}: {e}", c.config_path.display())))?;
+        c.cfg.seeds = seeds;
+        c.worker_config = Some(wcfg);
+        c.cur_episode.iter_mut().for_each(|e| *e = None);
+        c.reload_seeds.iter_mut().for_each(|r| *r = true);
+        c.must_reset = true;
+        Ok(())
+    }
+
+    /// The env spec (observation shape and dtype, actions, info names).
+    pub fn spec(&self) -> &EnvSpec {
+        &self.core.spec
+    }
+    /// Number of envs.
+    pub fn num_envs(&self) -> usize {
+        self.core.cfg.num_envs
+    }
+    /// Number of workers.
+    pub fn num_workers(&self) -> usize {
+        self.core.cfg.num_workers
+    }
+    /// Envs per worker (the async granularity).
+    pub fn envs_per_worker(&self) -> usize {
+        self.core.epw
+    }
+    /// Envs per async [`Pool::recv`].
+    pub fn batch_size(&self) -> usize {
+        self.core.cfg.batch_size.unwrap_or(self.core.cfg.num_envs)
+    }
+    /// Bytes of one observation.
+    pub fn obs_bytes(&self) -> usize {
+        self.core.layout.obs_bytes
+    }
+    /// The pool's files (name, prefix, directories).
+    pub fn id(&self) -> &PoolId {
+        &self.core.id
+    }
+    /// Current worker pids (index = worker).
+    pub fn worker_pids(&self) -> Vec<u32> {
+        self.core.slots.iter().map(|s| s.pid).collect()
+    }
+    /// Worker restarts so far.
+    pub fn restarts(&self) -> u32 {
+        self.core.restarts
+    }
+    /// The configuration.
+    pub fn config(&self) -> &PoolConfig {
+        &self.core.cfg
+    }
+
+    /// Install (or remove) a check run between the slices of any wait that has lasted at least
+    /// 5 ms (every `PoolConfig::wait.block_slice`, 10 ms by default): if it returns `true`, the
+    /// call fails with [`PoolError::Interrupted`] and the pool needs a reset (outstanding
+    /// requests are abandoned and drained by the reset). Bindings use it to deliver Ctrl-C
+    /// during a long wait (e.g. Python's `check_signals` with the GIL re-acquired briefly).
+    pub fn set_interrupt_check(&mut self, check: Option<InterruptCheck>) {
+        self.interrupt = check;
+    }
+
+    fn wait_until(&mut self, done: impl Fn(&Core) -> bool) -> Result<(), PoolError> {
+        let listener = self.listener.as_ref().ok_or(PoolError::Closed)?;
+        let core = &mut self.core;
+        let interrupt = &mut self.interrupt;
+        let policy = core.cfg.wait;
+        let t0 = Instant::now();
+        let out = hybrid_wait::<PoolError>(listener.listener(), &policy, None, |call| {
+            if call == WaitCall::Idle {
+                core.check_liveness()?;
+                if let Some(check) = interrupt.as_mut()
+                    && t0.elapsed() >= INTERRUPT_AFTER
+                    && check()
+                {
+                    core.must_reset = true;
+                    return Err(PoolError::Interrupted);
+                }
+            }
+            core.poll_all()?;
+            Ok(done(core))
+        })?;
+        debug_assert_eq!(out, WaitOutcome::Done);
+        Ok(())
+    }
+
+    fn check_usable(&self) -> Result<(), PoolError> {
+        if self.core.closed {
+            return Err(PoolError::Closed);
+        }
+        Ok(())
+    }
+
+    fn check_actions(
+        &self,
+        actions: &[i64],
+        env_ids: impl Iterator<Item = usize>,
+    ) -> Result<(), PoolError> {
+        validate_actions(actions, env_ids, self.core.spec.num_actions)
+    }
+
+    fn check_obs_buf(&self, obs_out: &[u8]) -> Result<(), PoolError> {
+        let expected = self.core.cfg.num_envs * self.core.layout.obs_bytes;
+        if obs_out.len() != expected {
+            return Err(PoolError::BadBuffer {
+                what: "observation buffer",
+                expected,
+                got: obs_out.len(),
+            });
+        }
+        Ok(())
+    }
+
+    fn all_idle(&mut self) -> Result<(), PoolError> {
+        // Respawned workers (raise policy) may still be starting.
+        self.wait_until(|c| {
+            !c.slots
+                .iter()
+                .any(|s| matches!(s.state, SlotState::Starting { .. }))
+        })?;
+        if self
+            .core
+            .slots
+            .iter()
+            .any(|s| !matches!(s.state, SlotState::Idle))
+        {
+            return Err(PoolError::State(
+                "async requests are outstanding: recv() them before a sync reset/step".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Wait for every outstanding request (and starting worker) and discard the results.
+    fn drain(&mut self) -> Result<(), PoolError> {
+        self.wait_until(|c| {
+            !c.slots.iter().any(|s| {
+                matches!(
+                    s.state,
+                    SlotState::Starting { .. } | SlotState::Pending { .. }
+                )
+            })
+        })?;
+        for s in &mut self.core.slots {
+            if matches!(s.state, SlotState::Ready(_)) {
+                s.state = SlotState::Idle;
+            }
+            s.restarted = false;
+        }
+        self.core.ready_order.clear();
+        Ok(())
+    }
+
+    /// Stop the workers and remove every file of the pool (`/dev/shm` and directories).
+    /// Idempotent; also run by `Drop`. Blocks still held by the caller stay readable.
+    pub fn close(&mut self) -> Result<(), PoolError> {
+        if self.core.closed {
+            return Ok(());
+        }
+        self.core.closed = true;
+        let c = &mut self.core;
+        for s in &c.slots {
+            if s.child.is_some() {
+                let _ = s.ports.send_cmd(u64::MAX, CMD_CLOSE, 0, |_| {});
+            }
+        }
+        let deadline = Instant::now() + Duration::from_millis(300);
+        for s in &mut c.slots {
+            if let Some(mut ch) = s.child.take() {
+                loop {
+                    match ch.try_wait() {
+                        Ok(Some(_)) => break,
+                        Ok(None) if Instant::now() < deadline => {
+                            std::thread::sleep(Duration::from_millis(1))
+                        }
+                        _ => {
+                            let _ = ch.kill();
+                            let _ = ch.wait();
+                            break;
+                        }
+                    }
+                }
+            }
+        }
+        c.ready_order.clear();
+        c.slots.clear();
+        self.listener = None;
+        c.node = None;
+        c.batch = None;
+        rogue_gym_ipc::remove_pool_files(&c.id)?;
+        Ok(())
+    }
+}
+
+impl Drop for Pool {
+    fn drop(&mut self) {
+        let _ = self.close();
+    }
+}

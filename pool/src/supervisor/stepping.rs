@@ -1,0 +1,285 @@
+//! Sync stepping: reset, partial reset and step, with the observations copied into the
+//! caller's buffer or written by the workers straight into the shared batch slots.
+
+use super::Pool;
+use crate::batch::{Batch, BatchOutput, Block};
+use crate::error::PoolError;
+use crate::wire::BATCH_SLOTS;
+
+/// Check that every action is in `0..num_actions`; the error names the env and the value.
+pub fn validate_actions(
+    actions: &[i64],
+    env_ids: impl Iterator<Item = usize>,
+    num_actions: usize,
+) -> Result<(), PoolError> {
+    for (a, env) in actions.iter().zip(env_ids) {
+        if *a < 0 || *a as u64 >= num_actions as u64 {
+            return Err(PoolError::BadAction {
+                env,
+                value: *a,
+                num_actions,
+            });
+        }
+    }
+    Ok(())
+}
+
+impl Pool {
+    /// Sync reset: start a new episode in every env (episode index 0 at the first reset, then
+    /// the next index of each env), write the observations into `obs_out`
+    /// (`num_envs x obs_bytes`, env-major) and the per-env arrays into `out`. Results of
+    /// outstanding async requests (or of a step interrupted by an error) are discarded.
+    pub fn reset(&mut self, obs_out: &mut [u8], out: &mut BatchOutput) -> Result<(), PoolError> {
+        self.check_usable()?;
+        self.check_obs_buf(obs_out)?;
+        self.drain()?;
+        for k in 0..self.core.slots.len() {
+            self.core.send_reset(k, 0)?;
+        }
+        self.core.must_reset = false;
+        self.gather_all(Some(obs_out), out)
+    }
+
+    /// Sync step: `actions[i]` for env `i` (all envs). Writes observations into `obs_out`
+    /// (`num_envs x obs_bytes`, env-major; one memcpy per worker block) and per-env arrays into
+    /// `out`. See [`AutoresetMode`] for what a step after/at an episode end returns.
+    pub fn step(
+        &mut self,
+        actions: &[i64],
+        obs_out: &mut [u8],
+        out: &mut BatchOutput,
+    ) -> Result<(), PoolError> {
+        self.check_usable()?;
+        if actions.len() != self.core.cfg.num_envs {
+            return Err(PoolError::BadActionsLength {
+                expected: self.core.cfg.num_envs,
+                got: actions.len(),
+            });
+        }
+        self.check_actions(actions, 0..actions.len())?;
+        self.check_obs_buf(obs_out)?;
+        if self.core.must_reset {
+            return Err(PoolError::State(
+                "call reset() before step() (after creation or after a worker failure)".into(),
+            ));
+        }
+        self.all_idle()?;
+        let epw = self.core.epw;
+        for k in 0..self.core.slots.len() {
+            self.core
+                .send_step(k, &actions[k * epw..(k + 1) * epw], 0)?;
+        }
+        self.gather_all(Some(obs_out), out)
+    }
+
+    /// Like [`Pool::reset`], but the workers write the observations straight into the next
+    /// slot of the pool's shared batch buffer (no copy at all); returns the slot index for
+    /// [`Pool::shared_obs`].
+    pub fn reset_shared(&mut self, out: &mut BatchOutput) -> Result<usize, PoolError> {
+        self.check_usable()?;
+        self.drain()?;
+        let slot = self.core.next_slot;
+        for k in 0..self.core.slots.len() {
+            self.core.send_reset(k, slot as u32 + 1)?;
+        }
+        self.core.must_reset = false;
+        self.gather_all(None, out)?;
+        self.core.next_slot = (slot + 1) % BATCH_SLOTS;
+        Ok(slot)
+    }
+
+    /// Partial sync reset (gymnasium's `reset(options={"reset_mask": mask})`), into the next
+    /// shared batch slot like [`Pool::reset_shared`]; returns the slot.
+    ///
+    /// * Envs with `mask[i] == true` start their next scheduled episode (episode index + 1, its
+    ///   seed from the schedule), exactly as a full reset would start it for them, so
+    ///   trajectories stay independent of the worker count.
+    /// * Envs with `mask[i] == false` keep their state (an episode that ended in NEXT_STEP mode
+    ///   is still autoreset by the next step); their current observation is re-written into
+    ///   the slot by the worker ([`crate::Env::observe`]), and their row in `out` describes
+    ///   their current episode with reward 0 and no flags.
+    ///
+    /// Needs a full reset first (after creation, [`Pool::set_seeds`] or a worker failure
+    /// under [`FailurePolicy::Raise`]) and no outstanding async requests (sync only; there is
+    /// no async partial reset). A worker restarted during the call resets all its envs (they
+    /// report `restarted`).
+    pub fn reset_envs(&mut self, mask: &[bool], out: &mut BatchOutput) -> Result<usize, PoolError> {
+        let slot = self.core.next_slot;
+        self.reset_masked(mask, slot as u32 + 1, None, out)?;
+        self.core.next_slot = (slot + 1) % BATCH_SLOTS;
+        Ok(slot)
+    }
+
+    /// [`Pool::reset_envs`], with the observations copied into `obs_out` (`num_envs x
+    /// obs_bytes`) like [`Pool::reset`].
+    pub fn reset_envs_into(
+        &mut self,
+        mask: &[bool],
+        obs_out: &mut [u8],
+        out: &mut BatchOutput,
+    ) -> Result<(), PoolError> {
+        self.check_obs_buf(obs_out)?;
+        self.reset_masked(mask, 0, Some(obs_out), out)
+    }
+
+    fn reset_masked(
+        &mut self,
+        mask: &[bool],
+        target: u32,
+        obs_out: Option<&mut [u8]>,
+        out: &mut BatchOutput,
+    ) -> Result<(), PoolError> {
+        self.check_usable()?;
+        if mask.len() != self.core.cfg.num_envs {
+            return Err(PoolError::BadBuffer {
+                what: "reset mask",
+                expected: self.core.cfg.num_envs,
+                got: mask.len(),
+            });
+        }
+        if self.core.must_reset {
+            return Err(PoolError::State(
+                "a partial reset needs every env started: call a full reset() first (after creation, set_seeds or a worker failure)".into(),
+            ));
+        }
+        self.all_idle()?;
+        for k in 0..self.core.slots.len() {
+            self.core.send_reset_masked(k, target, Some(mask))?;
+        }
+        self.gather_all(obs_out, out)
+    }
+
+    /// Like [`Pool::step`], but the workers write the observations straight into the next
+    /// slot of the pool's shared batch buffer (zero-copy sync step); returns the slot index
+    /// for [`Pool::shared_obs`]. Slots alternate (double buffering): the observations of slot
+    /// `s` stay unchanged until the second `*_shared` call after the one that returned `s`.
+    pub fn step_shared(
+        &mut self,
+        actions: &[i64],
+        out: &mut BatchOutput,
+    ) -> Result<usize, PoolError> {
+        self.check_usable()?;
+        if actions.len() != self.core.cfg.num_envs {
+            return Err(PoolError::BadActionsLength {
+                expected: self.core.cfg.num_envs,
+                got: actions.len(),
+            });
+        }
+        self.check_actions(actions, 0..actions.len())?;
+        if self.core.must_reset {
+            return Err(PoolError::State(
+                "call reset() before step() (after creation or after a worker failure)".into(),
+            ));
+        }
+        self.all_idle()?;
+        let epw = self.core.epw;
+        let slot = self.core.next_slot;
+        for k in 0..self.core.slots.len() {
+            self.core
+                .send_step(k, &actions[k * epw..(k + 1) * epw], slot as u32 + 1)?;
+        }
+        self.gather_all(None, out)?;
+        self.core.next_slot = (slot + 1) % BATCH_SLOTS;
+        Ok(slot)
+    }
+
+    /// The observations of shared batch slot `slot` (`num_envs x obs_bytes`, env-major,
+    /// 64-byte aligned). See [`Pool::step_shared`] for when they are valid.
+    pub fn shared_obs(&self, slot: usize) -> &[u8] {
+        let n = self.core.cfg.num_envs * self.core.layout.obs_bytes;
+        match &self.core.batch {
+            // SAFETY: the slot lies inside the mapping. Workers write a slot only during a
+            // `*_shared` call, which needs `&mut self`: none runs while this borrow lives.
+            Some(b) if slot < BATCH_SLOTS => unsafe {
+                std::slice::from_raw_parts(b.as_ptr().add(slot * self.core.slot_bytes), n)
+            },
+            _ => &[],
+        }
+    }
+
+    /// The shared batch buffer itself: slot `s` starts at byte `s * shared_slot_bytes()`.
+    /// Holding this `Arc` keeps the mapping valid even after [`Pool::close`] (e.g. as the base
+    /// object of numpy views); `None` after close.
+    pub fn shared_buffer(&self) -> Option<std::sync::Arc<rogue_gym_ipc::SharedBuffer>> {
+        self.core.batch.clone()
+    }
+
+    /// Distance in bytes between two shared batch slots.
+    pub fn shared_slot_bytes(&self) -> usize {
+        self.core.slot_bytes
+    }
+
+    /// Raw pointer to shared batch slot `slot` (for zero-copy views in other languages; keep
+    /// [`Pool::shared_buffer`] alive with the view). Null after `close`.
+    pub fn shared_obs_ptr(&self, slot: usize) -> *const u8 {
+        match &self.core.batch {
+            Some(b) if slot < BATCH_SLOTS => {
+                // SAFETY: the offset stays inside the mapping.
+                unsafe { b.as_ptr().add(slot * self.core.slot_bytes) }
+            }
+            _ => std::ptr::null(),
+        }
+    }
+
+    fn gather_all(
+        &mut self,
+        mut obs_out: Option<&mut [u8]>,
+        out: &mut BatchOutput,
+    ) -> Result<(), PoolError> {
+        // Copy each block as soon as it arrives, overlapping with the other workers' steps.
+        let w = self.core.slots.len();
+        let blk_bytes = self.core.epw * self.core.layout.obs_bytes;
+        let mut blocks: Vec<Option<Block>> = (0..w).map(|_| None).collect();
+        let mut got = 0;
+        while got < w {
+            self.wait_until(|c| !c.ready_order.is_empty())?;
+            while let Some(k) = self.core.ready_order.pop_front() {
+                let b = self.core.take_block(k)?;
+                if let Some(o) = obs_out.as_deref_mut() {
+                    o[k * blk_bytes..(k + 1) * blk_bytes].copy_from_slice(b.obs());
+                }
+                blocks[k] = Some(b);
+                got += 1;
+            }
+        }
+        out.clear();
+        let n_info = self.core.spec.info_names.len();
+        let batch = Batch {
+            blocks: blocks.into_iter().flatten().collect(),
+        };
+        batch.fill_append(n_info, out);
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn assert_send<T: Send>() {}
+
+    #[test]
+    fn actions_are_validated_with_env_and_value() {
+        assert!(validate_actions(&[0, 10, 5], 0..3, 11).is_ok());
+        let e = validate_actions(&[0, 11], 4..6, 11).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "env 5: action 11 is out of range; valid actions are 0..11"
+        );
+        assert!(matches!(
+            validate_actions(&[-1], 0..1, 11),
+            Err(PoolError::BadAction {
+                env: 0,
+                value: -1,
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn pool_and_block_are_send() {
+        assert_send::<Pool>();
+        assert_send::<Block>();
+        assert_send::<Batch>();
+    }
+}

@@ -1,0 +1,343 @@
+//! The worker processes seen from the supervisor: spawning, commands, receiving blocks, and
+//! detecting and handling dead or hung workers.
+
+use std::fs;
+use std::io::{Read, Seek, SeekFrom};
+use std::ops::Range;
+use std::os::unix::process::ExitStatusExt;
+use std::path::PathBuf;
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::time::Instant;
+
+use rogue_gym_ipc::{BlockSample, SupervisorPorts};
+
+use super::Core;
+use crate::batch::Block;
+use crate::config::{AutoresetMode, FailurePolicy};
+use crate::error::{FailureCause, PoolError, WorkerFailure, signal_name};
+use crate::wire::{
+    BLOCK_DATA, BLOCK_READY, CMD_RESET, CMD_STEP, KEEP_EPISODE, RELOAD_SEEDS, TARGET_SHIFT,
+};
+
+pub(super) enum SlotState {
+    /// Process started, waiting for its READY block.
+    Starting { since: Instant, then_reset: bool },
+    /// Nothing outstanding.
+    Idle,
+    /// A command is outstanding.
+    Pending { since: Instant },
+    /// Its answer has arrived and waits to be handed out.
+    Ready(BlockSample),
+}
+
+pub(super) struct WorkerSlot {
+    pub(super) ports: SupervisorPorts,
+    pub(super) child: Option<Child>,
+    pub(super) pid: u32,
+    pub(super) generation: u64,
+    pub(super) seq: u64,
+    pub(super) state: SlotState,
+    pub(super) restarted: bool,
+    pub(super) stderr_path: PathBuf,
+    /// Observation target of the last command (see `TARGET_SHIFT`).
+    pub(super) target: u32,
+}
+
+fn stderr_tail(path: &PathBuf) -> String {
+    const N: u64 = 2048;
+    let Ok(mut f) = fs::File::open(path) else {
+        return String::new();
+    };
+    let len = f.metadata().map(|m| m.len()).unwrap_or(0);
+    let _ = f.seek(SeekFrom::Start(len.saturating_sub(N)));
+    let mut buf = Vec::new();
+    let _ = f.read_to_end(&mut buf);
+    String::from_utf8_lossy(&buf).into_owned()
+}
+
+fn status_parts(st: &ExitStatus) -> (Option<i32>, Option<i32>) {
+    (st.code(), st.signal())
+}
+
+impl Core {
+    pub(super) fn env_range(&self, k: usize) -> Range<usize> {
+        k * self.epw..(k + 1) * self.epw
+    }
+
+    pub(super) fn spawn(&mut self, k: usize, then_reset: bool) -> Result<(), PoolError> {
+        let generation = self.slots[k].generation;
+        let log = self.id.aux_dir().join(format!("w{k}.g{generation}.stderr"));
+        let file = fs::File::create(&log)
+            .map_err(|e| PoolError::Io(format!("cannot create {}: {e}", log.display())))?;
+        let w = &self.cfg.worker;
+        let child = Command::new(&w.program)
+            .args(&w.args)
+            .arg("--config")
+            .arg(&self.config_path)
+            .args(["--index", &k.to_string()])
+            .args(["--generation", &generation.to_string()])
+            .args(["--ppid", &std::process::id().to_string()])
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(file)
+            .spawn()
+            .map_err(|e| PoolError::StartFailed {
+                worker: k,
+                reason: format!(
+                    "cannot execute {} {:?}: {e}; check the worker command (program and leading args)",
+                    w.program.display(),
+                    w.args
+                ),
+                stderr_tail: String::new(),
+            })?;
+        let s = &mut self.slots[k];
+        s.pid = child.id();
+        s.child = Some(child);
+        s.stderr_path = log;
+        s.state = SlotState::Starting {
+            since: Instant::now(),
+            then_reset,
+        };
+        Ok(())
+    }
+
+    pub(super) fn send_reset(&mut self, k: usize, target: u32) -> Result<(), PoolError> {
+        self.send_reset_masked(k, target, None)
+    }
+
+    /// Reset command to worker `k`; with `mask` (the whole pool's), envs whose entry is false
+    /// get [`KEEP_EPISODE`] (keep state, re-write the current observation).
+    pub(super) fn send_reset_masked(
+        &mut self,
+        k: usize,
+        target: u32,
+        mask: Option<&[bool]>,
+    ) -> Result<(), PoolError> {
+        let range = self.env_range(k);
+        let eps: Vec<u64> = range
+            .map(|i| {
+                if mask.is_some_and(|m| !m[i]) {
+                    KEEP_EPISODE
+                } else {
+                    self.cur_episode[i].map_or(0, |e| e + 1)
+                }
+            })
+            .collect();
+        let reload = if std::mem::take(&mut self.reload_seeds[k]) {
+            RELOAD_SEEDS
+        } else {
+            0
+        };
+        let s = &mut self.slots[k];
+        s.seq += 1;
+        s.target = target;
+        s.ports.send_cmd(
+            s.seq,
+            CMD_RESET | (target << TARGET_SHIFT) | reload,
+            eps.len(),
+            |p| p.copy_from_slice(&eps),
+        )?;
+        s.state = SlotState::Pending {
+            since: Instant::now(),
+        };
+        Ok(())
+    }
+
+    pub(super) fn send_step(
+        &mut self,
+        k: usize,
+        actions: &[i64],
+        target: u32,
+    ) -> Result<(), PoolError> {
+        let s = &mut self.slots[k];
+        s.seq += 1;
+        s.target = target;
+        let kind = CMD_STEP | (target << TARGET_SHIFT);
+        s.ports.send_cmd(s.seq, kind, actions.len(), |p| {
+            for (d, a) in p.iter_mut().zip(actions) {
+                *d = *a as u64;
+            }
+        })?;
+        s.state = SlotState::Pending {
+            since: Instant::now(),
+        };
+        Ok(())
+    }
+
+    pub(super) fn take_block(&mut self, k: usize) -> Result<Block, PoolError> {
+        let s = &mut self.slots[k];
+        match std::mem::replace(&mut s.state, SlotState::Idle) {
+            SlotState::Ready(sample) => {
+                let restarted = std::mem::take(&mut s.restarted);
+                Ok(Block {
+                    worker: k,
+                    env_start: k * self.epw,
+                    layout: self.layout,
+                    restarted,
+                    sample,
+                })
+            }
+            other => {
+                s.state = other;
+                Err(PoolError::State(format!("worker {k} has no block ready")))
+            }
+        }
+    }
+
+    /// Take every available block of starting and pending workers.
+    pub(super) fn poll_all(&mut self) -> Result<(), PoolError> {
+        for k in 0..self.slots.len() {
+            loop {
+                let s = &mut self.slots[k];
+                if !matches!(
+                    s.state,
+                    SlotState::Starting { .. } | SlotState::Pending { .. }
+                ) {
+                    break;
+                }
+                let Some(sample) = s.ports.try_recv()? else {
+                    break;
+                };
+                let h = *sample.user_header();
+                if h.generation != s.generation {
+                    continue; // from a dead incarnation
+                }
+                match (&s.state, h.kind) {
+                    (SlotState::Starting { then_reset, .. }, BLOCK_READY) => {
+                        if *then_reset {
+                            drop(sample);
+                            // Same observation target as the interrupted command.
+                            let target = s.target;
+                            self.send_reset(k, target)?;
+                        } else {
+                            s.state = SlotState::Idle;
+                        }
+                    }
+                    (SlotState::Pending { .. }, BLOCK_DATA) if h.seq == s.seq => {
+                        let same_step = self.cfg.autoreset == AutoresetMode::SameStep;
+                        for j in 0..self.epw {
+                            let r = self.layout.record(sample.payload(), j);
+                            let done = r.terminated() || r.truncated();
+                            // In SAME_STEP mode a finished env already started the next
+                            // episode (not yet reported).
+                            self.cur_episode[k * self.epw + j] =
+                                Some(r.episode + u64::from(same_step && done));
+                            self.cur_seed[k * self.epw + j] = r.seed;
+                        }
+                        self.slots[k].state = SlotState::Ready(sample);
+                        self.ready_order.push_back(k);
+                    }
+                    _ => {} // stale answer: drop it
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Detect dead and hung workers; restart them or fail per policy.
+    pub(super) fn check_liveness(&mut self) -> Result<(), PoolError> {
+        for k in 0..self.slots.len() {
+            let range = self.env_range(k);
+            let s = &mut self.slots[k];
+            let (since, starting) = match s.state {
+                SlotState::Starting { since, .. } => (since, true),
+                SlotState::Pending { since } => (since, false),
+                _ => continue,
+            };
+            let exited = match s.child.as_mut() {
+                Some(ch) => ch.try_wait().ok().flatten(),
+                None => None,
+            };
+            let limit = if starting {
+                Some(self.cfg.start_timeout)
+            } else {
+                self.cfg.step_timeout
+            };
+            let hung = exited.is_none() && limit.is_some_and(|l| since.elapsed() > l);
+            if exited.is_none() && !hung {
+                continue;
+            }
+            if hung && let Some(ch) = s.child.as_mut() {
+                let _ = ch.kill();
+            }
+            let status = match (exited, s.child.as_mut()) {
+                (Some(st), _) => Some(st),
+                (None, Some(ch)) => ch.wait().ok(),
+                (None, None) => None,
+            };
+            s.child = None;
+            let (code, signal) = status.as_ref().map(status_parts).unwrap_or((None, None));
+            let tail = stderr_tail(&s.stderr_path);
+            if starting {
+                let reason = if hung {
+                    format!(
+                        "not ready within start_timeout {:?} (killed)",
+                        self.cfg.start_timeout
+                    )
+                } else {
+                    match (signal, code) {
+                        (Some(sig), _) => {
+                            format!(
+                                "killed by signal {sig} ({}) during start-up",
+                                signal_name(sig)
+                            )
+                        }
+                        (None, Some(c)) => format!("exited with code {c} during start-up"),
+                        _ => "died during start-up".into(),
+                    }
+                };
+                return Err(PoolError::StartFailed {
+                    worker: k,
+                    reason,
+                    stderr_tail: tail,
+                });
+            }
+            let failure = WorkerFailure {
+                worker: k,
+                env_ids: range.clone(),
+                pid: s.pid,
+                cause: if hung {
+                    FailureCause::Hung(limit.unwrap_or_default())
+                } else {
+                    FailureCause::Died
+                },
+                exit_code: code,
+                signal,
+                seeds: self.cur_seed[range.clone()].to_vec(),
+                stderr_tail: tail,
+            };
+            self.handle_failure(k, failure)?;
+        }
+        Ok(())
+    }
+
+    pub(super) fn handle_failure(
+        &mut self,
+        k: usize,
+        failure: WorkerFailure,
+    ) -> Result<(), PoolError> {
+        rogue_gym_ipc::cleanup_dead_nodes(&self.id)?;
+        // Drop whatever the dead incarnation left in the queue.
+        while self.slots[k].ports.try_recv()?.is_some() {}
+        self.ready_order.retain(|&w| w != k);
+        self.slots[k].generation += 1;
+        match self.cfg.on_worker_failure {
+            FailurePolicy::Raise => {
+                self.spawn(k, false)?;
+                self.must_reset = true;
+                Err(PoolError::WorkerFailed(Box::new(failure)))
+            }
+            FailurePolicy::Restart => {
+                self.restarts += 1;
+                if self.restarts > self.cfg.max_restarts {
+                    return Err(PoolError::RestartBudgetExceeded {
+                        max_restarts: self.cfg.max_restarts,
+                        last: Box::new(failure),
+                    });
+                }
+                self.slots[k].restarted = true;
+                self.spawn(k, true)
+            }
+        }
+    }
+}
