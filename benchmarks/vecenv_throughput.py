@@ -72,13 +72,15 @@ SHORT_NUM_ENVS = [8, 64]
 NUM_ACTIONS = 11
 ACTION_SEED = 12345
 HEADLINE_ENVS = 64
-PAPER_CONFIG: Dict[str, Any] = {
-    "width": 32,
-    "height": 16,
-    "hide_dungeon": True,
-    "dungeon": {"style": "rogue", "room_num_x": 2, "room_num_y": 2},
-    "enemies": {"enemies": []},
-}
+
+
+def _paper_config() -> Dict[str, Any]:
+    """The paper's game config (the suites' copy: no training seed range)."""
+    from rogue_gym.suites import PAPER_CONFIG
+
+    return dict(PAPER_CONFIG)
+
+
 MAX_STEPS = 500
 STAIR_REWARD = 50.0
 
@@ -104,7 +106,7 @@ def make_single_env(enc: str) -> Any:
 
     obs, dtype = _encoding(enc)
     kwargs: Dict[str, Any] = {
-        "config_dict": dict(PAPER_CONFIG),
+        "config_dict": _paper_config(),
         "max_steps": MAX_STEPS,
         "stair_reward": STAIR_REWARD,
         "obs": obs,
@@ -122,7 +124,7 @@ def make_pool(
 
     obs, dtype = _encoding(enc)
     kwargs: Dict[str, Any] = {
-        "config": dict(PAPER_CONFIG),
+        "config": _paper_config(),
         "max_steps": MAX_STEPS,
         "stair_reward": STAIR_REWARD,
         "obs": obs,

@@ -34,7 +34,10 @@ pub enum Action {
     Search = 10,
 }
 
-const KEYS: [char; NUM_ACTIONS] = ['.', 'h', 'j', 'k', 'l', 'n', 'b', 'u', 'y', '>', 's'];
+/// The key of each action, in index order (the original's order): `j` moves down, `k` up.
+pub const ACTION_KEYS: &str = ".hjklnbuy>s";
+
+const _: () = assert!(ACTION_KEYS.len() == NUM_ACTIONS);
 
 impl Action {
     /// All actions in index order.
@@ -59,12 +62,12 @@ impl Action {
 
     /// The action of a key: one of `. h j k l n b u y > s`.
     pub fn from_key(c: char) -> Option<Action> {
-        KEYS.iter().position(|&k| k == c).map(|i| Action::ALL[i])
+        ACTION_KEYS.find(c).map(|i| Action::ALL[i])
     }
 
     /// This action's key.
     pub fn key(self) -> char {
-        KEYS[self as usize]
+        ACTION_KEYS.as_bytes()[self as usize] as char
     }
 
     /// This action's index.

@@ -41,7 +41,7 @@ mod symbol;
 #[cfg(test)]
 mod tests;
 
-pub use action::{Action, Command, NUM_ACTIONS};
+pub use action::{ACTION_KEYS, Action, Command, NUM_ACTIONS};
 pub use config::{ConfigError, GameConfig};
 pub use game::{EpisodeConfig, EpisodeInfo, Game, StepResult};
 pub use obs::{Dtype, Encoding, ObsBufMut, ObsError, ObsSpec, Status, StatusFlags};

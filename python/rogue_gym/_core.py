@@ -8,15 +8,13 @@ alternately (double buffering: the workers write the slot not returned last time
 from __future__ import annotations
 
 import json
-import os
-import sys
 import weakref
-from typing import Any, Mapping, Optional, Sequence, Union
+from typing import Any, Mapping, Optional
 
 import numpy as np
 
 from . import _native
-from ._config import ConfigLike, resolve_config, to_json
+from ._config import resolve_config, to_json
 from ._records import (
     FLAG_FINAL_OBS,
     FLAG_RESTARTED,
@@ -24,17 +22,16 @@ from ._records import (
     FLAG_TRUNCATED,
     RECORD_DTYPE,
 )
-from .envs.image import ObsSpec, StatusFlag, observation_space
-from .envs.rogue_env import ACTIONS
+from .envs.image import ObsSpec, observation_space
+from .settings import PoolSettings, SeedsLike
+
+ACTIONS: str = _native.ACTION_KEYS
 
 __all__ = ["ActionHistory", "PoolCore", "SeedsLike", "screen_to_rgb"]
-
-SeedsLike = Union[None, Sequence[int], range, tuple]
 
 #: Info values of the rogue env kind that are flags (the rest are integers).
 _BOOL_INFO = {"died", "won"}
 
-_FAILURE_POLICIES = ("restart", "raise")
 
 #: :meth:`PoolCore.step_columns` summary bit: some env's worker was restarted.
 SUMMARY_RESTARTED = 1 << 8
@@ -78,60 +75,19 @@ def _seed_set(seeds: SeedsLike, config: Mapping[str, Any]) -> Optional[dict[str,
 class PoolCore:
     """Native pool + batch buffers + record decoding. Internal: use the facades."""
 
-    def __init__(
-        self,
-        num_envs: int,
-        config: ConfigLike = None,
-        *,
-        num_workers: Optional[int] = None,
-        seed: Optional[int] = None,
-        seeds: SeedsLike = None,
-        seed_policy: str = "sample",
-        obs: str = "symbol_onehot",
-        dtype: str = "uint8",
-        status: Union[int, StatusFlag] = 0,
-        normalize_status: bool = False,
-        history: bool = False,
-        max_steps: int = 1000,
-        stair_reward: float = 50.0,
-        same_step: bool = False,
-        on_worker_failure: str = "restart",
-        step_timeout: Optional[float] = 60.0,
-        max_restarts: Optional[int] = 100,
-        worker_command: Optional[Sequence[str]] = None,
-        batch_size: Optional[int] = None,
-    ) -> None:
-        num_envs = int(num_envs)
-        if num_envs <= 0:
-            raise ValueError(f"num_envs must be positive, got {num_envs}")
-        if num_workers is None:
-            num_workers = min(num_envs, os.cpu_count() or 1)
-            while num_envs % num_workers:
-                num_workers -= 1
-        num_workers = int(num_workers)
-        if not 0 < num_workers <= num_envs or num_envs % num_workers:
-            raise ValueError(
-                f"num_workers must divide num_envs (each worker hosts the same number of envs); "
-                f"got num_envs={num_envs}, num_workers={num_workers}"
-            )
-        if on_worker_failure not in _FAILURE_POLICIES:
-            raise ValueError(
-                f"on_worker_failure must be one of {_FAILURE_POLICIES}, got {on_worker_failure!r}"
-            )
-        if seed_policy not in ("sample", "sequential"):
-            raise ValueError(f"seed_policy must be 'sample' or 'sequential', got {seed_policy!r}")
-        if int(max_steps) <= 0:
-            raise ValueError(f"max_steps must be positive, got {max_steps}")
-        self.config = resolve_config(config)
-        self.spec = ObsSpec(obs, dtype, status, normalize_status, history).validated()
-        self.num_envs = num_envs
-        self.num_workers = num_workers
-        self.max_steps = int(max_steps)
-        self.stair_reward = float(stair_reward)
+    def __init__(self, settings: PoolSettings, *, same_step: bool = False) -> None:
+        st = settings.checked()
+        self.settings = st
+        self.config = resolve_config(st.config)
+        self.spec = ObsSpec(
+            st.obs, st.dtype, st.status, st.normalize_status, st.history
+        ).validated()
+        self.num_envs = st.num_envs
+        self.num_workers = int(st.num_workers or 1)
+        self.max_steps = st.max_steps
+        self.stair_reward = st.stair_reward
         self.same_step = bool(same_step)
-        if seed is None:
-            seed = int(np.random.default_rng().integers(0, 2**63))
-        self.base_seed = int(seed)
+        self.base_seed = int(st.seed or 0)
         # A local game validates the config (ValueError naming the key) and gives the spaces.
         probe = _native.Game(to_json(self.config), self.max_steps, self.stair_reward)
         self.obs_shape = tuple(probe.obs_shape(self.spec))
@@ -139,9 +95,9 @@ class PoolCore:
         self.symbols = int(probe.symbols)
         self.single_observation_space = observation_space(self.spec, self.obs_shape, self.symbols)
         self._settings: dict[str, Any] = {
-            "num_envs": num_envs,
-            "num_workers": num_workers,
-            "batch_size": batch_size,
+            "num_envs": self.num_envs,
+            "num_workers": self.num_workers,
+            "batch_size": st.batch_size,
             "env": {
                 "kind": "rogue",
                 "config": self.config,
@@ -151,32 +107,28 @@ class PoolCore:
             },
             "seeds": {
                 "base": self.base_seed,
-                "set": _seed_set(seeds, self.config),
-                "policy": seed_policy,
+                "set": _seed_set(st.seeds, self.config),
+                "policy": st.seed_policy,
             },
             "autoreset": "same_step" if self.same_step else "next_step",
-            "on_worker_failure": on_worker_failure,
-            "step_timeout_s": None if step_timeout is None else float(step_timeout),
-            "max_restarts": None if max_restarts is None else int(max_restarts),
+            "on_worker_failure": st.on_worker_failure,
+            "step_timeout": st.step_timeout,
+            "max_restarts": st.max_restarts,
         }
-        self._cmd = (
-            list(worker_command)
-            if worker_command is not None
-            else [sys.executable, "-m", "rogue_gym.worker"]
-        )
+        self._cmd = list(st.worker_command or [])
         self._pool: Any = None
         self._fresh = False  # the pool has not been reset since it started
         self._closed = False
         self._finalizer: Optional[weakref.finalize] = None
-        batch_shape = (num_envs, *self.obs_shape)
+        batch_shape = (self.num_envs, *self.obs_shape)
         # Double buffer: the workers write each step's observations straight into one of two
         # shared-memory batch slots, alternately, so the batch returned by the previous call
         # stays intact while the next one is written. (Set by start().)
         self._bufs: list[np.ndarray] = []
         self._final = np.zeros(batch_shape, self.obs_dtype) if self.same_step else None
-        self._recs = [np.zeros(num_envs, RECORD_DTYPE) for _ in range(2)]
+        self._recs = [np.zeros(self.num_envs, RECORD_DTYPE) for _ in range(2)]
         self._slot = 0
-        self._actions = np.zeros(num_envs, np.int64)
+        self._actions = np.zeros(self.num_envs, np.int64)
         self.last_actions = self._actions
         self._cols: list[dict[str, np.ndarray]] = []
         self._info_templates: list[dict[str, Any]] = []

@@ -7,6 +7,14 @@ import numpy as np
 ACTION_KEYS: str
 NUM_ACTIONS: int
 RECORD_BYTES: int
+MAX_INFO: int
+FLAG_TERMINATED: int
+FLAG_TRUNCATED: int
+FLAG_RESTARTED: int
+FLAG_FINAL_OBS: int
+PAPER_CONFIG_JSON: str
+
+def normalize_obs_spec(spec: Any) -> dict[str, Any]: ...
 
 class Game:
     """One Rogue-Gym game running in this process."""
@@ -14,9 +22,7 @@ class Game:
     width: int
     height: int
     symbols: int
-    def __init__(
-        self, config_json: str, max_steps: int = 1000, stair_reward: float = 0.0
-    ) -> None: ...
+    def __init__(self, config_json: str, max_steps: int, stair_reward: float) -> None: ...
     def reset(self, seed: int) -> None: ...
     def step(self, index: int) -> tuple[float, bool, bool]: ...
     def step_key(self, key: str) -> tuple[float, bool, bool]: ...

@@ -59,6 +59,7 @@ from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from . import _native
 from .suites import Suite, get_suite, suite_names
 
 __all__ = [
@@ -74,7 +75,7 @@ __all__ = [
 ]
 
 #: Size of the action space (``. h j k l n b u y > s``).
-NUM_ACTIONS = 11
+NUM_ACTIONS: int = _native.NUM_ACTIONS
 
 Policy = Callable[[np.ndarray], Any]
 

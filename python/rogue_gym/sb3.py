@@ -7,7 +7,7 @@ import SB3 or torch.
 from __future__ import annotations
 
 import time
-from typing import Any, Iterable, Optional, Sequence, Union
+from typing import Any, Iterable, Optional, Sequence
 
 import gymnasium as gym
 import numpy as np
@@ -15,9 +15,9 @@ from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
 from ._config import ConfigLike
-from ._core import ActionHistory, PoolCore, SeedsLike, screen_to_rgb
-from .envs.image import StatusFlag
+from ._core import ActionHistory, PoolCore, screen_to_rgb
 from .envs.rogue_env import ACTIONS
+from .settings import PoolSettings
 
 __all__ = ["RogueVecEnv"]
 
@@ -25,9 +25,9 @@ __all__ = ["RogueVecEnv"]
 class RogueVecEnv(VecEnv):
     """``num_envs`` Rogue-Gym games in worker processes, with SB3's ``VecEnv`` API.
 
-    The constructor takes the same arguments as :class:`rogue_gym.vector.RogueVectorEnv`
-    (less ``autoreset_mode`` and ``copy``; ``render_mode`` is ``None``, ``"ansi"`` or
-    ``"rgb_array"``).
+    The constructor takes ``num_envs``, ``config`` and the other fields of
+    :class:`rogue_gym.settings.PoolSettings` as keywords, plus ``render_mode`` (``None``,
+    ``"ansi"`` or ``"rgb_array"``).
 
     * Same-step autoreset: when an episode ends, ``step_wait`` returns the next episode's first
       observation, with ``infos[i]["terminal_observation"]`` (the last observation, a copy) and
@@ -47,53 +47,19 @@ class RogueVecEnv(VecEnv):
 
     def __init__(
         self,
-        num_envs: int = 8,
-        config: ConfigLike = "paper",
+        num_envs: int = PoolSettings.num_envs,
+        config: ConfigLike = PoolSettings.config,
         *,
-        num_workers: Optional[int] = None,
-        seed: Optional[int] = None,
-        seeds: SeedsLike = None,
-        seed_policy: str = "sample",
-        obs: str = "symbol_onehot",
-        dtype: str = "uint8",
-        status: Union[int, StatusFlag] = 0,
-        normalize_status: bool = False,
-        history: bool = False,
-        max_steps: int = 500,
-        stair_reward: float = 50.0,
-        on_worker_failure: str = "restart",
-        step_timeout: Optional[float] = 60.0,
-        max_restarts: Optional[int] = 100,
         render_mode: Optional[str] = None,
-        worker_command: Optional[Sequence[str]] = None,
-        batch_size: Optional[int] = None,
+        **options: Any,
     ) -> None:
         if render_mode not in (None, "ansi", "rgb_array"):
             raise ValueError(
                 f"render_mode must be None, 'ansi' or 'rgb_array', got {render_mode!r}"
             )
         self._render_mode = render_mode
-        self._core = PoolCore(
-            num_envs,
-            config,
-            num_workers=num_workers,
-            seed=seed,
-            seeds=seeds,
-            seed_policy=seed_policy,
-            obs=obs,
-            dtype=dtype,
-            status=status,
-            normalize_status=normalize_status,
-            history=history,
-            max_steps=max_steps,
-            stair_reward=stair_reward,
-            same_step=True,
-            on_worker_failure=on_worker_failure,
-            step_timeout=step_timeout,
-            max_restarts=max_restarts,
-            worker_command=worker_command,
-            batch_size=batch_size,
-        )
+        settings = PoolSettings.from_kwargs({"num_envs": num_envs, "config": config, **options})
+        self._core = PoolCore(settings, same_step=True)
         super().__init__(
             self._core.num_envs, self._core.single_observation_space, spaces.Discrete(len(ACTIONS))
         )

@@ -1,4 +1,4 @@
-"""Named, frozen generalization suites (design §5).
+"""Named, frozen generalization suites .
 
 A suite pins everything that decides a score: the game config (``GameConfig`` JSON), the episode
 length, the stair reward, the training seeds and the test seeds. Agents train on
@@ -24,6 +24,8 @@ import json
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Tuple
 
+from ._config import PAPER_CONFIG as _PAPER
+
 __all__ = [
     "PAPER_CONFIG",
     "SUITES",
@@ -32,14 +34,8 @@ __all__ = [
     "suite_names",
 ]
 
-#: The paper's game config (agents/env.py of rogue-gym-agents-cog19, seed keys removed).
-PAPER_CONFIG: Dict[str, Any] = {
-    "width": 32,
-    "height": 16,
-    "hide_dungeon": True,
-    "dungeon": {"style": "rogue", "room_num_x": 2, "room_num_y": 2},
-    "enemies": {"enemies": []},
-}
+#: The paper's game config without its training ``seed_range`` (a suite names its seeds itself).
+PAPER_CONFIG: Dict[str, Any] = {k: v for k, v in _PAPER.items() if k != "seed_range"}
 
 #: The original game's default screen (80x24, 3x3 rooms) with all 26 monsters (the default).
 DEFAULT_80X24_CONFIG: Dict[str, Any] = {

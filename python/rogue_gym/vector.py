@@ -11,10 +11,10 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from ._config import ConfigLike
-from ._core import SUMMARY_FINAL, SUMMARY_RESTARTED, ActionHistory, PoolCore, SeedsLike
+from ._core import SUMMARY_FINAL, SUMMARY_RESTARTED, ActionHistory, PoolCore
 from ._records import RECORD_DTYPE
-from .envs.image import StatusFlag
 from .envs.rogue_env import ACTIONS
+from .settings import PoolSettings
 
 __all__ = ["RogueVectorEnv", "make_vec"]
 
@@ -55,30 +55,14 @@ class RogueVectorEnv(gym.vector.VectorEnv):
       :class:`rogue_gym.WorkerCrashedError` (``"raise"``).
 
     Args:
-        num_envs: number of games.
-        config: game config: ``"paper"`` (default: 32x16, 2x2 rooms, no monsters, seeds
-            [0, 40)), a dict, a JSON string or a path; ``{}`` is the original default game.
-        num_workers: worker processes (must divide ``num_envs``; default: one per CPU core).
-        seed: base of the episode-seed schedule (default: random).
-        seeds: the dungeons episodes are drawn from: a list, a ``range`` or ``(lo, hi)``
-            (default: the config's ``seed_range`` / ``seed``, else unrestricted).
-        seed_policy: ``"sample"`` (independent draws, training) or ``"sequential"`` (cover the
-            set evenly, evaluation).
-        obs, dtype, status, normalize_status, history: the observation encoding
-            (``symbol_onehot`` / ``symbol_index`` / ``gray`` / ``ascii`` / ``status``), its
-            dtype (``uint8`` / ``float32``), status planes (a :class:`StatusFlag` mask) and the
-            visited-history plane.
-        max_steps: episode step limit (truncation); default 500 as in the paper.
-        stair_reward: reward per new deepest floor, added to the gold gained (default 50).
+        num_envs, config: the number of games and their config (see
+            :class:`rogue_gym.settings.PoolSettings`).
         autoreset_mode: ``NEXT_STEP`` (default) or ``SAME_STEP``.
-        on_worker_failure: ``"restart"`` (default) or ``"raise"``.
-        step_timeout: seconds after which a silent worker counts as hung (``None``: never).
-        max_restarts: worker restarts allowed over the pool's life.
         copy: return a fresh observation array each call instead of the shared-memory view.
         render_mode: ``None``, ``"ansi"`` or ``"human"`` (records actions to replay screens).
-        worker_command: program and leading args of a worker (default:
-            ``[sys.executable, "-m", "rogue_gym.worker"]``).
-        batch_size: envs per async :meth:`recv` (a multiple of the envs per worker; default all).
+        **options: any other field of :class:`rogue_gym.settings.PoolSettings` (``num_workers``,
+            ``seed``, ``seeds``, ``obs``, ``dtype``, ``max_steps``, ``stair_reward``,
+            ``on_worker_failure``, ``step_timeout``, ...), each with its default there.
 
     **Array lifetimes.** The observation array returned by ``reset``/``step`` is a view of one
     of the pool's two shared-memory batch slots, which the workers write directly (zero-copy)
@@ -99,55 +83,21 @@ class RogueVectorEnv(gym.vector.VectorEnv):
 
     def __init__(
         self,
-        num_envs: int = 8,
-        config: ConfigLike = "paper",
+        num_envs: int = PoolSettings.num_envs,
+        config: ConfigLike = PoolSettings.config,
         *,
-        num_workers: Optional[int] = None,
-        seed: Optional[int] = None,
-        seeds: SeedsLike = None,
-        seed_policy: str = "sample",
-        obs: str = "symbol_onehot",
-        dtype: str = "uint8",
-        status: Union[int, StatusFlag] = 0,
-        normalize_status: bool = False,
-        history: bool = False,
-        max_steps: int = 500,
-        stair_reward: float = 50.0,
         autoreset_mode: Union[str, AutoresetMode] = AutoresetMode.NEXT_STEP,
-        on_worker_failure: str = "restart",
-        step_timeout: Optional[float] = 60.0,
-        max_restarts: Optional[int] = 100,
         copy: bool = False,
         render_mode: Optional[str] = None,
-        worker_command: Optional[Sequence[str]] = None,
-        batch_size: Optional[int] = None,
+        **options: Any,
     ) -> None:
         mode = _autoreset_mode(autoreset_mode)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}"
             )
-        self._core = PoolCore(
-            num_envs,
-            config,
-            num_workers=num_workers,
-            seed=seed,
-            seeds=seeds,
-            seed_policy=seed_policy,
-            obs=obs,
-            dtype=dtype,
-            status=status,
-            normalize_status=normalize_status,
-            history=history,
-            max_steps=max_steps,
-            stair_reward=stair_reward,
-            same_step=mode == AutoresetMode.SAME_STEP,
-            on_worker_failure=on_worker_failure,
-            step_timeout=step_timeout,
-            max_restarts=max_restarts,
-            worker_command=worker_command,
-            batch_size=batch_size,
-        )
+        settings = PoolSettings.from_kwargs({"num_envs": num_envs, "config": config, **options})
+        self._core = PoolCore(settings, same_step=mode == AutoresetMode.SAME_STEP)
         self.metadata = {**type(self).metadata, "autoreset_mode": mode}
         self.autoreset_mode = mode
         self.num_envs = self._core.num_envs
@@ -182,17 +132,6 @@ class RogueVectorEnv(gym.vector.VectorEnv):
 
     def _out(self, obs: np.ndarray) -> np.ndarray:
         return obs.copy() if self.copy else obs
-
-    def _infos(self, recs: np.ndarray, restarted: np.ndarray) -> dict[str, Any]:
-        infos: dict[str, Any] = {}
-        mask = np.ones(self.num_envs, bool)
-        for key, arr in self._core.info_arrays(recs).items():
-            infos[key] = arr
-            infos[f"_{key}"] = mask
-        if restarted.any():
-            infos["worker_restarted"] = restarted.copy()
-            infos["_worker_restarted"] = restarted.copy()
-        return infos
 
     def reset(
         self,
@@ -465,7 +404,9 @@ class RogueVectorEnv(gym.vector.VectorEnv):
         return f"RogueVectorEnv(num_envs={self.num_envs}, num_workers={self.num_workers})"
 
 
-def make_vec(num_envs: int = 8, config: ConfigLike = "paper", **kwargs: Any) -> RogueVectorEnv:
+def make_vec(
+    num_envs: int = PoolSettings.num_envs, config: ConfigLike = PoolSettings.config, **kwargs: Any
+) -> RogueVectorEnv:
     """Create a :class:`RogueVectorEnv` (``num_envs`` games in worker processes).
 
     Example::

@@ -43,7 +43,6 @@ impl PyGame {
 impl PyGame {
     /// Build a game from a JSON config, a step limit and the reward per new deepest floor.
     #[new]
-    #[pyo3(signature = (config_json, max_steps = 1000, stair_reward = 0.0))]
     fn new(config_json: &str, max_steps: u32, stair_reward: f32) -> PyResult<Self> {
         if max_steps == 0 {
             return Err(PyValueError::new_err("max_steps must be positive"));
@@ -230,7 +229,8 @@ impl PyGame {
 
 fn invalid_key(key: char) -> PyErr {
     PyValueError::new_err(format!(
-        "Invalid input key: {key:?} (expected one of \".hjklnbuy>s\", or HJKLYUBN to run)"
+        "Invalid input key: {key:?} (expected one of {:?}, or HJKLYUBN to run)",
+        rogue_gym_engine::ACTION_KEYS
     ))
 }
 

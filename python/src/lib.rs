@@ -8,8 +8,11 @@
 
 use pyo3::prelude::*;
 
+mod columns;
+mod errors;
 mod game;
 mod pool;
+mod settings;
 mod spec;
 mod summary;
 
@@ -30,11 +33,21 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<pool::PyPool>()?;
     m.add_class::<pool::BlockHolder>()?;
     m.add_class::<pool::SharedBatchHolder>()?;
-    m.add("RECORD_BYTES", pool::RECORD_BYTES)?;
+    m.add("RECORD_BYTES", columns::RECORD_BYTES)?;
     m.add_function(wrap_pyfunction!(game::action_from_key, m)?)?;
     m.add_function(wrap_pyfunction!(worker_main, m)?)?;
     m.add_function(wrap_pyfunction!(summary::floor_summary, m)?)?;
-    m.add("ACTION_KEYS", ".hjklnbuy>s")?;
+    m.add("ACTION_KEYS", rogue_gym_engine::ACTION_KEYS)?;
+    m.add("MAX_INFO", rogue_gym_pool::MAX_INFO)?;
+    m.add("FLAG_TERMINATED", rogue_gym_pool::FLAG_TERMINATED)?;
+    m.add("FLAG_TRUNCATED", rogue_gym_pool::FLAG_TRUNCATED)?;
+    m.add("FLAG_RESTARTED", rogue_gym_pool::FLAG_RESTARTED)?;
+    m.add("FLAG_FINAL_OBS", rogue_gym_pool::FLAG_FINAL_OBS)?;
+    m.add(
+        "PAPER_CONFIG_JSON",
+        rogue_gym_engine::GameConfig::paper().to_json(),
+    )?;
+    m.add_function(wrap_pyfunction!(spec::normalize_obs_spec, m)?)?;
     m.add("NUM_ACTIONS", rogue_gym_engine::NUM_ACTIONS)?;
     Ok(())
 }

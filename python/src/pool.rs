@@ -2,193 +2,22 @@
 //! as `python -m rogue_gym.worker`), with zero-copy views of worker blocks for the async API.
 
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
 
 use numpy::ndarray::ArrayView1;
-use numpy::npyffi::flags::NPY_ARRAY_WRITEABLE;
-use numpy::{
-    PyArray1, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray1, PyUntypedArray,
-    PyUntypedArrayMethods,
-};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyUntypedArray};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict, PyList};
+use pyo3::types::{PyBytes, PyList};
 use rogue_gym_pool::{
-    AutoresetMode, Batch, BatchOutput, Block, EnvRecord, EnvRegistry, FailurePolicy,
-    InterruptCheck, Pool, PoolConfig, PoolError, SeedSchedule, WorkerCommand, WorkerFailure,
+    Batch, BatchOutput, Block, EnvRecord, EnvRegistry, InterruptCheck, Pool, PoolError,
+    SeedSchedule,
 };
-use rogue_gym_pool::{FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED};
-use serde::Deserialize;
-use serde_json::Value;
 
-/// Bytes of one [`EnvRecord`] (the Python side mirrors it as a structured dtype).
-pub const RECORD_BYTES: usize = std::mem::size_of::<EnvRecord>();
-
-/// The pool settings the Python package sends (JSON).
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct PyPoolSettings {
-    env: Value,
-    num_envs: usize,
-    num_workers: usize,
-    #[serde(default)]
-    batch_size: Option<usize>,
-    #[serde(default)]
-    seeds: SeedSchedule,
-    #[serde(default)]
-    autoreset: AutoresetMode,
-    #[serde(default)]
-    on_worker_failure: FailurePolicy,
-    #[serde(default)]
-    step_timeout_s: Option<f64>,
-    #[serde(default)]
-    start_timeout_s: Option<f64>,
-    #[serde(default)]
-    max_restarts: Option<u32>,
-    #[serde(default)]
-    max_borrowed: Option<usize>,
-    #[serde(default)]
-    base_dir: Option<String>,
-}
-
-fn duration(what: &str, secs: f64) -> PyResult<Duration> {
-    Duration::try_from_secs_f64(secs).map_err(|_| {
-        PyValueError::new_err(format!(
-            "{what} must be a non-negative number of seconds, got {secs}"
-        ))
-    })
-}
-
-/// Map a pool error to the matching Python exception (never a panic).
-pub fn pool_error(py: Python<'_>, e: PoolError) -> PyErr {
-    match e {
-        PoolError::WorkerFailed(f) => crashed(py, &format!("{f}; call reset() to continue"), &f),
-        PoolError::RestartBudgetExceeded { max_restarts, last } => crashed(
-            py,
-            &format!("restart budget exhausted ({max_restarts} restarts); last failure: {last}"),
-            &last,
-        ),
-        e @ (PoolError::Config(_)
-        | PoolError::Env(_)
-        | PoolError::BadAction { .. }
-        | PoolError::BadActionsLength { .. }
-        | PoolError::BadBuffer { .. }) => PyValueError::new_err(e.to_string()),
-        e => PyRuntimeError::new_err(e.to_string()),
-    }
-}
-
-/// Build a `rogue_gym.errors.WorkerCrashedError` for a failure report.
-fn crashed(py: Python<'_>, msg: &str, f: &WorkerFailure) -> PyErr {
-    let build = || -> PyResult<PyErr> {
-        let cls = py
-            .import("rogue_gym.errors")?
-            .getattr("WorkerCrashedError")?;
-        let kw = PyDict::new(py);
-        kw.set_item("env", f.env_ids.start)?;
-        kw.set_item("envs", f.env_ids.clone().collect::<Vec<_>>())?;
-        kw.set_item("worker", f.worker)?;
-        kw.set_item("pid", f.pid)?;
-        kw.set_item("signal", f.signal)?;
-        kw.set_item("exit_code", f.exit_code)?;
-        kw.set_item("stderr_tail", &f.stderr_tail)?;
-        let err = cls.call((msg,), Some(&kw))?;
-        Ok(PyErr::from_value(err))
-    };
-    build().unwrap_or_else(|e| e)
-}
-
-/// A raw mutable byte buffer handed to code running without the GIL.
-struct RawBuf(*mut u8, usize);
-// SAFETY: the buffer belongs to a numpy array the caller keeps alive for the whole call; the
-// pointer is only dereferenced inside that call.
-unsafe impl Send for RawBuf {}
-
-impl RawBuf {
-    /// # Safety
-    /// The array behind the pointer must stay alive and unaliased while the slice is used.
-    unsafe fn slice<'a>(&self) -> &'a mut [u8] {
-        if self.1 == 0 {
-            return &mut [];
-        }
-        unsafe { std::slice::from_raw_parts_mut(self.0, self.1) }
-    }
-}
-
-/// The writable, C-contiguous bytes of a numpy array, checked against an expected size.
-fn raw_bytes(arr: &Bound<'_, PyUntypedArray>, what: &str, expected: usize) -> PyResult<RawBuf> {
-    if !arr.is_c_contiguous() {
-        return Err(PyValueError::new_err(format!(
-            "{what} must be C-contiguous"
-        )));
-    }
-    let ptr = arr.as_array_ptr();
-    // SAFETY: `ptr` is a live array object (we hold a reference to it).
-    let (data, flags) = unsafe { ((*ptr).fields.data as *mut u8, (*ptr).fields.flags) };
-    if flags & NPY_ARRAY_WRITEABLE == 0 {
-        return Err(PyValueError::new_err(format!("{what} must be writeable")));
-    }
-    let nbytes = arr.len() * arr.dtype().itemsize();
-    if nbytes != expected {
-        return Err(PyValueError::new_err(format!(
-            "{what} has {nbytes} bytes (shape {:?}, dtype {}), expected {expected}",
-            arr.shape(),
-            arr.dtype()
-        )));
-    }
-    Ok(RawBuf(data, nbytes))
-}
-
-fn record_flags(out: &BatchOutput, r: usize) -> u32 {
-    let mut f = 0;
-    if out.terminated[r] {
-        f |= FLAG_TERMINATED;
-    }
-    if out.truncated[r] {
-        f |= FLAG_TRUNCATED;
-    }
-    if out.restarted[r] {
-        f |= FLAG_RESTARTED;
-    }
-    if out.has_final_obs[r] {
-        f |= FLAG_FINAL_OBS;
-    }
-    f
-}
-
-/// Write the rows of `out` as [`EnvRecord`]s at their env ids into `recs`.
-fn write_records(out: &BatchOutput, n_info: usize, recs: &mut [u8]) {
-    for (r, &env) in out.env_ids.iter().enumerate() {
-        let mut rec = EnvRecord {
-            reward: out.reward[r],
-            flags: record_flags(out, r),
-            episode_return: out.episode_return[r],
-            episode: out.episode[r],
-            seed: out.seed[r],
-            episode_length: out.episode_length[r],
-            ..Default::default()
-        };
-        rec.info[..n_info].copy_from_slice(&out.info[r * n_info..(r + 1) * n_info]);
-        let dst = &mut recs[env * RECORD_BYTES..(env + 1) * RECORD_BYTES];
-        // SAFETY: EnvRecord is #[repr(C)] plain data of exactly RECORD_BYTES bytes.
-        let src = unsafe {
-            std::slice::from_raw_parts((&rec as *const EnvRecord).cast::<u8>(), RECORD_BYTES)
-        };
-        dst.copy_from_slice(src);
-    }
-}
-
-/// Copy the valid final observations of `out` to their env rows of `fin`.
-fn write_final(out: &BatchOutput, obs_bytes: usize, fin: &mut [u8]) {
-    if out.final_obs.is_empty() {
-        return;
-    }
-    for (r, &env) in out.env_ids.iter().enumerate() {
-        if out.has_final_obs[r] {
-            fin[env * obs_bytes..(env + 1) * obs_bytes]
-                .copy_from_slice(&out.final_obs[r * obs_bytes..(r + 1) * obs_bytes]);
-        }
-    }
-}
+use crate::columns::{
+    RECORD_BYTES, column_layout, raw_bytes, write_columns, write_final, write_records,
+};
+use crate::errors::pool_error;
+use crate::settings;
 
 /// Owner of one worker block (an iceoryx2 sample) behind zero-copy numpy views.
 ///
@@ -256,79 +85,6 @@ fn interrupt_check(slot: Arc<Mutex<Option<PyErr>>>) -> InterruptCheck {
             }
         })
     })
-}
-
-/// The column layout of a `bind_columns` buffer: `(name, numpy dtype, byte offset, rows)`; each
-/// column is `rows x num_envs` C-contiguous. Eight-byte columns come first (8-aligned).
-fn column_layout(
-    n: usize,
-    n_info: usize,
-) -> (Vec<(&'static str, &'static str, usize, usize)>, usize) {
-    let cols: [(&'static str, &'static str, usize, usize); 11] = [
-        ("reward", "float64", 8, 1),
-        ("seed", "uint64", 8, 1),
-        ("episode_index", "int64", 8, 1),
-        ("episode_return", "float64", 8, 1),
-        ("episode_length", "int64", 8, 1),
-        ("info_int", "int64", 8, n_info),
-        ("terminated", "bool", 1, 1),
-        ("truncated", "bool", 1, 1),
-        ("restarted", "bool", 1, 1),
-        ("has_final_obs", "bool", 1, 1),
-        ("info_bool", "bool", 1, n_info),
-    ];
-    let mut off = 0;
-    let mut v = Vec::with_capacity(cols.len());
-    for (name, dt, size, rows) in cols {
-        v.push((name, dt, off, rows));
-        off += size * rows * n;
-    }
-    (v, off)
-}
-
-/// Summary bit of `step_columns`: some env's worker was restarted.
-const SUMMARY_RESTARTED: usize = 1 << 8;
-/// Summary bit of `step_columns`: some env has a final observation (SAME_STEP).
-const SUMMARY_FINAL: usize = 1 << 9;
-
-/// Write the rows of `out` into a column buffer (see [`column_layout`]); returns the
-/// `SUMMARY_*` bits.
-///
-/// # Safety
-/// `base` must point to a live, 8-aligned, writable buffer of the layout's size.
-unsafe fn write_columns(out: &BatchOutput, n: usize, n_info: usize, base: *mut u8) -> usize {
-    let w = |col: usize| unsafe { base.cast::<u64>().add(col * n) };
-    let b8 = 8 * n * (5 + n_info);
-    let b = |col: usize| unsafe { base.add(b8 + col * n) };
-    let mut summary = 0;
-    for (r, &i) in out.env_ids.iter().enumerate() {
-        if i >= n {
-            continue;
-        }
-        unsafe {
-            *w(0).add(i) = f64::from(out.reward[r]).to_bits();
-            *w(1).add(i) = out.seed[r];
-            *w(2).add(i) = out.episode[r];
-            *w(3).add(i) = out.episode_return[r].to_bits();
-            *w(4).add(i) = u64::from(out.episode_length[r]);
-            for k in 0..n_info {
-                let v = out.info[r * n_info + k];
-                *w(5 + k).add(i) = (v as i64) as u64;
-                *b(4 + k).add(i) = u8::from(v != 0.0);
-            }
-            *b(0).add(i) = u8::from(out.terminated[r]);
-            *b(1).add(i) = u8::from(out.truncated[r]);
-            *b(2).add(i) = u8::from(out.restarted[r]);
-            *b(3).add(i) = u8::from(out.has_final_obs[r]);
-        }
-        if out.restarted[r] {
-            summary |= SUMMARY_RESTARTED;
-        }
-        if out.has_final_obs[r] {
-            summary |= SUMMARY_FINAL;
-        }
-    }
-    summary
 }
 
 impl PyPool {
@@ -407,36 +163,7 @@ impl PyPool {
     /// Start a pool (spawns the workers and waits until they are ready; GIL released).
     #[new]
     fn new(py: Python<'_>, settings_json: &str, worker_command: Vec<String>) -> PyResult<Self> {
-        let s: PyPoolSettings = serde_json::from_str(settings_json)
-            .map_err(|e| PyValueError::new_err(format!("invalid pool settings: {e}")))?;
-        let (program, args) = worker_command
-            .split_first()
-            .ok_or_else(|| PyValueError::new_err("worker_command must name a program"))?;
-        let worker = WorkerCommand {
-            program: program.into(),
-            args: args.to_vec(),
-        };
-        let mut cfg = PoolConfig::new(s.env, s.num_envs, s.num_workers, worker);
-        cfg.batch_size = s.batch_size;
-        cfg.seeds = s.seeds;
-        cfg.autoreset = s.autoreset;
-        cfg.on_worker_failure = s.on_worker_failure;
-        cfg.step_timeout = s
-            .step_timeout_s
-            .map(|t| duration("step_timeout", t))
-            .transpose()?;
-        if let Some(t) = s.start_timeout_s {
-            cfg.start_timeout = duration("start_timeout", t)?;
-        }
-        if let Some(m) = s.max_restarts {
-            cfg.max_restarts = m;
-        }
-        if let Some(m) = s.max_borrowed {
-            cfg.max_borrowed = m;
-        }
-        if let Some(d) = s.base_dir {
-            cfg.base_dir = d.into();
-        }
+        let cfg = settings::pool_config(settings_json, worker_command)?;
         let mut pool = py
             .detach(|| Pool::new(cfg, &EnvRegistry::with_defaults()))
             .map_err(|e| pool_error(py, e))?;

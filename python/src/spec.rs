@@ -1,50 +1,65 @@
-//! Conversion of Python observation specs (`rogue_gym.envs.ObsSpec`) into the engine's.
+//! Observation specs from Python (`rogue_gym.envs.ObsSpec`, a tuple or a dict) into the
+//! engine's. The engine's [`ObsSpec::from_json`] is the one parser: this module only gathers the
+//! five fields into its JSON form.
 
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
-use rogue_gym_engine::{Dtype, Encoding, ObsSpec, StatusFlags};
+use rogue_gym_engine::ObsSpec;
+use serde_json::{Map, Value};
 
-/// Parse `(encoding, dtype, status, normalize_status, history)` from an `ObsSpec` named tuple,
-/// a plain tuple or a dict with those keys.
+/// The fields of an observation spec, in tuple order.
+const FIELDS: [&str; 5] = ["encoding", "dtype", "status", "normalize_status", "history"];
+
+/// Parse an `ObsSpec` named tuple, a plain tuple or a dict with the five fields.
 pub fn parse_spec(obj: &Bound<'_, PyAny>) -> PyResult<ObsSpec> {
-    let field = |name: &str, idx: usize| -> PyResult<Bound<'_, PyAny>> {
-        if let Ok(d) = obj.cast::<PyDict>() {
-            return d
-                .get_item(name)?
-                .ok_or_else(|| PyValueError::new_err(format!("observation spec lacks {name:?}")));
-        }
-        if let Ok(t) = obj.cast::<PyTuple>() {
-            return t.get_item(idx);
-        }
-        obj.getattr(name)
-    };
-    let encoding: String = field("encoding", 0)?.extract()?;
-    let dtype: String = field("dtype", 1)?.extract()?;
-    let status: u16 = field("status", 2)?
-        .extract()
-        .map_err(|_| PyTypeError::new_err("observation spec status must be an int bit mask"))?;
-    let normalize_status: bool = field("normalize_status", 3)?.extract()?;
-    let history: bool = field("history", 4)?.extract()?;
-    let encoding: Encoding = match encoding.as_str() {
-        "status_vector" => Ok(Encoding::StatusVector),
-        other => other.parse(),
+    let mut map = Map::new();
+    for (idx, name) in FIELDS.iter().enumerate() {
+        let item = if let Ok(d) = obj.cast::<PyDict>() {
+            d.get_item(name)?
+        } else if let Ok(t) = obj.cast::<PyTuple>() {
+            Some(t.get_item(idx)?)
+        } else {
+            Some(obj.getattr(name)?)
+        };
+        let Some(item) = item else { continue };
+        let value = if let Ok(b) = item.extract::<bool>() {
+            Value::Bool(b)
+        } else if let Ok(n) = item.extract::<u64>() {
+            Value::from(n)
+        } else if let Ok(n) = item.extract::<i64>() {
+            Value::from(n)
+        } else if let Ok(s) = item.extract::<String>() {
+            Value::String(s)
+        } else {
+            return Err(PyValueError::new_err(format!(
+                "observation spec field {name} must be a str, an int or a bool, got {}",
+                item.get_type().name()?
+            )));
+        };
+        map.insert(name.to_string(), value);
     }
-    .map_err(|e| PyValueError::new_err(e.to_string()))?;
-    let dtype: Dtype = dtype
-        .parse()
-        .map_err(|e: rogue_gym_engine::ObsError| PyValueError::new_err(e.to_string()))?;
-    if status > StatusFlags::FULL.0 {
-        return Err(PyValueError::new_err(format!(
-            "status flags {status:#x} out of range (at most {:#x})",
-            StatusFlags::FULL.0
-        )));
+    ObsSpec::from_json(&Value::Object(map)).map_err(|e| PyValueError::new_err(e.to_string()))
+}
+
+/// `obs_spec(spec) -> dict`: the spec checked and normalised by the engine's parser (canonical
+/// names: `symbol_onehot`..., `uint8`/`float32`).
+#[pyfunction]
+pub fn normalize_obs_spec<'py>(
+    py: Python<'py>,
+    spec: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let s = parse_spec(spec)?;
+    let d = PyDict::new(py);
+    if let Value::Object(m) = s.to_json() {
+        for (k, v) in m {
+            match v {
+                Value::String(x) => d.set_item(k, x)?,
+                Value::Bool(x) => d.set_item(k, x)?,
+                Value::Number(x) => d.set_item(k, x.as_u64().unwrap_or(0))?,
+                _ => {}
+            }
+        }
     }
-    Ok(ObsSpec {
-        encoding,
-        dtype,
-        status: StatusFlags(status),
-        normalize_status,
-        history,
-    })
+    Ok(d)
 }

@@ -23,11 +23,11 @@ impl FromStr for Encoding {
     type Err = ObsError;
     fn from_str(s: &str) -> Result<Self, ObsError> {
         Ok(match s {
-            "symbol_onehot" => Encoding::SymbolOnehot,
-            "symbol_index" => Encoding::SymbolIndex,
+            "symbol_onehot" | "onehot" => Encoding::SymbolOnehot,
+            "symbol_index" | "index" => Encoding::SymbolIndex,
             "gray" => Encoding::Gray,
             "ascii" => Encoding::Ascii,
-            "status" => Encoding::StatusVector,
+            "status" | "status_vector" => Encoding::StatusVector,
             _ => {
                 return Err(ObsError::UnknownName {
                     what: "encoding",
@@ -144,6 +144,59 @@ pub struct ObsSpec {
 }
 
 impl ObsSpec {
+    /// The one parser of an observation spec, from its JSON object form
+    /// `{"encoding": .., "dtype": .., "status": bits, "normalize_status": .., "history": ..}`;
+    /// absent keys (or `null`) take [`ObsSpec::paper`]'s values. Errors name the key.
+    pub fn from_json(v: &serde_json::Value) -> Result<ObsSpec, ObsError> {
+        let mut s = ObsSpec::paper();
+        if v.is_null() {
+            return Ok(s);
+        }
+        let o = v
+            .as_object()
+            .ok_or_else(|| ObsError::Invalid(format!("must be an object, got {v}")))?;
+        for (k, x) in o {
+            let bad = |want: &str| ObsError::Invalid(format!("{k} must be {want}, got {x}"));
+            match k.as_str() {
+                "encoding" => s.encoding = x.as_str().ok_or_else(|| bad("a string"))?.parse()?,
+                "dtype" => s.dtype = x.as_str().ok_or_else(|| bad("a string"))?.parse()?,
+                "status" => {
+                    let bits = x
+                        .as_u64()
+                        .filter(|b| *b <= u64::from(StatusFlags::FULL.0))
+                        .ok_or_else(|| {
+                            bad(&format!("a bit mask in 0..={:#x}", StatusFlags::FULL.0))
+                        })?;
+                    s.status = StatusFlags(bits as u16);
+                }
+                "normalize_status" => {
+                    s.normalize_status = x.as_bool().ok_or_else(|| bad("a bool"))?
+                }
+                "history" => s.history = x.as_bool().ok_or_else(|| bad("a bool"))?,
+                _ => {
+                    return Err(ObsError::Invalid(format!(
+                        "unknown key {k:?} (known: encoding, dtype, status, normalize_status, history)"
+                    )));
+                }
+            }
+        }
+        Ok(s)
+    }
+
+    /// The spec's JSON object form (read back by [`ObsSpec::from_json`]).
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "encoding": self.encoding.to_string(),
+            "dtype": match self.dtype {
+                Dtype::U8 => "uint8",
+                Dtype::F32 => "float32",
+            },
+            "status": self.status.0,
+            "normalize_status": self.normalize_status,
+            "history": self.history,
+        })
+    }
+
     /// The paper's: symbol one-hot, u8, no status, no history (17x16x32 on the paper config).
     pub fn paper() -> ObsSpec {
         ObsSpec {
@@ -207,8 +260,11 @@ pub enum ObsError {
         /// The buffer's dtype.
         got: Dtype,
     },
+    /// A malformed observation spec (a wrong key or value type).
+    #[error("observation spec: {0}")]
+    Invalid(String),
     /// An unknown encoding or dtype name.
-    #[error("unknown {what} `{name}`")]
+    #[error("unknown observation {what} `{name}`: expected one of {}", if *what == "encoding" { "symbol_onehot, symbol_index, gray, ascii, status" } else { "uint8, float32" })]
     UnknownName {
         /// "encoding" or "dtype".
         what: &'static str,

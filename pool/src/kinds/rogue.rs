@@ -12,9 +12,7 @@
 //! `status` is the original's status bit set (1 dungeon level, 2 hp, 4 max hp, 8 str, 16 max
 //! str, 32 defense, 64 player level, 128 exp, 256 hunger; 511 all).
 
-use rogue_gym_engine::{
-    Action, EpisodeConfig, Game, GameConfig, ObsBufMut, ObsSpec, StatusFlags, obs,
-};
+use rogue_gym_engine::{Action, EpisodeConfig, Game, GameConfig, ObsBufMut, ObsSpec, obs};
 use serde_json::Value;
 
 use crate::env::{Dtype, Env, EnvError, EnvSpec, StepOutcome, bytes_as_f32_mut};
@@ -39,47 +37,6 @@ pub struct RogueEnv {
     spec: EnvSpec,
 }
 
-fn parse_obs_spec(v: Option<&Value>) -> Result<ObsSpec, EnvError> {
-    let mut s = ObsSpec::paper();
-    let Some(v) = v.filter(|v| !v.is_null()) else {
-        return Ok(s);
-    };
-    let o = v
-        .as_object()
-        .ok_or_else(|| EnvError::new(format!("rogue env: \"obs\" must be an object, got {v}")))?;
-    for (k, x) in o {
-        let bad = || EnvError::new(format!("rogue env: bad value for obs.{k}: {x}"));
-        match k.as_str() {
-            "encoding" => {
-                s.encoding = x
-                    .as_str()
-                    .ok_or_else(bad)?
-                    .parse::<obs::Encoding>()
-                    .map_err(|e| EnvError::new(format!("rogue env: obs.encoding: {e}")))?
-            }
-            "dtype" => {
-                s.dtype = x
-                    .as_str()
-                    .ok_or_else(bad)?
-                    .parse::<obs::Dtype>()
-                    .map_err(|e| EnvError::new(format!("rogue env: obs.dtype: {e}")))?
-            }
-            "status" => {
-                let bits = x.as_u64().filter(|b| *b <= 511).ok_or_else(bad)?;
-                s.status = StatusFlags(bits as u16);
-            }
-            "normalize_status" => s.normalize_status = x.as_bool().ok_or_else(bad)?,
-            "history" => s.history = x.as_bool().ok_or_else(bad)?,
-            _ => {
-                return Err(EnvError::new(format!(
-                    "rogue env: unknown obs key {k:?} (known: encoding, dtype, status, normalize_status, history)"
-                )));
-            }
-        }
-    }
-    Ok(s)
-}
-
 impl RogueEnv {
     /// Build from a JSON spec (see the module docs).
     pub fn from_json(v: &Value) -> Result<RogueEnv, EnvError> {
@@ -101,7 +58,8 @@ impl RogueEnv {
                 .ok_or_else(|| EnvError::new(format!("rogue env: bad stair_reward {x}")))?
                 as f32;
         }
-        let obs = parse_obs_spec(v.get("obs"))?;
+        let obs = ObsSpec::from_json(v.get("obs").unwrap_or(&Value::Null))
+            .map_err(|e| EnvError::new(format!("rogue env: {e}")))?;
         let game = Game::new(&config, ep)
             .map_err(|e| EnvError::new(format!("rogue env: bad game config: {e}")))?;
         let spec = EnvSpec {

@@ -13,13 +13,9 @@ from typing import Any, NamedTuple
 import numpy as np
 from gymnasium import spaces
 
-__all__ = ["DungeonType", "ImageSetting", "ObsSpec", "StatusFlag"]
+from .. import _native
 
-#: Encodings the engine can write (design §3 "Observations").
-ENCODINGS = ("symbol_onehot", "symbol_index", "gray", "ascii", "status")
-_ENCODING_ALIASES = {"status_vector": "status", "onehot": "symbol_onehot", "index": "symbol_index"}
-#: Element types the engine can write.
-DTYPES = ("uint8", "float32")
+__all__ = ["DungeonType", "ImageSetting", "ObsSpec", "StatusFlag"]
 
 
 class StatusFlag(enum.Flag):
@@ -71,22 +67,21 @@ class ObsSpec(NamedTuple):
     history: bool = False
 
     def validated(self) -> ObsSpec:
-        """Return the spec with names normalised, raising ``ValueError`` on unknown values."""
-        enc = str(self.encoding).lower()
-        enc = _ENCODING_ALIASES.get(enc, enc)
-        if enc not in ENCODINGS:
-            raise ValueError(
-                f"unknown observation encoding {self.encoding!r}; expected one of {ENCODINGS}"
-            )
-        dt = np.dtype(self.dtype).name
-        if dt not in DTYPES:
-            raise ValueError(
-                f"unsupported observation dtype {self.dtype!r}; expected one of {DTYPES}"
-            )
-        status = int(self.status.value if isinstance(self.status, StatusFlag) else self.status)
-        if not 0 <= status <= StatusFlag.FULL.value:
-            raise ValueError(f"status flags out of range: {status:#x}")
-        return ObsSpec(enc, dt, status, bool(self.normalize_status), bool(self.history))
+        """Return the spec with names normalised by the engine's parser (the one parser of an
+        observation spec), raising ``ValueError`` on unknown values."""
+        status = self.status.value if isinstance(self.status, StatusFlag) else self.status
+        try:
+            dtype = np.dtype(self.dtype).name
+        except TypeError:
+            dtype = str(self.dtype)
+        spec = {
+            "encoding": str(self.encoding).lower(),
+            "dtype": dtype,
+            "status": int(status),
+            "normalize_status": bool(self.normalize_status),
+            "history": bool(self.history),
+        }
+        return ObsSpec(**_native.normalize_obs_spec(spec))
 
     def to_dict(self) -> dict[str, Any]:
         """The spec as a plain dict (what the native layer takes)."""

@@ -19,7 +19,7 @@ from .image import ImageSetting, ObsSpec, observation_space
 __all__ = ["ACTIONS", "ACTION_MEANINGS", "RogueEnv"]
 
 #: The 11 action keys, in index order (vi keys: ``j`` moves down, ``k`` up).
-ACTIONS: str = ".hjklnbuy>s"
+ACTIONS: str = _native.ACTION_KEYS
 #: What each action key does.
 ACTION_MEANINGS: dict[str, str] = {
     ".": "NO_OPERATION",

@@ -1,0 +1,131 @@
+"""The pool's settings: one typed definition, with every default written once.
+
+:class:`PoolSettings` is what :func:`rogue_gym.make_vec`,
+:class:`rogue_gym.vector.RogueVectorEnv`, :class:`rogue_gym.sb3.RogueVecEnv` and the pool core
+take; the facades pass their keyword arguments through :meth:`PoolSettings.from_kwargs`, so a
+misspelt option is a ``TypeError`` that lists the valid ones. :meth:`PoolSettings.native` is the
+JSON object the native pool receives (keys as named here; the Rust side adds no defaults).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import sys
+from typing import Any, Mapping, Optional, Sequence, Union
+
+from ._config import ConfigLike
+
+__all__ = ["FAILURE_POLICIES", "SEED_POLICIES", "PoolSettings", "SeedsLike"]
+
+#: ``seeds=``: a list, a ``range`` or ``(lo, hi)``.
+SeedsLike = Union[None, Sequence[int], range, tuple]
+
+#: What a crashed or hung worker does to the caller.
+FAILURE_POLICIES = ("restart", "raise")
+#: How episode seeds are drawn from the seed set.
+SEED_POLICIES = ("sample", "sequential")
+
+
+@dataclasses.dataclass
+class PoolSettings:
+    """Every option of a pool, with its default.
+
+    Attributes:
+        num_envs: number of games.
+        config: game config: ``"paper"`` (32x16, 2x2 rooms, no monsters, seeds [0, 40)), a
+            dict, a JSON string or a path; ``{}`` is the original default game.
+        num_workers: worker processes; must divide ``num_envs`` (default: the largest divisor
+            of ``num_envs`` that is at most the CPU count).
+        seed: base of the episode-seed schedule (default: random).
+        seeds: the dungeons episodes are drawn from: a list, a ``range`` or ``(lo, hi)``
+            (default: the config's ``seed_range`` / ``seed``, else unrestricted).
+        seed_policy: ``"sample"`` (independent draws, training) or ``"sequential"`` (cover the
+            set evenly, evaluation).
+        obs, dtype, status, normalize_status, history: the observation encoding
+            (``symbol_onehot`` / ``symbol_index`` / ``gray`` / ``ascii`` / ``status``), its dtype
+            (``uint8`` / ``float32``), status planes (a ``StatusFlag`` mask) and the
+            visited-history plane.
+        max_steps: episode step limit (truncation); 500 as in the paper.
+        stair_reward: reward per new deepest floor, added to the gold gained; 50 as in the
+            paper.
+        on_worker_failure: ``"restart"`` or ``"raise"``.
+        step_timeout: seconds after which a silent worker counts as hung (``None``: never).
+        max_restarts: worker restarts allowed over the pool's life.
+        worker_command: program and leading args of a worker (default:
+            ``[sys.executable, "-m", "rogue_gym.worker"]``).
+        batch_size: envs per async ``recv`` (a multiple of the envs per worker; default all).
+    """
+
+    num_envs: int = 8
+    config: ConfigLike = "paper"
+    num_workers: Optional[int] = None
+    seed: Optional[int] = None
+    seeds: SeedsLike = None
+    seed_policy: str = "sample"
+    obs: str = "symbol_onehot"
+    dtype: str = "uint8"
+    status: int = 0
+    normalize_status: bool = False
+    history: bool = False
+    max_steps: int = 500
+    stair_reward: float = 50.0
+    on_worker_failure: str = "restart"
+    step_timeout: Optional[float] = 60.0
+    max_restarts: Optional[int] = 100
+    worker_command: Optional[Sequence[str]] = None
+    batch_size: Optional[int] = None
+
+    @classmethod
+    def from_kwargs(cls, options: Mapping[str, Any]) -> PoolSettings:
+        """Settings from keyword arguments; an unknown name is a ``TypeError`` listing the
+        valid ones."""
+        names = [f.name for f in dataclasses.fields(cls)]
+        unknown = sorted(set(options) - set(names))
+        if unknown:
+            raise TypeError(
+                f"unknown pool option(s) {', '.join(map(repr, unknown))}; valid options: "
+                + ", ".join(names)
+            )
+        return cls(**options)
+
+    def checked(self) -> PoolSettings:
+        """A copy with the defaults resolved (``num_workers``, ``seed``, ``worker_command``) and
+        every value checked; ``ValueError`` names the option."""
+        num_envs = int(self.num_envs)
+        if num_envs <= 0:
+            raise ValueError(f"num_envs must be positive, got {self.num_envs}")
+        num_workers = self.num_workers
+        if num_workers is None:
+            num_workers = min(num_envs, os.cpu_count() or 1)
+            while num_envs % num_workers:
+                num_workers -= 1
+        if self.on_worker_failure not in FAILURE_POLICIES:
+            raise ValueError(
+                f"on_worker_failure must be one of {FAILURE_POLICIES}, got {self.on_worker_failure!r}"
+            )
+        if self.seed_policy not in SEED_POLICIES:
+            raise ValueError(
+                f"seed_policy must be one of {SEED_POLICIES}, got {self.seed_policy!r}"
+            )
+        if int(self.max_steps) <= 0:
+            raise ValueError(f"max_steps must be positive, got {self.max_steps}")
+        if self.step_timeout is not None and not float(self.step_timeout) > 0:
+            raise ValueError(f"step_timeout must be positive or None, got {self.step_timeout}")
+        seed = self.seed
+        if seed is None:
+            seed = int.from_bytes(os.urandom(8), "little") >> 1
+        command = self.worker_command
+        if command is None:
+            command = [sys.executable, "-m", "rogue_gym.worker"]
+        return dataclasses.replace(
+            self,
+            num_envs=num_envs,
+            num_workers=int(num_workers),
+            seed=int(seed),
+            max_steps=int(self.max_steps),
+            stair_reward=float(self.stair_reward),
+            step_timeout=None if self.step_timeout is None else float(self.step_timeout),
+            max_restarts=None if self.max_restarts is None else int(self.max_restarts),
+            worker_command=list(command),
+        )

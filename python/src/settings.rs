@@ -1,0 +1,84 @@
+//! The pool settings sent by the Python package (one JSON object whose keys are the Python
+//! `rogue_gym.settings.PoolSettings` fields that reach Rust), turned into a [`PoolConfig`]. The
+//! defaults live in Python; here every key is read as given.
+
+use std::time::Duration;
+
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use rogue_gym_pool::{AutoresetMode, FailurePolicy, PoolConfig, SeedSchedule, WorkerCommand};
+use serde::Deserialize;
+use serde_json::Value;
+
+/// The pool settings the Python package sends (JSON).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct PyPoolSettings {
+    env: Value,
+    num_envs: usize,
+    num_workers: usize,
+    #[serde(default)]
+    batch_size: Option<usize>,
+    #[serde(default)]
+    seeds: SeedSchedule,
+    #[serde(default)]
+    autoreset: AutoresetMode,
+    #[serde(default)]
+    on_worker_failure: FailurePolicy,
+    #[serde(default)]
+    step_timeout: Option<f64>,
+    #[serde(default)]
+    start_timeout: Option<f64>,
+    #[serde(default)]
+    max_restarts: Option<u32>,
+    #[serde(default)]
+    max_borrowed: Option<usize>,
+    #[serde(default)]
+    base_dir: Option<String>,
+}
+
+fn duration(what: &str, secs: f64) -> PyResult<Duration> {
+    Duration::try_from_secs_f64(secs).map_err(|_| {
+        PyValueError::new_err(format!(
+            "{what} must be a non-negative number of seconds, got {secs}"
+        ))
+    })
+}
+
+/// The [`PoolConfig`] of a settings JSON object and a worker command (program, leading args).
+pub(crate) fn pool_config(
+    settings_json: &str,
+    worker_command: Vec<String>,
+) -> PyResult<PoolConfig> {
+    let s: PyPoolSettings = serde_json::from_str(settings_json)
+        .map_err(|e| PyValueError::new_err(format!("invalid pool settings: {e}")))?;
+    let (program, args) = worker_command
+        .split_first()
+        .ok_or_else(|| PyValueError::new_err("worker_command must name a program"))?;
+    let worker = WorkerCommand {
+        program: program.into(),
+        args: args.to_vec(),
+    };
+    let mut cfg = PoolConfig::new(s.env, s.num_envs, s.num_workers, worker);
+    cfg.batch_size = s.batch_size;
+    cfg.seeds = s.seeds;
+    cfg.autoreset = s.autoreset;
+    cfg.on_worker_failure = s.on_worker_failure;
+    cfg.step_timeout = s
+        .step_timeout
+        .map(|t| duration("step_timeout", t))
+        .transpose()?;
+    if let Some(t) = s.start_timeout {
+        cfg.start_timeout = duration("start_timeout", t)?;
+    }
+    if let Some(m) = s.max_restarts {
+        cfg.max_restarts = m;
+    }
+    if let Some(m) = s.max_borrowed {
+        cfg.max_borrowed = m;
+    }
+    if let Some(d) = s.base_dir {
+        cfg.base_dir = d.into();
+    }
+    Ok(cfg)
+}
