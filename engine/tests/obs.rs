@@ -266,3 +266,34 @@ fn status_line_format() {
         "Level:  1 Gold:     0 Hp: 12(12) Str: 16(16) Arm:  4 Exp:  1/ 0 "
     );
 }
+
+#[test]
+fn obs_spec_json_round_trips_and_errors_name_the_key() {
+    use rogue_gym_engine::{Dtype, Encoding, StatusFlags};
+    use serde_json::json;
+    assert_eq!(
+        ObsSpec::from_json(&serde_json::Value::Null).unwrap(),
+        ObsSpec::paper()
+    );
+    let s = ObsSpec {
+        encoding: Encoding::Gray,
+        dtype: Dtype::F32,
+        status: StatusFlags(5),
+        normalize_status: true,
+        history: true,
+    };
+    assert_eq!(ObsSpec::from_json(&s.to_json()).unwrap(), s);
+    let aliases = ObsSpec::from_json(&json!({"encoding": "onehot", "dtype": "u8"})).unwrap();
+    assert_eq!(aliases.encoding, Encoding::SymbolOnehot);
+    for (bad, key) in [
+        (json!({"encoding": "pixels"}), "pixels"),
+        (json!({"dtype": 3}), "dtype"),
+        (json!({"status": 4096}), "status"),
+        (json!({"history": "yes"}), "history"),
+        (json!({"colour": true}), "colour"),
+        (json!([1, 2]), "object"),
+    ] {
+        let e = ObsSpec::from_json(&bad).unwrap_err().to_string();
+        assert!(e.contains(key), "{bad}: {e}");
+    }
+}
