@@ -15,7 +15,7 @@ from typing import List, Optional, Tuple
 
 import numpy as np
 
-# Symbol indices of the ``symbol_index`` encoding (engine-spec §12.1).
+# Symbol indices of the ``symbol_index`` encoding (docs/rules.md §9.1).
 PLAYER, STAIRS, GOLD = 1, 5, 13
 # Action indices: ". h j k l n b u y > s".
 DOWNSTAIRS = 9

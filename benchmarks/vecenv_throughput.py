@@ -13,7 +13,7 @@ with a fixed seed):
 ``sb3-subproc``    ``stable_baselines3`` ``SubprocVecEnv`` (forkserver) over ``RogueEnv``
 =================  ==========================================================================
 
-Protocol (``shared/reference/vecenv-anchors.md`` §4.2): every measurement ("cell": backend x
+Protocol: every measurement ("cell": backend x
 num_envs x observation encoding x repetition) runs in a fresh child process, so CPU time and
 memory are attributable; set-up (process start) is timed separately and excluded. After a
 warm-up, steps are taken for a fixed wall-clock window. Reported per cell: env steps/s (median

@@ -89,7 +89,7 @@ impl GameRng {
     }
 }
 
-/// Test builds only: a diagnostic emulation of the original's seeding (engine-spec §14). The
+/// Test builds only: a diagnostic emulation of the original's seeding (docs/rules.md §10). The
 /// original seeds each of its dungeon, item and enemy XorShift128 streams with the raw seed
 /// as the state `(seed_lo, seed_hi, 0, 0)`, without mixing. For small seeds the first outputs
 /// are tiny, so floor 1's first draws all come out at the low end of their ranges. With

@@ -186,7 +186,7 @@ mod tests {
                 reachable += 1;
             }
         }
-        // engine-spec §3.5: ~98% reachable without searching at level 1.
+        // docs/rules.md §2.5: ~98% reachable without searching at level 1.
         assert!(reachable >= 270, "{reachable}/300 reachable");
     }
 

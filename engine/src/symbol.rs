@@ -1,4 +1,4 @@
-//! The symbol table: tile byte -> symbol index (engine-spec §12.1).
+//! The symbol table: tile byte -> symbol index (docs/rules.md §9.1).
 
 /// Symbol index of every byte; unknown bytes map to 0 (blank).
 pub(crate) const SYMBOL_OF_TILE: [u8; 256] = build();

@@ -78,7 +78,7 @@ fn random_play_10k_episodes_part2() {
     eprintln!("deaths {deaths} / 5000, steps {steps}");
 }
 
-/// The random agent's baseline (engine-spec §18), for reference; run with
+/// The random agent's baseline (docs/rules.md §12), for reference; run with
 /// `cargo test --release -p rogue-gym-engine --test fuzz -- --ignored --nocapture`.
 #[test]
 #[ignore]

@@ -1,4 +1,4 @@
-//! Builtin tables of the original game: monsters, armours and weapons (engine-spec §7, §9.1).
+//! Builtin tables of the original game: monsters, armours and weapons (docs/rules.md §5, §7.1).
 
 /// Attribute flag: wakes up when the player enters its room.
 pub const MEAN: u16 = 1;

@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 use super::Dice;
 use super::builtin::ENEMIES;
 
-/// Monster settings (engine-spec §1.5).
+/// Monster settings (docs/rules.md §1).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct EnemiesConfig {

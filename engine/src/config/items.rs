@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-/// Item parameters (engine-spec §1.3). Each sub-object defaults when omitted (the original
+/// Item parameters (docs/rules.md §1). Each sub-object defaults when omitted (the original
 /// required all three; we are lenient).
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -99,7 +99,7 @@ pub struct CustomWeapon {
     pub dice: Dice,
 }
 
-/// Gold pile settings (engine-spec §7).
+/// Gold pile settings (docs/rules.md §5).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct GoldConfig {

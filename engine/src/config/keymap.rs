@@ -1,4 +1,4 @@
-//! Key bindings of the original's JSON keymap (engine-spec §1.6). Only used by terminal play.
+//! Key bindings of the original's JSON keymap (docs/rules.md §1). Only used by terminal play.
 
 use serde::{Deserialize, Serialize};
 

@@ -1,4 +1,4 @@
-//! The game configuration: the original JSON schema (engine-spec §1), parsed with serde and
+//! The game configuration: the original JSON schema (docs/rules.md §1), parsed with serde and
 //! validated into errors that name the offending key.
 //!
 //! Every object denies unknown keys. Every key is optional except `dungeon.style`, which is
@@ -77,7 +77,7 @@ impl Default for GameConfig {
     }
 }
 
-/// Dungeon generation parameters (style `"rogue"`, engine-spec §1.2).
+/// Dungeon generation parameters (style `"rogue"`, docs/rules.md §1).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DungeonConfig {
@@ -206,7 +206,7 @@ impl GameConfig {
         serde_json::to_string(self).unwrap_or_else(|_| "{}".to_string())
     }
 
-    /// The paper's configuration (engine-spec §1.7): 32x16, 2x2 rooms, no monsters,
+    /// The paper's configuration (docs/rules.md §1): 32x16, 2x2 rooms, no monsters,
     /// `seed_range` [0, 40).
     pub fn paper() -> GameConfig {
         GameConfig {

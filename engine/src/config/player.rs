@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-/// Player parameters (engine-spec §1.4).
+/// Player parameters (docs/rules.md §1).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct PlayerConfig {

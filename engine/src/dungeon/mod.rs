@@ -1,4 +1,4 @@
-//! Dungeon generation, "rogue" style (engine-spec §3): slots, rooms, passages, hidden
+//! Dungeon generation, "rogue" style (docs/rules.md §2): slots, rooms, passages, hidden
 //! features, gold, stairs and the amulet. A floor depends only on (config, seed, level).
 
 pub mod floor;

@@ -1,6 +1,6 @@
 //! Connecting rooms: a uniform random spanning tree of the slot grid (Aldous-Broder random
 //! walk, so every spanning tree is possible: the original's star bias is fixed), extra edges,
-//! and L/Z-shaped passages between doors (engine-spec §3.4-3.5).
+//! and L/Z-shaped passages between doors (docs/rules.md §2.4-2.5).
 
 use super::floor::{Floor, Room, RoomKind, Surface, flag};
 use crate::config::GameConfig;

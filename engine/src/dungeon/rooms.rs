@@ -1,4 +1,4 @@
-//! Room slots, gone rooms, normal rooms and mazes (engine-spec §3.1-3.3).
+//! Room slots, gone rooms, normal rooms and mazes (docs/rules.md §2.1-2.3).
 
 use super::floor::{Floor, Room, RoomKind, Surface, flag};
 use crate::config::GameConfig;

@@ -1,4 +1,4 @@
-//! Melee (engine-spec §9.3) with the fixes: monsters have real HP (damage is subtracted),
+//! Melee (docs/rules.md §7.3) with the fixes: monsters have real HP (damage is subtracted),
 //! monsters hit against the player's armour class `10 - defense`, and a monster's damage
 //! does not add the player's strength bonus.
 

@@ -1,4 +1,4 @@
-//! The per-turn tick (engine-spec §8): hunger (starvation kills), healing, then monsters.
+//! The per-turn tick (docs/rules.md §6): hunger (starvation kills), healing, then monsters.
 
 use crate::game::Game;
 

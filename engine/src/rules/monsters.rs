@@ -1,4 +1,4 @@
-//! Monsters: placement on a new floor (engine-spec §9.2) and their turn (§9.4): random
+//! Monsters: placement on a new floor (docs/rules.md §7.2) and their turn (§7.4): random
 //! steps for RANDOM/CONFUSED kinds, otherwise a chase along a BFS distance map from the player.
 //! Fixes: real HP, the diagonal rule applies to chase steps, no border panic, no monster is
 //! lost on collision (a monster never moves onto another).

@@ -1,4 +1,4 @@
-//! Moving, picking up, searching (engine-spec §5).
+//! Moving, picking up, searching (docs/rules.md §3).
 
 use crate::dungeon::{Surface, flag};
 use crate::game::Game;

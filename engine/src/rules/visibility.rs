@@ -1,4 +1,4 @@
-//! What the player sees (engine-spec §6): lit rooms light up on entry, dark rooms show the
+//! What the player sees (docs/rules.md §4): lit rooms light up on entry, dark rooms show the
 //! 3x3 around the player, corridors are revealed orthogonally, seen cells are remembered.
 //! Fixes: leaving a dark room no longer blanks its stairs, and `hide_dungeon: false` never
 //! blanks anything.

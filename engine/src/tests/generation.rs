@@ -1,4 +1,4 @@
-//! Generation invariants and statistics against engine-spec §18 (the original, measured over
+//! Generation invariants and statistics against docs/rules.md §12 (the original, measured over
 //! 20k floors). Each test generates >= 2,000 floors; tolerances are stated next to each check.
 #![allow(clippy::needless_range_loop)]
 

@@ -1,4 +1,4 @@
-//! Diagnostics (ignored) for the random agent's gap to engine-spec §18: how much of it comes
+//! Diagnostics (ignored) for the random agent's gap to docs/rules.md §12: how much of it comes
 //! from the original's raw seeding of floor 1 (see `crate::rng::legacy`). Run with
 //! `cargo test --release -p rogue-gym-engine --lib random_agent -- --ignored --nocapture`.
 

@@ -49,7 +49,7 @@ class DungeonType(enum.Enum):
 
 
 class ObsSpec(NamedTuple):
-    """An observation spec in the engine's terms (design §3 "Observations").
+    """An observation spec in the engine's terms (``engine/src/obs/mod.rs`` documents the layouts).
 
     Attributes:
         encoding: one of ``symbol_onehot``, ``symbol_index``, ``gray``, ``ascii``,
