@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Runs every test of Rogue-Gym: the Rust workspace (unit, integration, doc tests).
+# Runs every test of Rogue-Gym: the Rust workspace (unit, integration, doc tests), then the
+# Python package (set-up, type checks, stub check, pytest, ruff).
 # Usage: bash scripts/test.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -7,8 +8,10 @@ cd "$(dirname "$0")/.."
 echo "== cargo test (workspace)"
 cargo test --workspace --exclude rogue-gym-python
 
-echo "== Python package (setup, pytest, ruff)"
+echo "== Python package (setup, types, stubs, pytest, ruff)"
 bash scripts/setup-python.sh
+(cd python && ../.venv/bin/python -m mypy && ../.venv/bin/python -m mypy.stubtest rogue_gym._native)
+# Every test runs under a time limit (tests/python/conftest.py), so no test can hang the run.
 .venv/bin/python -m pytest tests/python -q
-.venv/bin/ruff check python tests/python
-.venv/bin/ruff format --check python tests/python
+.venv/bin/ruff check python tests/python benchmarks
+.venv/bin/ruff format --check python tests/python benchmarks

@@ -135,7 +135,8 @@ class PoolCore:
         self.info_keys: list[str] = []
         self.mask_keys: list[str] = []
         self.info_names: list[str] = []
-        self.name = ""
+        #: The pool's name: the prefix of its /dev/shm files.
+        self.name: str = ""
         self.start()
 
     def start(self, seed: Optional[int] = None) -> None:
@@ -158,8 +159,7 @@ class PoolCore:
         shape = (self.num_envs, *self.obs_shape)
         self._bufs = [v.view(self.obs_dtype).reshape(shape) for v in pool.shared_views()]
         self._bind_columns(pool)
-        #: The pool's name: the prefix of its /dev/shm files.
-        self.name: str = pool.name()
+        self.name = pool.name()
 
     def _bind_columns(self, pool: Any) -> None:
         """Preallocate one column buffer per shared batch slot for :meth:`step_columns`."""

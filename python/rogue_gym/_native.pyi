@@ -1,8 +1,29 @@
 """Type stubs of the native extension (``rogue_gym._native``), built from ``python/src``."""
 
-from typing import Any, Optional, Sequence
+from typing import Any, Optional, Sequence, final
 
 import numpy as np
+from typing_extensions import Self
+
+__all__ = [
+    "ACTION_KEYS",
+    "FLAG_FINAL_OBS",
+    "FLAG_RESTARTED",
+    "FLAG_TERMINATED",
+    "FLAG_TRUNCATED",
+    "MAX_INFO",
+    "NUM_ACTIONS",
+    "PAPER_CONFIG_JSON",
+    "RECORD_BYTES",
+    "BlockHolder",
+    "Game",
+    "Pool",
+    "SharedBatchHolder",
+    "action_from_key",
+    "floor_summary",
+    "normalize_obs_spec",
+    "worker_main",
+]
 
 ACTION_KEYS: str
 NUM_ACTIONS: int
@@ -16,13 +37,14 @@ PAPER_CONFIG_JSON: str
 
 def normalize_obs_spec(spec: Any) -> dict[str, Any]: ...
 
+@final
 class Game:
     """One Rogue-Gym game running in this process."""
 
     width: int
     height: int
     symbols: int
-    def __init__(self, config_json: str, max_steps: int, stair_reward: float) -> None: ...
+    def __new__(cls, config_json: str, max_steps: int, stair_reward: float) -> Self: ...
     def reset(self, seed: int) -> None: ...
     def step(self, index: int) -> tuple[float, bool, bool]: ...
     def step_key(self, key: str) -> tuple[float, bool, bool]: ...
@@ -38,14 +60,17 @@ class Game:
     def config_json(self) -> str: ...
     def player_position(self) -> tuple[int, int]: ...
 
+@final
 class BlockHolder:
     """Owner of one worker block behind zero-copy views."""
 
     worker: int
 
+@final
 class SharedBatchHolder:
     """Owner of the pool's shared batch buffer behind zero-copy views."""
 
+@final
 class Pool:
     """The environment pool (supervisor in this process, worker processes)."""
 
@@ -56,7 +81,7 @@ class Pool:
     obs_dtype: str
     obs_bytes: int
     info_names: list[str]
-    def __init__(self, settings_json: str, worker_command: Sequence[str]) -> None: ...
+    def __new__(cls, settings_json: str, worker_command: Sequence[str]) -> Self: ...
     def reset(self, obs_out: np.ndarray, recs_out: np.ndarray) -> None: ...
     def step(
         self,
@@ -86,4 +111,5 @@ class Pool:
     def close(self) -> None: ...
 
 def action_from_key(key: str) -> int: ...
+def floor_summary(config_json: str, seed: int) -> dict[str, Any]: ...
 def worker_main(argv: list[str]) -> int: ...

@@ -247,7 +247,7 @@ class InProcessVec:
         obs = [e.reset(options={"episode_seed": self._seed(i)})[0] for i, e in enumerate(self.envs)]
         return np.stack(obs), {}
 
-    def step(self, actions: np.ndarray) -> Tuple[np.ndarray, ...]:
+    def step(self, actions: np.ndarray) -> Tuple[Any, ...]:
         """Step every env; an ended episode is replaced by the next scheduled one at once."""
         obs, rew = [], np.zeros(self.num_envs)
         term = np.zeros(self.num_envs, bool)
@@ -473,7 +473,7 @@ def evaluate(
     if seeds_limit is not None:
         seeds = seeds[: int(seeds_limit)]
     e_per = int(episodes_per_seed or suite.episodes_per_seed)
-    common = dict(
+    common: Dict[str, Any] = dict(
         suite=suite,
         seeds=seeds,
         episodes_per_seed=e_per,

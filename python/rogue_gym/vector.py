@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any, ClassVar, Optional, Sequence, Union
+from typing import Any, Optional, Sequence, Union
 
 import gymnasium as gym
 import numpy as np
@@ -76,7 +76,7 @@ class RogueVectorEnv(gym.vector.VectorEnv):
     entries are fresh.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {
+    metadata: dict[str, Any] = {  # noqa: RUF012
         "render_modes": ["ansi", "human"],
         "autoreset_mode": AutoresetMode.NEXT_STEP,
     }

@@ -1,8 +1,10 @@
-"""Shared fixtures: envs that are always closed, and leak checks for pools."""
+"""Shared fixtures: envs that are always closed, leak checks for pools, SIGINT delivery, and a
+time limit on every test."""
 
 from __future__ import annotations
 
 import os
+import signal
 import time
 from collections.abc import Iterator
 from typing import Any, Callable
@@ -11,6 +13,33 @@ import pytest
 import rogue_gym
 
 PAPER = rogue_gym.PAPER_CONFIG
+
+#: Seconds any one test may run before pytest-timeout fails it and dumps every thread's stack
+#: (a hung test must never hold up the suite, or CI's 90 minutes).
+TEST_TIMEOUT_S = 300
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Give every test without its own ``@pytest.mark.timeout`` the suite's time limit."""
+    for item in items:
+        if item.get_closest_marker("timeout") is None:
+            item.add_marker(pytest.mark.timeout(TEST_TIMEOUT_S))
+
+
+@pytest.fixture
+def sigint_handler() -> Iterator[None]:
+    """Python's own SIGINT handler for the test, whatever the suite was started with.
+
+    A process started as a background job of a non-interactive shell (CI, ``cmd &`` in a script)
+    inherits SIGINT *ignored*, and Python then installs no handler: a SIGINT, Ctrl-C included,
+    is dropped. Tests of Ctrl-C handling install the handler themselves and put the old one
+    back afterwards.
+    """
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 def pid_alive(pid: int) -> bool:

@@ -62,7 +62,7 @@ def test_constants_come_from_the_native_module() -> None:
     assert _records.MAX_INFO == _native.MAX_INFO
     assert _records.RECORD_DTYPE.itemsize == _native.RECORD_BYTES
     flags = [_records.FLAG_TERMINATED, _records.FLAG_TRUNCATED, _records.FLAG_RESTARTED]
-    assert sorted(flags + [_records.FLAG_FINAL_OBS]) == [1, 2, 4, 8]
+    assert sorted([*flags, _records.FLAG_FINAL_OBS]) == [1, 2, 4, 8]
 
 
 def test_obs_specs_are_parsed_by_the_engine() -> None:

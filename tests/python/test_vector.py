@@ -326,7 +326,7 @@ def test_render_call_get_attr(make_vec) -> None:
         env.get_attr("nonexistent")
 
 
-def test_ctrl_c_interrupts_a_stepping_loop(make_vec) -> None:
+def test_ctrl_c_interrupts_a_stepping_loop(make_vec, sigint_handler) -> None:
     """SIGINT reaches Python while the pool steps (iceoryx2 must not take the handler)."""
     import threading
     import time
@@ -546,13 +546,15 @@ def test_render_replay_follows_a_partial_reset(make_vec) -> None:
         assert screens[0][i] == screens[1][i]
 
 
-def test_ctrl_c_interrupts_a_long_wait_and_reset_recovers(make_vec) -> None:
+def test_ctrl_c_interrupts_a_long_wait_and_reset_recovers(make_vec, sigint_handler) -> None:
     """SIGINT during a wait for a stopped worker raises KeyboardInterrupt from step() at once
     (the pool runs the signal handlers between wait slices), not after step_timeout."""
     import threading
     import time
 
-    env = make_vec(4, num_workers=2, step_timeout=None)
+    # The step timeout bounds the wait even if the interrupt were lost (then the worker is
+    # restarted and the assertions below fail instead of the suite hanging).
+    env = make_vec(4, num_workers=2, step_timeout=60.0)
     env.reset(seed=0)
     pid = env.worker_pids[0]
     os.kill(pid, signal.SIGSTOP)

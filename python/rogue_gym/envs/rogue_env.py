@@ -6,7 +6,7 @@ import json
 import os
 import sys
 import time
-from typing import Any, ClassVar, Mapping, Optional, Sequence, SupportsFloat, Union
+from typing import Any, Mapping, Optional, Sequence, SupportsFloat, Union
 
 import gymnasium as gym
 import numpy as np
@@ -88,7 +88,7 @@ class RogueEnv(gym.Env):
     following episode to ``s``.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "ansi"], "render_fps": 10}
+    metadata: dict[str, Any] = {"render_modes": ["human", "ansi"], "render_fps": 10}  # noqa: RUF012
     ACTIONS = ACTIONS
     ACTION_MEANINGS = ACTION_MEANINGS
     ACTION_LEN = len(ACTIONS)

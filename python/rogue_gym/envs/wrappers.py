@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any, Optional
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -37,10 +37,11 @@ class StairRewardEnv(gym.Wrapper):
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Step and add the bonus when a new deepest level was reached."""
-        obs, reward, terminated, truncated, info = self.env.step(action)
-        level = int(self.env.unwrapped.status["dungeon_level"])
+        obs, raw_reward, terminated, truncated, info = self.env.step(action)
+        reward = float(raw_reward)
+        level = int(self.env.get_wrapper_attr("status")["dungeon_level"])
         if level > self.current_level:
-            reward = float(reward) + self.stair_reward
+            reward += self.stair_reward
             self.current_level = level
         return obs, reward, terminated, truncated, info
 
@@ -53,11 +54,9 @@ class FirstFloorEnv(StairRewardEnv):
         obs, reward, terminated, truncated, info = super().step(action)
         if self.current_level >= 2:
             terminated = True
-            self.env.unwrapped._needs_reset = True
+            self.env.set_wrapper_attr("_needs_reset", True)
         return obs, reward, terminated, truncated, info
 
-    def reset(
-        self, *, seed: Optional[int] = None, options: Optional[dict[str, Any]] = None
-    ) -> tuple[np.ndarray, dict[str, Any]]:
-        """Reset the inner env."""
-        return super().reset(seed=seed, options=options)
+    def reset(self, **kwargs: Any) -> tuple[np.ndarray, dict[str, Any]]:
+        """Reset the inner env (``seed=``, ``options=``)."""
+        return super().reset(**kwargs)
