@@ -27,7 +27,7 @@ from .settings import PoolSettings, SeedsLike
 
 ACTIONS: str = _native.ACTION_KEYS
 
-__all__ = ["ActionHistory", "PoolCore", "SeedsLike", "screen_to_rgb"]
+__all__ = ["ActionHistory", "PoolCore", "PoolFacade", "SeedsLike", "screen_to_rgb"]
 
 #: Info values of the rogue env kind that are flags (the rest are integers).
 _BOOL_INFO = {"died", "won"}
@@ -485,3 +485,24 @@ def screen_to_rgb(screen: str) -> np.ndarray:
         if not palette[c].any():
             palette[c] = (150, 150, 255)
     return palette[codes]
+
+
+class PoolFacade:
+    """What both facades (gymnasium and SB3) expose of their pool (:attr:`_core`)."""
+
+    _core: PoolCore
+
+    @property
+    def num_workers(self) -> int:
+        """Number of worker processes."""
+        return self._core.num_workers
+
+    @property
+    def worker_pids(self) -> list[int]:
+        """Process ids of the workers (worker ``k`` hosts envs ``envs_of_worker(k)``)."""
+        return self._core.worker_pids
+
+    def envs_of_worker(self, worker: int) -> range:
+        """Indices of the envs hosted by ``worker``."""
+        return self._core.envs_of_worker(worker)
+

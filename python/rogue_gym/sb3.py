@@ -15,14 +15,14 @@ from gymnasium import spaces
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
 from ._config import ConfigLike
-from ._core import ActionHistory, PoolCore, screen_to_rgb
+from ._core import ActionHistory, PoolCore, PoolFacade, screen_to_rgb
 from .envs.rogue_env import ACTIONS
 from .settings import PoolSettings
 
 __all__ = ["RogueVecEnv"]
 
 
-class RogueVecEnv(VecEnv):
+class RogueVecEnv(VecEnv, PoolFacade):
     """``num_envs`` Rogue-Gym games in worker processes, with SB3's ``VecEnv`` API.
 
     The constructor takes ``num_envs``, ``config`` and the other fields of
@@ -70,20 +70,6 @@ class RogueVecEnv(VecEnv):
         self._t0 = time.perf_counter()
 
     # ------------------------------------------------------------------------------------
-    @property
-    def num_workers(self) -> int:
-        """Number of worker processes."""
-        return self._core.num_workers
-
-    @property
-    def worker_pids(self) -> list[int]:
-        """Process ids of the workers (worker ``k`` hosts envs ``envs_of_worker(k)``)."""
-        return self._core.worker_pids
-
-    def envs_of_worker(self, worker: int) -> range:
-        """Indices of the envs hosted by ``worker``."""
-        return self._core.envs_of_worker(worker)
-
     def reset(self) -> np.ndarray:
         """Reset every env (using the seed given to :meth:`seed`, if any) and return the obs."""
         seed = self._seeds[0] if self._seeds and self._seeds[0] is not None else None

@@ -11,7 +11,7 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from ._config import ConfigLike
-from ._core import SUMMARY_FINAL, SUMMARY_RESTARTED, ActionHistory, PoolCore
+from ._core import SUMMARY_FINAL, SUMMARY_RESTARTED, ActionHistory, PoolCore, PoolFacade
 from ._records import RECORD_DTYPE
 from .envs.rogue_env import ACTIONS
 from .settings import PoolSettings
@@ -30,7 +30,7 @@ def _autoreset_mode(mode: Union[str, AutoresetMode]) -> AutoresetMode:
     return m
 
 
-class RogueVectorEnv(gym.vector.VectorEnv):
+class RogueVectorEnv(gym.vector.VectorEnv, PoolFacade):
     """``num_envs`` Rogue-Gym games stepped by worker processes over shared memory.
 
     Semantics follow gymnasium's own vector envs:
@@ -111,20 +111,6 @@ class RogueVectorEnv(gym.vector.VectorEnv):
         self._history = ActionHistory(self._core) if render_mode is not None else None
 
     # ------------------------------------------------------------------------------------
-    @property
-    def num_workers(self) -> int:
-        """Number of worker processes."""
-        return self._core.num_workers
-
-    @property
-    def worker_pids(self) -> list[int]:
-        """Process ids of the workers (worker ``k`` hosts envs ``envs_of_worker(k)``)."""
-        return self._core.worker_pids
-
-    def envs_of_worker(self, worker: int) -> range:
-        """Indices of the envs hosted by ``worker``."""
-        return self._core.envs_of_worker(worker)
-
     @property
     def config(self) -> dict[str, Any]:
         """The game config of every env."""

@@ -49,21 +49,8 @@ impl Pool {
         obs_out: &mut [u8],
         out: &mut BatchOutput,
     ) -> Result<(), PoolError> {
-        self.check_usable()?;
-        if actions.len() != self.core.cfg.num_envs {
-            return Err(PoolError::BadActionsLength {
-                expected: self.core.cfg.num_envs,
-                got: actions.len(),
-            });
-        }
-        self.check_actions(actions, 0..actions.len())?;
         self.check_obs_buf(obs_out)?;
-        if self.core.must_reset {
-            return Err(PoolError::State(
-                "call reset() before step() (after creation or after a worker failure)".into(),
-            ));
-        }
-        self.all_idle()?;
+        self.prepare_sync_step(actions)?;
         let epw = self.core.epw;
         for k in 0..self.core.slots.len() {
             self.core
@@ -158,20 +145,7 @@ impl Pool {
         actions: &[i64],
         out: &mut BatchOutput,
     ) -> Result<usize, PoolError> {
-        self.check_usable()?;
-        if actions.len() != self.core.cfg.num_envs {
-            return Err(PoolError::BadActionsLength {
-                expected: self.core.cfg.num_envs,
-                got: actions.len(),
-            });
-        }
-        self.check_actions(actions, 0..actions.len())?;
-        if self.core.must_reset {
-            return Err(PoolError::State(
-                "call reset() before step() (after creation or after a worker failure)".into(),
-            ));
-        }
-        self.all_idle()?;
+        self.prepare_sync_step(actions)?;
         let epw = self.core.epw;
         let slot = self.core.next_slot;
         for k in 0..self.core.slots.len() {
@@ -219,6 +193,25 @@ impl Pool {
             }
             _ => std::ptr::null(),
         }
+    }
+
+    /// Checks before a sync step: the pool is open and started, there is one valid action
+    /// per env, and no async request is outstanding.
+    fn prepare_sync_step(&mut self, actions: &[i64]) -> Result<(), PoolError> {
+        self.check_usable()?;
+        if actions.len() != self.core.cfg.num_envs {
+            return Err(PoolError::BadActionsLength {
+                expected: self.core.cfg.num_envs,
+                got: actions.len(),
+            });
+        }
+        self.check_actions(actions, 0..actions.len())?;
+        if self.core.must_reset {
+            return Err(PoolError::State(
+                "call reset() before step() (after creation or after a worker failure)".into(),
+            ));
+        }
+        self.all_idle()
     }
 
     fn gather_all(
