@@ -4,9 +4,14 @@
 
 use std::path::PathBuf;
 use std::process::Child;
+use std::time::{Duration, Instant};
+
+use nix::sys::signal::{Signal, kill};
+use nix::unistd::Pid;
 
 use rogue_gym_pool::{
-    AutoresetMode, BatchOutput, Pool, PoolConfig, PoolError, WorkerCommand, seeds::splitmix,
+    AutoresetMode, BatchOutput, EnvRegistry, Pool, PoolConfig, PoolError, WorkerCommand,
+    seeds::splitmix,
 };
 
 /// Base directory of the pools created by the tests (short: unix socket paths < 108 bytes).
@@ -201,4 +206,39 @@ pub fn pool_files_gone(id: &rogue_gym_ipc::PoolId) -> bool {
 pub fn same_step(mut c: PoolConfig) -> PoolConfig {
     c.autoreset = AutoresetMode::SameStep;
     c
+}
+
+/// The deterministic test env of these tests: 3x5x7 observations, 12-step episodes, 5 actions.
+pub fn test_env() -> serde_json::Value {
+    serde_json::json!({"kind": "test", "obs_shape": [3, 5, 7], "max_steps": 12, "num_actions": 5})
+}
+
+/// A started pool with the default env registry.
+pub fn pool(c: PoolConfig) -> Pool {
+    Pool::new(c, &EnvRegistry::with_defaults()).expect("pool starts")
+}
+
+/// Send a signal and wait until it took effect (killed: dead or zombie; stopped: state T), so
+/// the worker cannot answer one more command in between.
+pub fn signal(pid: u32, s: Signal) {
+    kill(Pid::from_raw(pid as i32), s).expect("signal worker");
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(5) {
+        let state = std::fs::read_to_string(format!("/proc/{pid}/stat"))
+            .ok()
+            .and_then(|st| {
+                st.rsplit_once(')')
+                    .and_then(|(_, r)| r.split_whitespace().next().map(str::to_string))
+            });
+        let done = match (s, state.as_deref()) {
+            (_, None) => true,
+            (Signal::SIGSTOP, Some(st)) => st == "T" || st == "t",
+            (_, Some(st)) => st == "Z" || st == "X",
+        };
+        if done {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    panic!("signal {s} to {pid} did not take effect");
 }

@@ -1,0 +1,262 @@
+//! End-to-end tests of worker faults with real worker processes (the `e2e_worker` binary):
+//! `kill -9` and `SIGSTOP` of a worker under both failure policies, an env that fails in its
+//! worker, the restart budget, and a killed supervisor.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use nix::sys::signal::Signal;
+use rogue_gym_e2e::*;
+use rogue_gym_pool::{BatchOutput, FailurePolicy, PoolError};
+use serde_json::json;
+
+const EXE: &str = env!("CARGO_BIN_EXE_e2e_worker");
+
+#[test]
+fn killed_worker_is_restarted_and_other_envs_are_untouched() {
+    killed_worker_case(false);
+}
+
+#[test]
+fn killed_worker_is_restarted_in_shared_slot_mode() {
+    killed_worker_case(true);
+}
+
+fn killed_worker_case(shared: bool) {
+    let steps = 30u64;
+    let mut clean = pool(config(EXE, test_env(), 8, 2));
+    let reference = run_sync(&mut clean, steps).unwrap();
+    drop(clean);
+
+    let mut p = pool(config(EXE, test_env(), 8, 2));
+    let _guard = PidGuard(p.worker_pids());
+    let n = 8;
+    let ob = p.obs_bytes();
+    let mut obs = vec![0u8; n * ob];
+    let mut out = BatchOutput::default();
+    let mut d = Digests::new(n);
+    if shared {
+        let slot = p.reset_shared(&mut out).unwrap();
+        obs.copy_from_slice(p.shared_obs(slot));
+    } else {
+        p.reset(&mut obs, &mut out).unwrap();
+    }
+    d.add_batch(&obs, ob, &out);
+    let victim = p.worker_pids()[0];
+    let mut restarted_rows = 0;
+    let mut episodes_before = vec![0u64; n];
+    for t in 0..steps {
+        if t == 10 {
+            episodes_before = out.episode.clone();
+            signal(victim, Signal::SIGKILL);
+        }
+        let actions: Vec<i64> = (0..n).map(|i| action(i, t, 5)).collect();
+        if shared {
+            let slot = p.step_shared(&actions, &mut out).unwrap();
+            obs.copy_from_slice(p.shared_obs(slot));
+        } else {
+            p.step(&actions, &mut obs, &mut out).unwrap();
+        }
+        d.add_batch(&obs, ob, &out);
+        #[allow(clippy::needless_range_loop)]
+        for r in 0..n {
+            if out.restarted[r] {
+                restarted_rows += 1;
+                assert!(r < 4, "only worker 0's envs restart");
+                assert_eq!(t, 10, "the restart is reported on the step after the kill");
+                assert!(out.truncated[r] && !out.terminated[r]);
+                assert_eq!(out.reward[r], 0.0);
+                assert_eq!(out.episode_length[r], 0);
+                assert!(
+                    out.episode[r] > episodes_before[r],
+                    "a restarted env starts its next scheduled episode"
+                );
+            }
+        }
+    }
+    assert_eq!(restarted_rows, 4);
+    assert_eq!(p.restarts(), 1);
+    assert_ne!(p.worker_pids()[0], victim);
+    assert!(!alive(victim));
+    assert_eq!(
+        &d.0[4..],
+        &reference.0[4..],
+        "worker 1's envs match the uncrashed run"
+    );
+    assert_ne!(&d.0[..4], &reference.0[..4]);
+    let id = p.id().clone();
+    p.close().unwrap();
+    assert!(pool_files_gone(&id), "no file left after a crash and close");
+}
+
+#[test]
+fn hung_worker_is_restarted_after_step_timeout() {
+    let mut c = config(EXE, test_env(), 4, 2);
+    c.step_timeout = Some(Duration::from_millis(300));
+    let mut p = pool(c);
+    let _guard = PidGuard(p.worker_pids());
+    let mut obs = vec![0u8; 4 * p.obs_bytes()];
+    let mut out = BatchOutput::default();
+    p.reset(&mut obs, &mut out).unwrap();
+    let victim = p.worker_pids()[1];
+    signal(victim, Signal::SIGSTOP);
+    let t0 = Instant::now();
+    p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
+    assert!(t0.elapsed() >= Duration::from_millis(300));
+    assert_eq!(out.restarted, vec![false, false, true, true]);
+    assert_eq!(out.truncated[2..], [true, true]);
+    assert!(!alive(victim), "the hung worker was killed");
+    p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
+    assert_eq!(out.restarted, vec![false; 4]);
+}
+
+#[test]
+fn raise_policy_reports_hangs_and_kills_then_recovers_after_reset() {
+    let mut c = config(EXE, test_env(), 4, 2);
+    c.step_timeout = Some(Duration::from_millis(300));
+    c.on_worker_failure = FailurePolicy::Raise;
+    let mut p = pool(c);
+    let _guard = PidGuard(p.worker_pids());
+    let mut obs = vec![0u8; 4 * p.obs_bytes()];
+    let mut out = BatchOutput::default();
+    p.reset(&mut obs, &mut out).unwrap();
+
+    let victim = p.worker_pids()[0];
+    signal(victim, Signal::SIGSTOP);
+    let e = p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap_err();
+    let msg = e.to_string();
+    assert!(matches!(e, PoolError::WorkerFailed(_)), "{msg}");
+    assert!(msg.contains(&format!("pid {victim}")), "{msg}");
+    assert!(msg.contains("envs 0..2") && msg.contains("hung"), "{msg}");
+    // The pool respawned the worker; it needs a reset.
+    assert!(matches!(
+        p.step(&[0, 1, 2, 3], &mut obs, &mut out),
+        Err(PoolError::State(_))
+    ));
+    p.reset(&mut obs, &mut out).unwrap();
+    p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
+
+    let victim = p.worker_pids()[1];
+    signal(victim, Signal::SIGKILL);
+    let e = p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap_err();
+    let msg = e.to_string();
+    assert!(
+        msg.contains("signal 9 (SIGKILL)") && msg.contains("envs 2..4"),
+        "{msg}"
+    );
+    p.reset(&mut obs, &mut out).unwrap();
+    p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
+}
+
+#[test]
+fn env_failure_in_worker_reports_its_stderr() {
+    let mut c = config(
+        EXE,
+        json!({"kind": "test", "obs_shape": [4], "fail_on_action": 3}),
+        2,
+        1,
+    );
+    c.on_worker_failure = FailurePolicy::Raise;
+    let mut p = pool(c);
+    let mut obs = vec![0u8; 2 * p.obs_bytes()];
+    let mut out = BatchOutput::default();
+    p.reset(&mut obs, &mut out).unwrap();
+    let e = p.step(&[0, 3], &mut obs, &mut out).unwrap_err();
+    let msg = e.to_string();
+    assert!(msg.contains("exited with code 3"), "{msg}");
+    assert!(msg.contains("injected failure on action 3"), "{msg}");
+}
+
+#[test]
+fn restart_budget_is_enforced() {
+    let mut c = config(EXE, test_env(), 2, 1);
+    c.max_restarts = 0;
+    let mut p = pool(c);
+    let _guard = PidGuard(p.worker_pids());
+    let mut obs = vec![0u8; 2 * p.obs_bytes()];
+    let mut out = BatchOutput::default();
+    p.reset(&mut obs, &mut out).unwrap();
+    signal(p.worker_pids()[0], Signal::SIGKILL);
+    let e = p.step(&[0, 0], &mut obs, &mut out).unwrap_err();
+    assert!(matches!(e, PoolError::RestartBudgetExceeded { .. }), "{e}");
+    assert!(e.to_string().contains("restart budget exhausted"));
+}
+
+#[test]
+fn killed_supervisor_leaves_no_worker_and_its_files_are_swept() {
+    let base = test_base().join("sk");
+    let _sweep = SweepGuard(base.clone());
+    let child = Command::new(EXE)
+        .args(["hold-pool", "2"])
+        .arg(&base)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let mut guard = ChildGuard(Some(child));
+    let stdout = guard.0.as_mut().unwrap().stdout.take().unwrap();
+    let mut lines = BufReader::new(stdout).lines();
+    let name = lines.next().unwrap().unwrap();
+    let name = name.strip_prefix("pool ").unwrap().to_string();
+    let pids_line = lines.next().unwrap().unwrap();
+    let pids: Vec<u32> = pids_line
+        .strip_prefix("pids ")
+        .unwrap()
+        .split_whitespace()
+        .map(|p| p.parse().unwrap())
+        .collect();
+    let _pg = PidGuard(pids.clone());
+    assert_eq!(pids.len(), 2);
+    assert!(pids.iter().all(|&p| alive(p)));
+    // kill -9 the supervisor.
+    guard.0.as_mut().unwrap().kill().unwrap();
+    guard.0.take().unwrap().wait().unwrap();
+    let t0 = Instant::now();
+    while pids.iter().any(|&p| alive(p)) && t0.elapsed() < Duration::from_secs(5) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(
+        pids.iter().all(|&p| !alive(p)),
+        "workers survived their supervisor"
+    );
+    // Its files stay until a sweep (here: the next pool start in the same base).
+    let id = rogue_gym_ipc::PoolId::from_parts(&name, &base).unwrap();
+    assert!(!pool_files_gone(&id));
+    let swept = rogue_gym_ipc::sweep_stale_pools(&base);
+    assert!(swept.contains(&name), "{swept:?}");
+    assert!(pool_files_gone(&id));
+    let _ = std::fs::remove_dir(&base);
+}
+
+#[test]
+fn async_mode_reports_a_restarted_block() {
+    let mut c = config(EXE, test_env(), 4, 2);
+    c.batch_size = Some(2);
+    let mut p = pool(c);
+    let _guard = PidGuard(p.worker_pids());
+    p.async_reset().unwrap();
+    let b0 = p.recv().unwrap();
+    let b1 = p.recv().unwrap();
+    let ids0 = b0.env_ids();
+    let ids1 = b1.env_ids();
+    drop((b0, b1));
+    let victim_worker = ids0[0] / 2;
+    signal(p.worker_pids()[victim_worker], Signal::SIGKILL);
+    p.send(&[1, 1], &ids0).unwrap();
+    p.send(&[1, 1], &ids1).unwrap();
+    let mut restarted = Vec::new();
+    for _ in 0..2 {
+        let b = p.recv().unwrap();
+        let blk = &b.blocks[0];
+        for j in 0..2 {
+            let r = blk.record(j);
+            if r.restarted() {
+                assert!(r.truncated() && !r.terminated());
+                restarted.push(blk.env_ids().start + j);
+            }
+        }
+    }
+    assert_eq!(restarted, ids0);
+    assert_eq!(p.restarts(), 1);
+}
