@@ -17,6 +17,7 @@ from typing import Any
 
 from . import envs
 from ._config import PAPER_CONFIG
+from ._native import __version__  # the workspace version (Cargo.toml), written once
 from .envs import (
     ACTIONS,
     DungeonType,
@@ -29,8 +30,6 @@ from .envs import (
 from .errors import WorkerCrashedError
 from .registration import ENV_ID, register_envs
 from .vector import RogueVectorEnv, make_vec
-
-__version__ = "0.1.0"
 
 __all__ = [
     "ACTIONS",

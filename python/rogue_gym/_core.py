@@ -505,4 +505,3 @@ class PoolFacade:
     def envs_of_worker(self, worker: int) -> range:
         """Indices of the envs hosted by ``worker``."""
         return self._core.envs_of_worker(worker)
-

@@ -19,12 +19,14 @@ __all__ = [
     "Game",
     "Pool",
     "SharedBatchHolder",
+    "__version__",
     "action_from_key",
     "floor_summary",
     "normalize_obs_spec",
     "worker_main",
 ]
 
+__version__: str
 ACTION_KEYS: str
 NUM_ACTIONS: int
 RECORD_BYTES: int

@@ -37,6 +37,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(game::action_from_key, m)?)?;
     m.add_function(wrap_pyfunction!(worker_main, m)?)?;
     m.add_function(wrap_pyfunction!(summary::floor_summary, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("ACTION_KEYS", rogue_gym_engine::ACTION_KEYS)?;
     m.add("MAX_INFO", rogue_gym_pool::MAX_INFO)?;
     m.add("FLAG_TERMINATED", rogue_gym_pool::FLAG_TERMINATED)?;
