@@ -79,3 +79,90 @@ proptest! {
         let _ = GameConfig::from_json(&s);
     }
 }
+
+/// Extreme integers in every integer key (top level, dungeon, gold, player, starting items,
+/// custom monsters): an error naming the key or a playable game, never a panic (debug builds
+/// check overflow, so an unchecked `abs` or product would panic here).
+#[test]
+fn extreme_integers_are_errors_or_games_never_panics() {
+    let extremes = [
+        i64::from(i32::MIN),
+        i64::from(i32::MIN) + 1,
+        -1,
+        i64::from(i32::MAX),
+        i64::from(u32::MAX),
+        i64::MAX,
+    ];
+    // (what the error must name, the config with V for the value)
+    let templates: &[(&str, &str)] = &[
+        ("width", r#"{"width": V}"#),
+        ("height", r#"{"height": V}"#),
+        (
+            "room_num_x",
+            r#"{"dungeon": {"style": "rogue", "room_num_x": V, "room_num_y": V}}"#,
+        ),
+        (
+            "max_empty_rooms",
+            r#"{"dungeon": {"style": "rogue", "max_empty_rooms": V}}"#,
+        ),
+        (
+            "max_extra_edges",
+            r#"{"dungeon": {"style": "rogue", "max_extra_edges": V}}"#,
+        ),
+        (
+            "amulet_level",
+            r#"{"dungeon": {"style": "rogue", "amulet_level": V}}"#,
+        ),
+        (
+            "gold",
+            r#"{"item": {"gold": {"base": V, "per_level": V, "minimum": V, "rate_inv": 2}}}"#,
+        ),
+        ("init_hp", r#"{"player": {"init_hp": V}}"#),
+        ("init_str", r#"{"player": {"init_str": V}}"#),
+        ("hunger_time", r#"{"player": {"hunger_time": V}}"#),
+        (
+            "def_plus",
+            r#"{"player": {"init_items": [{"Armor": {"name": "ring mail", "def_plus": V}}]}}"#,
+        ),
+        (
+            "hit_plus",
+            r#"{"player": {"init_items": [{"Weapon": {"name": "mace", "hit_plus": V, "dam_plus": 1}}]}}"#,
+        ),
+        (
+            "dam_plus",
+            r#"{"player": {"init_items": [{"Weapon": {"name": "mace", "hit_plus": 1, "dam_plus": V}}]}}"#,
+        ),
+        (
+            "enemies.enemies[0]",
+            r#"{"enemies": {"enemies": [{"attack": [], "attr": 0, "defense": V, "exp": 1,
+            "gold": 0, "level": 1, "name": "x", "tile": 88, "rarelity": 1}]}}"#,
+        ),
+        (
+            "enemies.enemies[0]",
+            r#"{"enemies": {"enemies": [{"attack": [], "attr": 0, "defense": 3, "exp": 1,
+            "gold": 0, "level": V, "name": "x", "tile": 88, "rarelity": 1}]}}"#,
+        ),
+    ];
+    for (key, template) in templates {
+        for v in extremes {
+            let json = template.replace('V', &v.to_string());
+            match GameConfig::from_json(&json) {
+                Ok(cfg) => {
+                    let mut g = Game::new(&cfg, EpisodeConfig::default()).unwrap();
+                    for a in Action::ALL {
+                        g.step(a);
+                    }
+                }
+                Err(e) => {
+                    let msg = e.to_string();
+                    assert!(
+                        msg.contains(key)
+                            || msg.contains("min_room_size")
+                            || msg.contains("item.gold"),
+                        "{json}: the error does not name {key}: {msg}"
+                    );
+                }
+            }
+        }
+    }
+}

@@ -4,6 +4,9 @@ use super::keymap;
 use super::{ArmorPreset, ConfigError, EnemyPreset, GameConfig, InitItem, WeaponPreset};
 use super::{armor_by_name, weapon_by_name};
 
+/// Most extra-edge attempts a floor may make (`dungeon.max_extra_edges`).
+pub(crate) const MAX_EXTRA_EDGES: u32 = 10_000;
+
 impl GameConfig {
     /// Checks every value. Returns the first problem found, naming its key.
     pub fn validate(&self) -> Result<(), ConfigError> {
@@ -62,11 +65,23 @@ fn dungeon(c: &GameConfig) -> Result<(), ConfigError> {
         };
         return Err(ConfigError::invalid(k, v, "must be >= 1"));
     }
-    if d.room_num_x * d.room_num_y > 255 {
+    if d.room_num_x
+        .checked_mul(d.room_num_y)
+        .is_none_or(|n| n > 255)
+    {
         return Err(ConfigError::invalid(
             "dungeon.room_num_x",
             d.room_num_x,
             "room_num_x * room_num_y must be <= 255",
+        ));
+    }
+    // Each extra-edge attempt is a loop turn during generation: bound them, so a huge value is
+    // an error rather than minutes of generation per floor.
+    if d.max_extra_edges > MAX_EXTRA_EDGES {
+        return Err(ConfigError::invalid(
+            "dungeon.max_extra_edges",
+            d.max_extra_edges,
+            format!("must be <= {MAX_EXTRA_EDGES}"),
         ));
     }
     if d.min_room_size.x < 3 || d.min_room_size.y < 3 {
@@ -217,14 +232,16 @@ fn player(c: &GameConfig) -> Result<(), ConfigError> {
                     "unknown weapon name",
                 ));
             }
-            InitItem::Armor(a) if a.def_plus.abs() > 100 => {
+            InitItem::Armor(a) if a.def_plus.unsigned_abs() > 100 => {
                 return Err(ConfigError::invalid(
                     &format!("player.init_items[{i}].def_plus"),
                     a.def_plus,
                     "must be -100..=100",
                 ));
             }
-            InitItem::Weapon(w) if w.hit_plus.abs() > 100 || w.dam_plus.abs() > 100 => {
+            InitItem::Weapon(w)
+                if w.hit_plus.unsigned_abs() > 100 || w.dam_plus.unsigned_abs() > 100 =>
+            {
                 return Err(ConfigError::invalid(
                     &format!("player.init_items[{i}]"),
                     w.hit_plus,
@@ -280,7 +297,7 @@ fn enemies(c: &GameConfig) -> Result<(), ConfigError> {
                         "dice too large (times <= 100, max <= 1000)",
                     ));
                 }
-                if c.defense.abs() > 1000 {
+                if c.defense.unsigned_abs() > 1000 {
                     return Err(ConfigError::invalid(
                         &format!("{key}.defense"),
                         c.defense,
