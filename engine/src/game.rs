@@ -187,7 +187,7 @@ impl Game {
         let (mut armor, mut weapon) = (false, false);
         for item in &p.init_items {
             match item {
-                InitItem::Noinit(n) if n.kind.eq_ignore_ascii_case("gold") => {
+                InitItem::Noinit(n) if n.kind.name().eq_ignore_ascii_case("gold") => {
                     player.gold = player.gold.saturating_add(n.how_many)
                 }
                 InitItem::Armor(a) if !armor => {

@@ -23,7 +23,7 @@ pub use items::{
     WeaponConfig, WeaponPreset,
 };
 pub use keymap::{InputCode, KeyAction, KeyDirection, SysCode};
-pub use player::{InitArmor, InitItem, InitWeapon, NoinitItem, PlayerConfig};
+pub use player::{InitArmor, InitItem, InitWeapon, ItemKind, NoinitItem, PlayerConfig};
 
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;

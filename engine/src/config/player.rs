@@ -1,5 +1,7 @@
 //! The `player` section: starting stats and items.
 
+use std::collections::BTreeMap;
+
 use serde::{Deserialize, Serialize};
 
 /// Player parameters (docs/rules.md §1).
@@ -54,14 +56,14 @@ impl Default for PlayerConfig {
             max_items: 27,
             init_items: vec![
                 InitItem::Noinit(NoinitItem {
-                    kind: "Gold".into(),
+                    kind: ItemKind::Plain("Gold".into()),
                     how_many: 0,
                     attr: 4,
                 }),
                 InitItem::Noinit(NoinitItem {
-                    kind: "Food".into(),
+                    kind: ItemKind::WithSub(BTreeMap::from([("Food".into(), "Ration".into())])),
                     how_many: 1,
-                    attr: 0,
+                    attr: 4,
                 }),
                 InitItem::Armor(InitArmor {
                     name: "ring mail".into(),
@@ -107,8 +109,9 @@ pub enum InitItem {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct NoinitItem {
-    /// Item kind (`Gold`, `Food`, `Potion`, ...). Gold sets the starting gold.
-    pub kind: String,
+    /// Item kind: `"Gold"` (sets the starting gold), or a kind with its sub-kind as the original
+    /// writes it, `{"Food": "Ration"}`.
+    pub kind: ItemKind,
     /// Count.
     pub how_many: u32,
     /// Attribute bits (unused).
@@ -142,4 +145,25 @@ pub struct InitWeapon {
     /// Damage bonus.
     #[serde(default)]
     pub dam_plus: i32,
+}
+
+/// The kind of a plain starting item, in the original's two spellings.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum ItemKind {
+    /// A kind alone: `"Gold"`.
+    Plain(String),
+    /// A kind and its sub-kind, externally tagged as in the original: `{"Food": "Ration"}`
+    /// (one entry).
+    WithSub(BTreeMap<String, String>),
+}
+
+impl ItemKind {
+    /// The kind's name (`"Gold"`, `"Food"`, ...); empty for a malformed sub-kind map.
+    pub fn name(&self) -> &str {
+        match self {
+            ItemKind::Plain(k) => k,
+            ItemKind::WithSub(m) => m.keys().next().map_or("", String::as_str),
+        }
+    }
 }

@@ -1,7 +1,7 @@
 //! Validation of a [`GameConfig`], one function per section; each error names its key.
 
 use super::keymap;
-use super::{ArmorPreset, ConfigError, EnemyPreset, GameConfig, InitItem, WeaponPreset};
+use super::{ArmorPreset, ConfigError, EnemyPreset, GameConfig, InitItem, ItemKind, WeaponPreset};
 use super::{armor_by_name, weapon_by_name};
 
 /// Most extra-edge attempts a floor may make (`dungeon.max_extra_edges`).
@@ -209,7 +209,10 @@ fn player(c: &GameConfig) -> Result<(), ConfigError> {
             "must be 1..=32",
         ));
     }
-    if p.exps.windows(2).any(|w| w[0] > w[1]) {
+    // The original's files end the list with a 0 (a sentinel it never reaches in play); the
+    // level-up rule reads it the same way here, so only the thresholds before it must rise.
+    let thresholds = p.exps.strip_suffix(&[0]).unwrap_or(&p.exps);
+    if thresholds.windows(2).any(|w| w[0] > w[1]) {
         return Err(ConfigError::invalid(
             "player.exps",
             format!("{:?}", p.exps),
@@ -217,6 +220,16 @@ fn player(c: &GameConfig) -> Result<(), ConfigError> {
         ));
     }
     for (i, item) in p.init_items.iter().enumerate() {
+        if let InitItem::Noinit(n) = item
+            && let ItemKind::WithSub(m) = &n.kind
+            && m.len() != 1
+        {
+            return Err(ConfigError::invalid(
+                &format!("player.init_items[{i}].kind"),
+                format!("{m:?}"),
+                "a kind with a sub-kind has exactly one entry, e.g. {\"Food\": \"Ration\"}",
+            ));
+        }
         match item {
             InitItem::Armor(a) if armor_by_name(&a.name).is_none() => {
                 return Err(ConfigError::invalid(
