@@ -4,7 +4,8 @@ use std::fs;
 use std::path::{Path as StdPath, PathBuf};
 
 use crate::cleanup::SHM_DIR;
-use crate::*;
+use crate::error::IpcError;
+use crate::naming::PoolId;
 
 /// A plain shared-memory buffer of a pool (`/dev/shm/<prefix><name>`, so pool cleanup removes
 /// it), mapped read-write in every process that opens it. Used for batch observation slots that

@@ -6,7 +6,10 @@ use std::path::{Path as StdPath, PathBuf};
 use std::time::Duration;
 
 use crate::error::ice;
-use crate::*;
+
+use crate::Svc;
+use crate::error::IpcError;
+use crate::naming::{PoolId, process_start_time};
 use iceoryx2::prelude::*;
 
 pub(crate) const SHM_DIR: &str = "/dev/shm";

@@ -6,7 +6,9 @@ use std::path::{Path as StdPath, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::ice;
-use crate::*;
+
+use crate::Svc;
+use crate::error::IpcError;
 use iceoryx2::prelude::*;
 
 /// Default directory under which each pool gets its short root directory.

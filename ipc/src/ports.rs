@@ -2,7 +2,13 @@
 //! [`BlockListener`]) and from the worker ([`WorkerPorts`]).
 
 use crate::error::ice;
-use crate::*;
+
+use crate::error::IpcError;
+use crate::services::{
+    BlockHeader, ChannelSettings, CmdHeader, block_event_service, block_service, cmd_event_service,
+    cmd_service,
+};
+use crate::{BlockSample, BlockSampleMut, Svc};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;

@@ -2,7 +2,9 @@
 //! function per service kind, so both sides always agree on the settings.
 
 use crate::error::ice;
-use crate::*;
+
+use crate::Svc;
+use crate::error::IpcError;
 use iceoryx2::prelude::*;
 
 /// Header of a command (supervisor → worker). The payload's meaning depends on `kind`, which the

@@ -3,7 +3,9 @@
 use std::time::{Duration, Instant};
 
 use crate::error::ice;
-use crate::*;
+
+use crate::Svc;
+use crate::error::IpcError;
 use iceoryx2::port::listener::Listener;
 
 /// How a side waits for the other: yield-poll for `poll_budget`, then block on the event
