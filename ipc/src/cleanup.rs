@@ -5,12 +5,12 @@ use std::fs;
 use std::path::{Path as StdPath, PathBuf};
 use std::time::Duration;
 
-use crate::error::ice;
+use iceoryx2::prelude::*;
 
 use crate::Svc;
 use crate::error::IpcError;
+use crate::error::ice;
 use crate::naming::{PoolId, process_start_time};
-use iceoryx2::prelude::*;
 
 pub(crate) const SHM_DIR: &str = "/dev/shm";
 

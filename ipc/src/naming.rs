@@ -5,11 +5,11 @@ use std::io::Write;
 use std::path::{Path as StdPath, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use crate::error::ice;
+use iceoryx2::prelude::*;
 
 use crate::Svc;
 use crate::error::IpcError;
-use iceoryx2::prelude::*;
+use crate::error::ice;
 
 /// Default directory under which each pool gets its short root directory.
 pub const DEFAULT_BASE_DIR: &str = "/tmp/rgp";

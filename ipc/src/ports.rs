@@ -1,20 +1,20 @@
 //! The ports of one worker's channels, seen from the supervisor ([`SupervisorPorts`],
 //! [`BlockListener`]) and from the worker ([`WorkerPorts`]).
 
-use crate::error::ice;
-
-use crate::error::IpcError;
-use crate::services::{
-    BlockHeader, ChannelSettings, CmdHeader, block_event_service, block_service, cmd_event_service,
-    cmd_service,
-};
-use crate::{BlockSample, BlockSampleMut, Svc};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
+
+use crate::error::IpcError;
+use crate::error::ice;
+use crate::services::{
+    BlockHeader, ChannelSettings, CmdHeader, block_event_service, block_service, cmd_event_service,
+    cmd_service,
+};
+use crate::{BlockSample, BlockSampleMut, Svc};
 
 /// Supervisor-side ports of one worker. `Send`.
 pub struct SupervisorPorts {

@@ -1,11 +1,11 @@
 //! Headers and service settings: every iceoryx2 service of a pool is built by exactly one
 //! function per service kind, so both sides always agree on the settings.
 
-use crate::error::ice;
+use iceoryx2::prelude::*;
 
 use crate::Svc;
 use crate::error::IpcError;
-use iceoryx2::prelude::*;
+use crate::error::ice;
 
 /// Header of a command (supervisor → worker). The payload's meaning depends on `kind`, which the
 /// pool defines.

@@ -2,11 +2,11 @@
 
 use std::time::{Duration, Instant};
 
-use crate::error::ice;
+use iceoryx2::port::listener::Listener;
 
 use crate::Svc;
 use crate::error::IpcError;
-use iceoryx2::port::listener::Listener;
+use crate::error::ice;
 
 /// How a side waits for the other: yield-poll for `poll_budget`, then block on the event
 /// listener in slices of `block_slice` (between slices the caller's idle hook runs: liveness
