@@ -28,6 +28,7 @@
 
 pub mod action;
 pub mod config;
+pub mod dump;
 mod dungeon;
 pub mod game;
 pub mod geometry;
@@ -43,6 +44,7 @@ mod tests;
 
 pub use action::{ACTION_KEYS, Action, Command, NUM_ACTIONS};
 pub use config::{ConfigError, GameConfig};
+pub use dump::{FloorRecord, floor_records};
 pub use game::{EpisodeConfig, EpisodeInfo, Game, StepResult};
 pub use obs::{Dtype, Encoding, ObsBufMut, ObsError, ObsSpec, Status, StatusFlags};
 pub use rng::splitmix64;

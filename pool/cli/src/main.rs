@@ -5,6 +5,7 @@
 
 mod action_log;
 mod bench;
+mod dump;
 mod play;
 mod pool_bench;
 mod replay;
@@ -33,6 +34,8 @@ enum Cmd {
     Replay(replay::Args),
     /// Measure engine steps per second.
     Bench(bench::Args),
+    /// Write the floors of a range of seeds as JSON lines (the dungeon oracle's format).
+    Dump(dump::Args),
     /// Benchmark the multi-process pool against the raw single-process loop.
     PoolBench(pool_bench::Args),
     /// Run a pool worker (spawned by the pool's supervisor; not for direct use).
@@ -45,6 +48,7 @@ fn main() -> ExitCode {
         Cmd::Play(args) => play::run(args),
         Cmd::Replay(args) => replay::run(args),
         Cmd::Bench(args) => bench::run(args),
+        Cmd::Dump(args) => dump::run(args),
         Cmd::PoolBench(args) => std::process::exit(pool_bench::run(args)),
         Cmd::Worker(args) => std::process::exit(worker::run(args)),
     };

@@ -159,3 +159,73 @@ fn replay_rejects_bad_logs() {
     assert!(!o.status.success());
     assert!(text(&o).1.contains("unknown key"));
 }
+
+#[test]
+fn dump_writes_one_record_per_seed_and_floor_in_the_oracles_format() {
+    let o = bin()
+        .args(["dump", "--seed", "1000..1003", "--floors", "3"])
+        .output()
+        .unwrap();
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    let records: Vec<serde_json::Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(records.len(), 9);
+    for (k, r) in records.iter().enumerate() {
+        assert_eq!(r["seed"], 1000 + k as u64 / 3);
+        assert_eq!(r["floor"], 1 + k as u64 % 3);
+        assert_eq!(
+            r["reached_by"],
+            if k % 3 == 0 { "start" } else { "teleport" }
+        );
+        let map: Vec<&str> = r["map"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|s| s.as_str().unwrap())
+            .collect();
+        assert_eq!(map.len(), 16);
+        assert!(map.iter().all(|row| row.len() == 32));
+        let at = |p: &serde_json::Value| {
+            map[p[1].as_u64().unwrap() as usize].as_bytes()[p[0].as_u64().unwrap() as usize]
+        };
+        assert_eq!(at(&r["stairs"]), b'%');
+        assert!(matches!(at(&r["player_start"]), b'.' | b'#'), "{r}");
+        assert_ne!(r["player_start"], r["stairs"]);
+        let locked = r["locked_doors"].as_array().unwrap();
+        for d in r["doors"].as_array().unwrap() {
+            let want: &[u8] = if locked.contains(d) { b"-|" } else { b"+" };
+            assert!(want.contains(&at(d)), "door {d} in {r}");
+        }
+        for h in r["hidden_passages"].as_array().unwrap() {
+            assert!(matches!(at(h), b' ' | b'#'), "hidden passage {h}");
+        }
+        assert_eq!(r["rooms"].as_array().unwrap().len(), 4);
+    }
+    // The same fields as the original's oracle records, where ../shared is beside the repository.
+    let oracle = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/reference/original-dungeons/paper-seeds-v0.0.2.jsonl");
+    if let Ok(text) = std::fs::read_to_string(&oracle) {
+        let first: serde_json::Value = serde_json::from_str(text.lines().next().unwrap()).unwrap();
+        let keys = |v: &serde_json::Value| {
+            let mut k: Vec<String> = v.as_object().unwrap().keys().cloned().collect();
+            k.sort();
+            k
+        };
+        assert_eq!(keys(&records[0]), keys(&first));
+        assert_eq!(keys(&records[0]["rooms"][0]), keys(&first["rooms"][0]));
+        let with_gold = records
+            .iter()
+            .find(|r| !r["gold"].as_array().unwrap().is_empty())
+            .unwrap();
+        assert_eq!(keys(&with_gold["gold"][0]), keys(&first["gold"][0]));
+    }
+    // The same seeds give the same lines.
+    let again = bin()
+        .args(["dump", "--seed", "1000..1003", "--floors", "3"])
+        .output()
+        .unwrap();
+    assert_eq!(text(&again).0, out);
+}
