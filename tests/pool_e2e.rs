@@ -9,10 +9,10 @@ use serde_json::json;
 const EXE: &str = env!("CARGO_BIN_EXE_e2e_worker");
 
 #[test]
-fn trajectories_identical_for_1_2_4_workers_and_sync_async() {
+fn trajectories_identical_for_1_2_4_8_workers_and_sync_async() {
     let steps = 40;
     let mut reference = None;
-    for workers in [1, 2, 4] {
+    for workers in [1, 2, 4, 8] {
         let mut p = pool(config(EXE, test_env(), 8, workers));
         let d = run_sync(&mut p, steps).unwrap();
         let id = p.id().clone();
@@ -24,7 +24,7 @@ fn trajectories_identical_for_1_2_4_workers_and_sync_async() {
         }
     }
     let reference = reference.unwrap();
-    for workers in [1, 2, 4] {
+    for workers in [1, 2, 4, 8] {
         let mut p = pool(config(EXE, test_env(), 8, workers));
         let d = run_sync_shared(&mut p, steps).unwrap();
         assert_eq!(
@@ -32,7 +32,7 @@ fn trajectories_identical_for_1_2_4_workers_and_sync_async() {
             "shared-slot sync with {workers} workers differs"
         );
     }
-    for (workers, batch) in [(4, 4), (2, 4), (4, 8)] {
+    for (workers, batch) in [(4, 4), (2, 4), (4, 8), (8, 1), (8, 4)] {
         let mut c = config(EXE, test_env(), 8, workers);
         c.batch_size = Some(batch);
         let mut p = pool(c);

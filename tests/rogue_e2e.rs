@@ -12,11 +12,11 @@ fn rogue() -> serde_json::Value {
 }
 
 #[test]
-fn rogue_trajectories_identical_for_1_2_4_workers_and_sync_async() {
+fn rogue_trajectories_identical_for_1_2_4_8_workers_and_sync_async() {
     let reg = EnvRegistry::with_defaults();
     let steps = 60;
     let mut reference = None;
-    for workers in [1, 2, 4] {
+    for workers in [1, 2, 4, 8] {
         let mut p = Pool::new(config(EXE, rogue(), 8, workers), &reg).unwrap();
         assert_eq!(p.spec().obs_shape, vec![17, 16, 32]);
         let d = run_sync(&mut p, steps).unwrap();
@@ -28,10 +28,16 @@ fn rogue_trajectories_identical_for_1_2_4_workers_and_sync_async() {
     let reference = reference.unwrap();
     let mut p = Pool::new(config(EXE, rogue(), 8, 2), &reg).unwrap();
     assert_eq!(run_sync_shared(&mut p, steps).unwrap(), reference);
-    let mut c = config(EXE, rogue(), 8, 4);
-    c.batch_size = Some(4);
-    let mut p = Pool::new(c, &reg).unwrap();
-    assert_eq!(run_async(&mut p, steps).unwrap(), reference);
+    for (workers, batch) in [(4, 4), (8, 2)] {
+        let mut c = config(EXE, rogue(), 8, workers);
+        c.batch_size = Some(batch);
+        let mut p = Pool::new(c, &reg).unwrap();
+        assert_eq!(
+            run_async(&mut p, steps).unwrap(),
+            reference,
+            "async with {workers} workers, batch {batch} differs"
+        );
+    }
 }
 
 #[test]

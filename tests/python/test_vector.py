@@ -111,18 +111,20 @@ def test_workers_are_the_extension_module(make_vec) -> None:
 
 
 @pytest.mark.parametrize("mode", ["next_step", "same_step"])
-def test_same_trajectories_for_one_and_two_workers(make_vec, mode) -> None:
-    acts = _actions(4, 60, seed=1)
+def test_same_trajectories_for_1_2_4_8_workers(make_vec, mode) -> None:
+    acts = _actions(8, 60, seed=1)
     runs = []
-    for workers in (1, 2):
-        env = make_vec(4, num_workers=workers, max_steps=25, seed=42, autoreset_mode=mode)
+    for workers in (1, 2, 4, 8):
+        env = make_vec(8, num_workers=workers, max_steps=25, seed=42, autoreset_mode=mode)
         obs, infos = env.reset()
         trace = [obs.copy(), infos["seed"].copy()]
         for a in acts:
             obs, rew, term, trunc, infos = env.step(a)
             trace += [obs.copy(), rew, term, trunc, infos["seed"].copy()]
         runs.append(trace)
-    assert all(np.array_equal(x, y) for x, y in zip(*runs))
+        env.close()
+    for other in runs[1:]:
+        assert all(np.array_equal(x, y) for x, y in zip(runs[0], other))
 
 
 def test_pool_matches_single_env(make_vec) -> None:
