@@ -1,0 +1,109 @@
+"""The generalization score: the policy on the suite's unseen test seeds, via the evaluator.
+
+Each evaluation plays ``eval_episodes`` episodes on each of the first ``eval_seeds`` test seeds
+through :func:`rogue_gym.evaluate.run_episodes` (the paper: 1000 seeds x 10 episodes) with the
+stochastic policy, as the paper's evaluation does, and reports the mean with a 95% bootstrap
+interval across seeds (:class:`rogue_gym.evaluate.AgentResult`).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Dict, List
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from ..evaluate import AgentResult, RandomPolicy, run_episodes
+from ..suites import Suite
+from .networks import PolicyNet
+
+__all__ = ["TorchPolicy", "generalization", "random_baseline"]
+
+#: Confidence level of the reported intervals.
+CONFIDENCE = 0.95
+
+
+class TorchPolicy:
+    """A network as an evaluator policy: symbol-index screens in, sampled actions out."""
+
+    def __init__(self, net: PolicyNet, device: torch.device) -> None:
+        self.net = net
+        self.device = device
+        self.generator = torch.Generator(device="cpu")
+
+    def seed(self, seed: int) -> None:
+        """Restart the action sampling from ``seed``."""
+        self.generator.manual_seed(seed)
+
+    @torch.no_grad()
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """One action per screen, sampled from the policy."""
+        x = torch.from_numpy(np.array(obs, copy=True)).to(self.device)
+        probs = F.softmax(self.net(x).logits.float(), dim=-1).cpu()
+        return torch.multinomial(probs, 1, generator=self.generator).squeeze(1).numpy()
+
+
+def _run(
+    suite: Suite,
+    policy: Any,
+    seeds: List[int],
+    episodes: int,
+    num_envs: int,
+    workers: int,
+    seed: int,
+) -> np.ndarray:
+    return run_episodes(
+        suite,
+        policy,
+        seeds,
+        episodes,
+        num_envs=num_envs,
+        num_workers=workers,
+        obs="symbol_index",
+        policy_seed=seed,
+        progress=False,
+    )
+
+
+def generalization(
+    net: PolicyNet,
+    device: torch.device,
+    suite: Suite,
+    seeds: int,
+    episodes: int,
+    num_envs: int,
+    workers: int,
+    seed: int,
+) -> AgentResult:
+    """The policy's score on the first ``seeds`` test seeds, ``episodes`` each."""
+    was_training = net.training
+    net.eval()
+    try:
+        policy = TorchPolicy(net, device)
+        test = suite.test_seed_list()[:seeds]
+        returns = _run(suite, policy, test, episodes, num_envs, workers, seed)
+    finally:
+        net.train(was_training)
+    return AgentResult.from_returns("policy", returns, CONFIDENCE, 0)
+
+
+def random_baseline(
+    suite: Suite, seeds: int, episodes: int, num_envs: int, workers: int
+) -> Dict[str, Any]:
+    """The uniform random agent's training score (on the training seeds) and generalization
+    score (on the same test seeds as :func:`generalization`), for the plots."""
+    train = _run(suite, RandomPolicy(), suite.train_seed_list(), episodes, num_envs, workers, 0)
+    test = _run(
+        suite, RandomPolicy(), suite.test_seed_list()[:seeds], episodes, num_envs, workers, 0
+    )
+    gen = AgentResult.from_returns("random", test, CONFIDENCE, 0)
+    return {
+        "suite": suite.name,
+        "train_score": float(train.mean()),
+        "gen_score": gen.mean,
+        "gen_ci_low": gen.ci_low,
+        "gen_ci_high": gen.ci_high,
+        "eval_seeds": seeds,
+        "eval_episodes": episodes,
+    }

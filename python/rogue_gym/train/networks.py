@@ -1,0 +1,349 @@
+"""The paper's six policy networks, reading symbol-index screens.
+
+Every network takes a batch of screens as symbol indices, ``(B, H, W)`` integers in
+``[0, symbols)`` (uint8 on the wire), and returns :class:`PolicyOutput`: action logits, the
+state value and, for the VAE variants, the auxiliary loss.
+
+The paper's networks read the one-hot encoding of the screen (one channel per symbol). A
+convolution over a one-hot input is a table lookup: output ``o`` at ``(i, j)`` is the bias plus
+the sum, over the kernel's taps ``(dy, dx)``, of the weight ``W[o, symbol(i+dy, j+dx), dy, dx]``.
+:class:`OneHotConv2d` computes exactly that with ``embedding_bag`` instead of a dense
+convolution over 17 mostly-zero channels. Its parameters have ``Conv2d``'s shapes and meaning,
+so the networks are the paper's; only the arithmetic is cheaper (about 30x fewer operations in
+the Small network's first layer), and nothing float32 ever crosses the wire.
+
+Variants (``VARIANTS``), after ``../shared/reference/python-api-and-paper-protocol.md`` §3.4:
+
+* ``small``: three valid convolutions (k8, k4, k3; 32, 64, 32 channels), FC 256.
+* ``large``: the IMPALA ResNet, channels 16/32/32, 15 convolutions, FC 256.
+* ``batchnorm``: ``large`` with batch normalization after every convolution.
+* ``l2``: ``large``; the trainer adds weight decay (L2) to the optimizer.
+* ``vae`` / ``betavae``: a convolutional VAE encoder whose mean ``mu`` feeds the policy and value
+  heads, with a decoder trained jointly (reconstruction + beta * KL; beta 0 and 4).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Optional, Tuple
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+from torch.nn.grad import conv2d_weight
+
+__all__ = [
+    "VARIANTS",
+    "ImpalaNet",
+    "OneHotConv2d",
+    "PolicyNet",
+    "PolicyOutput",
+    "SmallNet",
+    "VaeNet",
+    "build_network",
+]
+
+#: The network variants, as ``--variant`` names them.
+VARIANTS: Tuple[str, ...] = ("small", "large", "batchnorm", "l2", "vae", "betavae")
+
+#: beta of the KL term for the VAE variants.
+VAE_BETA = {"vae": 0.0, "betavae": 4.0}
+
+
+@dataclass
+class PolicyOutput:
+    """What a network returns for a batch of screens."""
+
+    logits: torch.Tensor
+    """``(B, actions)`` unnormalized action log-probabilities."""
+    value: torch.Tensor
+    """``(B,)`` state values."""
+    aux_loss: Optional[torch.Tensor] = None
+    """A scalar loss to add to PPO's (the VAE's), when asked for and the network has one."""
+
+
+def _orthogonal(module: nn.Module, gain: float) -> nn.Module:
+    """Orthogonal weights with ``gain`` and zero biases (the paper's initializer)."""
+    weight = getattr(module, "weight", None)
+    if isinstance(weight, torch.Tensor):
+        nn.init.orthogonal_(weight, gain)
+    bias = getattr(module, "bias", None)
+    if isinstance(bias, torch.Tensor):
+        nn.init.zeros_(bias)
+    return module
+
+
+RELU_GAIN = math.sqrt(2.0)
+
+
+class OneHotConv2d(nn.Module):
+    """``Conv2d`` over the one-hot encoding of a symbol-index map, computed by table lookup.
+
+    ``forward(x)`` takes ``(B, H, W)`` integer symbols in ``[0, num_symbols)`` and returns
+    ``(B, out_channels, H', W')``, equal (up to float summation order) to
+    ``conv2d(one_hot(x).permute(0, 3, 1, 2), weight, bias, padding=padding)``. Zero padding of
+    a one-hot input is a cell with no symbol: it indexes a zero row. Stride 1 only.
+    """
+
+    def __init__(
+        self,
+        num_symbols: int,
+        out_channels: int,
+        kernel_size: int,
+        padding: int = 0,
+        bias: bool = True,
+    ) -> None:
+        super().__init__()
+        self.num_symbols = num_symbols
+        self.kernel_size = kernel_size
+        self.padding = padding
+        self.weight = nn.Parameter(torch.empty(out_channels, num_symbols, kernel_size, kernel_size))
+        self.bias = nn.Parameter(torch.zeros(out_channels)) if bias else None
+        nn.init.kaiming_uniform_(self.weight, a=math.sqrt(5))
+        # Row offset of each tap (dy, dx) in the lookup table (one extra row per tap: padding).
+        taps = torch.arange(kernel_size * kernel_size) * (num_symbols + 1)
+        self.register_buffer("tap_offset", taps.view(kernel_size, kernel_size), persistent=False)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Convolve the one-hot encoding of ``x`` (``(B, H, W)`` integer symbols)."""
+        y = _OneHotConv.apply(x, self.weight, self.tap_offset, self.padding)
+        if self.bias is not None:
+            y = y + self.bias.view(1, -1, 1, 1)
+        return y
+
+
+class _OneHotConv(torch.autograd.Function):
+    """Forward by table lookup (``embedding_bag``); the weight gradient by a dense kernel over
+    the symbols that occur, all but the most frequent one.
+
+    ``embedding_bag``'s own backward sorts every index of the batch and is about 10x slower on
+    a CPU than the convolution's weight-gradient kernel applied to the one-hot input. That
+    kernel's cost grows with the number of channels, so the backward here gives it only the
+    symbols present in the batch (a few of the 17 in the paper's dungeons; an absent symbol's
+    gradient is zero), and leaves out the most frequent one (the blank, about 90% of cells):
+    the one-hot channels, padding included, sum to 1 in every cell, so that symbol's gradient
+    is the gradient's total minus the others'. Exact up to float summation order.
+    """
+
+    @staticmethod
+    def forward(
+        ctx: Any, x: torch.Tensor, weight: torch.Tensor, tap_offset: torch.Tensor, padding: int
+    ) -> torch.Tensor:
+        out_c, c, k, _ = weight.shape
+        idx = x.long()
+        if padding:
+            idx = F.pad(idx, (padding,) * 4, value=c)  # symbol ``c``: the zero row
+        b, h, w = idx.shape
+        ho, wo = h - k + 1, w - k + 1
+        windows = idx.unfold(1, k, 1).unfold(2, k, 1)  # (B, Ho, Wo, k, k)
+        bags = (windows + tap_offset).reshape(b * ho * wo, k * k)
+        table = F.pad(weight.permute(2, 3, 1, 0), (0, 0, 0, 1))  # (k, k, c + 1, out)
+        y = F.embedding_bag(bags, table.reshape(-1, out_c), mode="sum")
+        ctx.save_for_backward(idx)
+        ctx.weight_shape = weight.shape
+        return y.view(b, ho, wo, out_c).permute(0, 3, 1, 2)  # NCHW view of NHWC memory
+
+    @staticmethod
+    def backward(ctx: Any, grad_out: torch.Tensor) -> Any:
+        (idx,) = ctx.saved_tensors
+        out_c, c, k, _ = ctx.weight_shape
+        counts = torch.bincount(idx.flatten(), minlength=c + 1)  # symbol c: padding
+        major = int(torch.argmax(counts))
+        others = torch.nonzero(counts, as_tuple=True)[0]
+        others = others[others != major]
+        grad_w = grad_out.new_zeros(ctx.weight_shape)
+        total = grad_out.sum(dim=(0, 2, 3))  # the gradient if every cell held one symbol
+        if others.numel():
+            channels = (idx.unsqueeze(1) == others.view(1, -1, 1, 1)).to(grad_out.dtype)
+            shape = (out_c, int(others.numel()), k, k)
+            part = conv2d_weight(channels, shape, grad_out)
+            real = others < c
+            grad_w[:, others[real]] = part[:, real]
+            rest = total.view(-1, 1, 1) - part.sum(dim=1)
+        else:
+            rest = total.view(-1, 1, 1).expand(out_c, k, k)
+        if major < c:
+            grad_w[:, major] = rest
+        return None, grad_w, None, None
+
+
+class PolicyNet(nn.Module):
+    """A body producing features, plus the policy and value heads."""
+
+    def __init__(self, features: int, num_actions: int) -> None:
+        super().__init__()
+        self.policy_head = _orthogonal(nn.Linear(features, num_actions), 0.01)
+        self.value_head = _orthogonal(nn.Linear(features, 1), 1.0)
+
+    def body(self, x: torch.Tensor) -> torch.Tensor:
+        """Features of a batch of symbol-index screens."""
+        raise NotImplementedError
+
+    def forward(self, x: torch.Tensor, with_aux: bool = False) -> PolicyOutput:
+        """Logits and values of ``x``; ``with_aux`` is ignored (no auxiliary loss)."""
+        h = self.body(x)
+        return PolicyOutput(self.policy_head(h), self.value_head(h).squeeze(-1))
+
+
+class SmallNet(PolicyNet):
+    """PPO Small: the DQN-like three-convolution network (valid convolutions, stride 1)."""
+
+    def __init__(self, symbols: int, height: int, width: int, num_actions: int) -> None:
+        super().__init__(256, num_actions)
+        self.conv1 = OneHotConv2d(symbols, 32, 8)
+        self.conv2 = nn.Conv2d(32, 64, 4)
+        self.conv3 = nn.Conv2d(64, 32, 3)
+        flat = 32 * (height - 12) * (width - 12)
+        self.fc = nn.Linear(flat, 256)
+        for m in (self.conv1, self.conv2, self.conv3, self.fc):
+            _orthogonal(m, RELU_GAIN)
+
+    def body(self, x: torch.Tensor) -> torch.Tensor:
+        """Three ReLU convolutions and a ReLU FC layer."""
+        h = F.relu(self.conv1(x))
+        h = F.relu(self.conv2(h))
+        h = F.relu(self.conv3(h))
+        return F.relu(self.fc(h.flatten(1)))
+
+
+class _Residual(nn.Module):
+    """ReLU, conv3x3, [BN], ReLU, conv3x3, [BN], plus the skip.
+
+    As in the paper's code, whose first ReLU is in place, the skip carries ``relu(x)``.
+    """
+
+    def __init__(self, channels: int, batch_norm: bool) -> None:
+        super().__init__()
+        self.conv1 = nn.Conv2d(channels, channels, 3, padding=1, bias=not batch_norm)
+        self.conv2 = nn.Conv2d(channels, channels, 3, padding=1, bias=not batch_norm)
+        self.bn1 = nn.BatchNorm2d(channels) if batch_norm else nn.Identity()
+        self.bn2 = nn.BatchNorm2d(channels) if batch_norm else nn.Identity()
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """The block's output."""
+        x = F.relu(x)
+        h = self.bn1(self.conv1(x))
+        h = self.bn2(self.conv2(F.relu(h)))
+        return x + h
+
+
+class ImpalaNet(PolicyNet):
+    """PPO Large: the IMPALA ResNet (3 stages of conv, max-pool and 2 residual blocks).
+
+    The first stage's pool halves the screen (k3 s2 p1); the later ones keep it (k3 s1 p1), as
+    in the paper's code. ``batch_norm`` puts a BatchNorm after every convolution.
+    """
+
+    CHANNELS = (16, 32, 32)
+
+    def __init__(
+        self, symbols: int, height: int, width: int, num_actions: int, batch_norm: bool = False
+    ) -> None:
+        super().__init__(256, num_actions)
+        stages = []
+        in_c = symbols
+        for s, out_c in enumerate(self.CHANNELS):
+            conv: nn.Module
+            if s == 0:
+                conv = OneHotConv2d(symbols, out_c, 3, padding=1, bias=False)
+            else:
+                conv = nn.Conv2d(in_c, out_c, 3, padding=1, bias=False)
+            stride = 2 if s == 0 else 1
+            stages.append(
+                nn.Sequential(
+                    conv,
+                    nn.BatchNorm2d(out_c) if batch_norm else nn.Identity(),
+                    nn.MaxPool2d(3, stride=stride, padding=1),
+                    _Residual(out_c, batch_norm),
+                    _Residual(out_c, batch_norm),
+                )
+            )
+            in_c = out_c
+        self.stages = nn.Sequential(*stages)
+        h, w = (height + 1) // 2, (width + 1) // 2
+        self.fc = nn.Linear(in_c * h * w, 256)
+        for m in self.stages.modules():
+            if isinstance(m, (nn.Conv2d, OneHotConv2d)):
+                _orthogonal(m, RELU_GAIN)
+
+    def body(self, x: torch.Tensor) -> torch.Tensor:
+        """The ResNet, a ReLU, and a ReLU FC layer."""
+        h = F.relu(self.stages(x))
+        return F.relu(self.fc(h.flatten(1)))
+
+
+class VaeNet(PolicyNet):
+    """(beta-)VAE PPO: the policy and value read the encoder's mean ``mu``.
+
+    Encoder: convolutions k8/k4/k3 with padding 1 (32, 64, 32 channels), FC 256, then ``mu``
+    and ``logvar`` (``z_dim`` 64). Decoder: FC 256, FC back to the conv shape, and transposed
+    convolutions mirroring the encoder, giving per-cell logits over the symbols. Auxiliary loss:
+    per-cell cross-entropy against the screen plus ``beta`` times the KL divergence, each summed
+    over a sample and averaged over the batch.
+    """
+
+    def __init__(
+        self, symbols: int, height: int, width: int, num_actions: int, beta: float, z_dim: int = 64
+    ) -> None:
+        super().__init__(z_dim, num_actions)
+        self.beta = beta
+        self.conv1 = OneHotConv2d(symbols, 32, 8, padding=1)
+        self.conv2 = nn.Conv2d(32, 64, 4, padding=1)
+        self.conv3 = nn.Conv2d(64, 32, 3, padding=1)
+        # k8 p1 shrinks by 5, k4 p1 by 1, k3 p1 keeps the size: 16x32 -> 10x26.
+        self.conv_shape = (32, height - 6, width - 6)
+        flat = self.conv_shape[0] * self.conv_shape[1] * self.conv_shape[2]
+        self.fc = nn.Linear(flat, 256)
+        self.mu = nn.Linear(256, z_dim)
+        self.logvar = nn.Linear(256, z_dim)
+        self.dec_fc1 = nn.Linear(z_dim, 256)
+        self.dec_fc2 = nn.Linear(256, flat)
+        self.deconv3 = nn.ConvTranspose2d(32, 64, 3, padding=1)
+        self.deconv2 = nn.ConvTranspose2d(64, 32, 4, padding=1)
+        self.deconv1 = nn.ConvTranspose2d(32, symbols, 8, padding=1)
+        for m in (self.conv1, self.conv2, self.conv3, self.fc):
+            _orthogonal(m, RELU_GAIN)
+
+    def encode(self, x: torch.Tensor) -> Tuple[torch.Tensor, torch.Tensor]:
+        """``(mu, logvar)`` of a batch of screens."""
+        h = F.relu(self.conv1(x))
+        h = F.relu(self.conv2(h))
+        h = F.relu(self.conv3(h))
+        h = F.relu(self.fc(h.flatten(1)))
+        return self.mu(h), self.logvar(h)
+
+    def decode(self, z: torch.Tensor) -> torch.Tensor:
+        """Per-cell symbol logits ``(B, symbols, H, W)`` of latent codes ``z``."""
+        h = F.relu(self.dec_fc1(z))
+        h = F.relu(self.dec_fc2(h)).view(-1, *self.conv_shape)
+        h = F.relu(self.deconv3(h))
+        h = F.relu(self.deconv2(h))
+        return self.deconv1(h)
+
+    def forward(self, x: torch.Tensor, with_aux: bool = False) -> PolicyOutput:
+        """Logits and values from ``mu``; with ``with_aux``, the VAE loss of ``x`` too."""
+        mu, logvar = self.encode(x)
+        out = PolicyOutput(self.policy_head(mu), self.value_head(mu).squeeze(-1))
+        if with_aux:
+            # The reparameterization noise comes from torch's global RNG (seeded by the trainer).
+            z = mu + torch.randn_like(mu) * torch.exp(0.5 * logvar)
+            recon = F.cross_entropy(self.decode(z), x.long(), reduction="sum")
+            kl = -0.5 * torch.sum(1.0 + logvar - mu.pow(2) - logvar.exp())
+            out.aux_loss = (recon + self.beta * kl) / x.shape[0]
+        return out
+
+
+def build_network(
+    variant: str, symbols: int, height: int, width: int, num_actions: int
+) -> PolicyNet:
+    """The network of ``variant`` (one of :data:`VARIANTS`) for screens of ``height x width``."""
+    if variant == "small":
+        return SmallNet(symbols, height, width, num_actions)
+    if variant in ("large", "l2"):
+        return ImpalaNet(symbols, height, width, num_actions)
+    if variant == "batchnorm":
+        return ImpalaNet(symbols, height, width, num_actions, batch_norm=True)
+    if variant in VAE_BETA:
+        return VaeNet(symbols, height, width, num_actions, beta=VAE_BETA[variant])
+    raise ValueError(f"unknown variant {variant!r}; choose one of {', '.join(VARIANTS)}")

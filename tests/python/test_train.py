@@ -1,0 +1,260 @@
+"""The PPO trainer (``python -m rogue_gym.train``): networks, GAE, runs, resume, determinism,
+plots and the command line."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+torch = pytest.importorskip("torch")
+
+import torch.nn.functional as F  # noqa: E402
+from rogue_gym.train import VARIANTS, TrainConfig, train  # noqa: E402
+from rogue_gym.train.networks import OneHotConv2d, build_network  # noqa: E402
+from rogue_gym.train.plot import plot_runs  # noqa: E402
+from rogue_gym.train.ppo import compute_gae  # noqa: E402
+from rogue_gym.train.progress import COLUMNS, TIMING_COLUMNS, read_progress  # noqa: E402
+
+SYMBOLS, HEIGHT, WIDTH, ACTIONS = 17, 16, 32, 11
+
+
+def smoke_config(
+    out: Path, variant: str = "small", frames: int = 1024, **kw: object
+) -> TrainConfig:
+    """A tiny run: 8 envs x 32 steps per update, one epoch, a two-seed evaluation."""
+    base: dict = dict(
+        variant=variant,
+        suite="paper-10",
+        frames=frames,
+        out=out,
+        num_envs=8,
+        num_workers=2,
+        num_steps=32,
+        epochs=1,
+        minibatch_size=64,
+        eval_every=512,
+        eval_seeds=2,
+        eval_episodes=1,
+        eval_envs=2,
+        checkpoint_every=512,
+        progress=False,
+        threads=1,
+    )
+    base.update(kw)
+    return TrainConfig(**base)
+
+
+def _screens(kind: str) -> torch.Tensor:
+    """Symbol screens: uniform symbols, mostly blank (as in play), or a single symbol."""
+    if kind == "uniform":
+        return torch.randint(0, SYMBOLS, (3, HEIGHT, WIDTH), dtype=torch.uint8)
+    if kind == "one":
+        return torch.full((3, HEIGHT, WIDTH), 5, dtype=torch.uint8)
+    x = torch.zeros((3, HEIGHT, WIDTH), dtype=torch.uint8)
+    cells = torch.rand(x.shape) < 0.1
+    x[cells] = torch.randint(1, 7, (int(cells.sum()),), dtype=torch.uint8)
+    return x
+
+
+@pytest.mark.parametrize("screens", ["uniform", "mostly_blank", "one"])
+@pytest.mark.parametrize(("kernel", "padding"), [(8, 0), (3, 1), (8, 1)])
+def test_one_hot_conv_equals_a_convolution_of_the_one_hot_screen(
+    kernel: int, padding: int, screens: str
+) -> None:
+    torch.manual_seed(0)
+    conv = OneHotConv2d(SYMBOLS, 12, kernel, padding=padding).double()
+    x = _screens(screens)
+    y = conv(x)
+    grad = torch.randn_like(y)
+    (y * grad).sum().backward()
+    ours = (conv.weight.grad.clone(), conv.bias.grad.clone())
+    conv.weight.grad = conv.bias.grad = None
+    one_hot = F.one_hot(x.long(), SYMBOLS).permute(0, 3, 1, 2).double()
+    ref = F.conv2d(one_hot, conv.weight, conv.bias, padding=padding)
+    (ref * grad).sum().backward()
+    assert y.shape == ref.shape
+    torch.testing.assert_close(y, ref)
+    torch.testing.assert_close(ours[0], conv.weight.grad)
+    torch.testing.assert_close(ours[1], conv.bias.grad)
+
+
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_every_variant_maps_screens_to_logits_and_values(variant: str) -> None:
+    net = build_network(variant, SYMBOLS, HEIGHT, WIDTH, ACTIONS)
+    x = torch.randint(0, SYMBOLS, (5, HEIGHT, WIDTH), dtype=torch.uint8)
+    out = net(x, with_aux=True)
+    assert out.logits.shape == (5, ACTIONS)
+    assert out.value.shape == (5,)
+    if variant in ("vae", "betavae"):
+        assert out.aux_loss is not None and out.aux_loss.ndim == 0 and out.aux_loss.item() > 0
+    else:
+        assert out.aux_loss is None
+
+
+def test_network_sizes_follow_the_paper() -> None:
+    def params(v: str) -> int:
+        return sum(
+            p.numel() for p in build_network(v, SYMBOLS, HEIGHT, WIDTH, ACTIONS).parameters()
+        )
+
+    # PPO Small is about 0.74M parameters and the IMPALA ResNet about 1.15M (protocol §3.4).
+    assert 0.73e6 < params("small") < 0.75e6
+    assert 1.14e6 < params("large") < 1.16e6
+    assert params("l2") == params("large")
+    convs = [
+        m
+        for m in build_network("large", SYMBOLS, HEIGHT, WIDTH, ACTIONS).modules()
+        if isinstance(m, (torch.nn.Conv2d, OneHotConv2d))
+    ]
+    assert len(convs) == 15
+    bn = build_network("batchnorm", SYMBOLS, HEIGHT, WIDTH, ACTIONS)
+    assert sum(isinstance(m, torch.nn.BatchNorm2d) for m in bn.modules()) == 15
+    betas = {v: build_network(v, SYMBOLS, HEIGHT, WIDTH, ACTIONS).beta for v in ("vae", "betavae")}
+    assert betas == {"vae": 0.0, "betavae": 4.0}
+
+
+def test_gae_matches_a_hand_computed_example_and_stops_at_episode_ends() -> None:
+    gamma, lam = 0.5, 0.5
+    rewards = torch.tensor([[1.0], [0.0], [2.0]])
+    values = torch.tensor([[0.5], [1.0], [1.0]])
+    dones = torch.tensor([[0.0], [1.0], [0.0]])  # the episode ends with step 1
+    last = torch.tensor([4.0])
+    adv = compute_gae(rewards, values, dones, last, gamma, lam)
+    d2 = 2.0 + gamma * 4.0 - 1.0  # step 2 bootstraps from the value after the rollout
+    d1 = 0.0 - 1.0  # step 1 ends its episode: no bootstrap
+    d0 = 1.0 + gamma * 1.0 - 0.5
+    expected = [d0 + gamma * lam * d1, d1, d2]
+    assert adv.squeeze(1).tolist() == pytest.approx(expected)
+
+
+def _rows(out: Path) -> list[dict[str, str]]:
+    return read_progress(out / "progress.csv")
+
+
+def test_a_run_writes_progress_checkpoints_and_the_random_baseline(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    row = train(smoke_config(out))
+    rows = _rows(out)
+    assert list(rows[0].keys()) == COLUMNS
+    assert [int(r["frames"]) for r in rows] == [256, 512, 768, 1024]
+    evals = [r for r in rows if r["gen_score"]]
+    assert [int(r["frames"]) for r in evals] == [512, 1024]
+    for r in evals:
+        assert float(r["gen_ci_low"]) <= float(r["gen_score"]) <= float(r["gen_ci_high"])
+    assert float(rows[-1]["fps"]) > 0
+    assert int(rows[-1]["episodes"]) == 0  # 128 steps per env: no 500-step episode ended yet
+    assert row["frames"] == 1024
+    rnd = json.loads((out / "random.json").read_text())
+    assert rnd["suite"] == "paper-10" and rnd["eval_seeds"] == 2
+    assert sorted(p.name for p in (out / "models").iterdir()) == [
+        "frames-0000000512.pt",
+        "frames-0000001024.pt",
+    ]
+    cfg = json.loads((out / "config.json").read_text())
+    assert cfg["variant"] == "small" and cfg["weight_decay"] == 0.0
+
+
+def test_the_training_score_counts_finished_episodes(tmp_path: Path) -> None:
+    # 8 envs x 64 steps per update: the 500-step episodes end during the 8th update.
+    out = tmp_path / "run"
+    train(smoke_config(out, frames=4608, num_steps=64, eval_every=0, checkpoint_every=0))
+    rows = _rows(out)
+    assert int(rows[6]["episodes"]) == 0 and rows[6]["train_score"] == ""
+    assert int(rows[-1]["episodes"]) == 8
+    assert float(rows[-1]["train_score"]) >= 0.0
+
+
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_every_variant_trains_and_resumes_from_its_checkpoint(tmp_path: Path, variant: str) -> None:
+    out = tmp_path / variant
+    train(smoke_config(out, variant, frames=512))
+    saved = torch.load(out / "checkpoint.pt", weights_only=False)
+    assert saved["frames"] == 512 and saved["config"]["variant"] == variant
+    net = build_network(variant, SYMBOLS, HEIGHT, WIDTH, ACTIONS)
+    net.load_state_dict(saved["model"])
+    train(smoke_config(out, variant, frames=1024, resume=True))
+    rows = _rows(out)
+    assert [int(r["frames"]) for r in rows] == [256, 512, 768, 1024]
+    assert int(rows[-1]["updates"]) == 4
+    resumed = torch.load(out / "checkpoint.pt", weights_only=False)
+    assert resumed["frames"] == 1024
+    if variant == "l2":
+        assert resumed["optimizer"]["param_groups"][0]["weight_decay"] == 1e-4
+
+
+def test_same_seed_same_progress_csv(tmp_path: Path) -> None:
+    runs = []
+    for name in ("a", "b"):
+        train(smoke_config(tmp_path / name, frames=768, eval_every=768, seed=3))
+        runs.append(_rows(tmp_path / name))
+    strip = [
+        [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in rows] for rows in runs
+    ]
+    assert strip[0] == strip[1]
+    other = tmp_path / "c"
+    train(smoke_config(other, frames=768, eval_every=768, seed=4))
+    third = [{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in _rows(other)]
+    assert third != strip[0]
+
+
+def test_refuses_to_overwrite_a_run_and_to_resume_nothing(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    with pytest.raises(FileNotFoundError, match="no checkpoint"):
+        train(smoke_config(out, resume=True))
+    train(smoke_config(out, frames=256, eval_every=0))
+    with pytest.raises(FileExistsError, match="--resume"):
+        train(smoke_config(out, frames=256))
+    with pytest.raises(ValueError, match="variant"):
+        train(smoke_config(tmp_path / "x", variant="huge"))
+    with pytest.raises(ValueError, match="minibatch_size"):
+        train(smoke_config(tmp_path / "y", minibatch_size=10_000))
+
+
+def test_plot_draws_runs_and_the_random_line(tmp_path: Path) -> None:
+    runs = []
+    for variant in ("small", "l2"):
+        out = tmp_path / variant
+        train(smoke_config(out, variant, frames=512, eval_every=256))
+        runs.append(out)
+    png = plot_runs([runs[0], runs[1] / "progress.csv"], tmp_path / "fig" / "curves.png")
+    data = png.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
+
+
+def test_command_line_trains_and_reports_bad_flags(tmp_path: Path) -> None:
+    out = tmp_path / "cli"
+    cmd = [sys.executable, "-m", "rogue_gym.train", "--variant", "small", "--suite", "paper-10"]
+    small = ["--num-envs", "8", "--num-steps", "32", "--epochs", "1", "--minibatch-size", "64"]
+    small += ["--eval-seeds", "2", "--eval-episodes", "1", "--eval-envs", "2", "--no-progress"]
+    done = subprocess.run(
+        [*cmd, "--frames", "256", "--seed", "1", "--out", str(out), *small],
+        capture_output=True,
+        text=True,
+        timeout=240,
+    )
+    assert done.returncode == 0, done.stderr
+    assert "done: 256 frames" in done.stdout
+    with (out / "progress.csv").open() as f:
+        assert len(list(csv.DictReader(f))) == 1
+    again = subprocess.run(
+        [*cmd, "--frames", "256", "--out", str(out), *small],
+        capture_output=True,
+        text=True,
+        timeout=240,
+    )
+    assert again.returncode == 2 and "--resume" in again.stderr
+    bad = subprocess.run([*cmd, "--variant", "huge"], capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 2 and "invalid choice" in bad.stderr
+    plot = subprocess.run(
+        [sys.executable, "-m", "rogue_gym.train.plot", str(out), "--out", str(tmp_path / "c.png")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert plot.returncode == 0, plot.stderr
+    assert (tmp_path / "c.png").stat().st_size > 0
