@@ -4,7 +4,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::action::{Action, Command};
 use crate::actors::{Enemy, Player};
-use crate::config::{ConfigError, EnemyKind, GameConfig, InitItem, armor_by_name, weapon_by_name};
+use crate::config::{ConfigError, EnemyKind, GameConfig, InitItem};
 use crate::dungeon::{Floor, Generator, Surface, flag};
 use crate::obs::{self, ObsBufMut, ObsError, ObsSource, ObsSpec, Status};
 use crate::rng::{GameRng, Stream};
@@ -192,11 +192,13 @@ impl Game {
                 }
                 InitItem::Armor(a) if !armor => {
                     armor = true;
-                    player.defense = armor_by_name(&a.name).unwrap_or(0) + a.def_plus;
+                    // Validation guarantees the name is in the configured table.
+                    let base = self.cfg.item.armor.defense_of(&a.name).unwrap_or(0);
+                    player.defense = base + a.def_plus;
                 }
                 InitItem::Weapon(w) if !weapon => {
                     weapon = true;
-                    player.weapon = weapon_by_name(&w.name).unwrap_or((1, 4));
+                    player.weapon = self.cfg.item.weapon.dice_of(&w.name).unwrap_or((1, 4));
                     player.hit_plus = w.hit_plus;
                     player.dam_plus = w.dam_plus;
                 }

@@ -46,8 +46,8 @@ fn original_items_keymap_and_custom_enemy_parse() {
     let json = r#"{
       "seed": 1,
       "item": {"gold": {"rate_inv": 3, "base": 40, "per_level": 5, "minimum": 1},
-               "armor": {"armors": [0, 1], "cursed_rate": 10, "powerup_rate": 5},
-               "weapon": {"weapons": [0, 2], "cursed_rate": 10, "powerup_rate": 5}},
+               "armor": {"armors": [0, 7], "cursed_rate": 10, "powerup_rate": 5},
+               "weapon": {"weapons": [0, 1], "cursed_rate": 10, "powerup_rate": 5}},
       "player": {"init_items": [{"Noinit": {"kind": "Gold", "how_many": 7, "attr": 4}},
                                 {"Armor": {"name": "plate mail", "def_plus": 2}},
                                 {"Weapon": {"name": "long sword", "num_plus": 0, "hit_plus": 0, "dam_plus": 0}}]},
@@ -60,6 +60,46 @@ fn original_items_keymap_and_custom_enemy_parse() {
     let g = Game::new(&cfg, EpisodeConfig::default()).unwrap();
     assert_eq!(g.status().gold, 7);
     assert_eq!(g.status().defense, 9);
+}
+
+#[test]
+fn starting_items_come_from_the_configured_tables() {
+    // A custom armour in the table is what the player starts wearing.
+    let json = r#"{"item": {"armor": {"armors": [{"name": "mithril coat", "def": 9}]},
+                            "weapon": {"weapons": [{"name": "club", "dice": {"times": 1, "max": 3}}]}},
+                   "player": {"init_items": [{"Armor": {"name": "Mithril Coat", "def_plus": 1}},
+                                             {"Weapon": {"name": "club", "hit_plus": 0, "dam_plus": 0}}]}}"#;
+    let cfg = GameConfig::from_json(json).unwrap();
+    assert_eq!(cfg.item.armor.defense_of("mithril-coat"), Some(9));
+    assert_eq!(cfg.item.weapon.dice_of("club"), Some((1, 3)));
+    let g = Game::new(&cfg, EpisodeConfig::default()).unwrap();
+    assert_eq!(g.status().defense, 10);
+    // A builtin entry is found by its builtin name; `bow` stands for `short bow`.
+    let d = GameConfig::default();
+    assert_eq!(d.item.armor.defense_of("ring mail"), Some(3));
+    assert_eq!(d.item.weapon.dice_of("bow"), Some((1, 1)));
+    // A starting item missing from the configured table is an error naming the item.
+    let e = err(r#"{"item": {"armor": {"armors": [0]}},
+                    "player": {"init_items": [{"Armor": {"name": "ring mail", "def_plus": 1}}]}}"#);
+    assert!(
+        e.contains("player.init_items[0].name") && e.contains("item.armor.armors"),
+        "{e}"
+    );
+    let e = err(r#"{"item": {"weapon": {"weapons": [0]}},
+                    "player": {"init_items": [{"Weapon": {"name": "dagger"}}]}}"#);
+    assert!(
+        e.contains("player.init_items[0].name") && e.contains("item.weapon.weapons"),
+        "{e}"
+    );
+    // The default inventory (ring mail, mace, bow, arrows) needs those entries in the tables.
+    let e = err(r#"{"item": {"weapon": {"weapons": [0, 2]}}}"#);
+    assert!(
+        e.contains("init_items[5].name") && e.contains("arrow"),
+        "{e}"
+    );
+    // A custom armour's defence is bounded (10 - defence must not overflow).
+    let e = err(r#"{"item": {"armor": {"armors": [{"name": "x", "def": -2147483648}]}}}"#);
+    assert!(e.contains("item.armor.armors[0].def"), "{e}");
 }
 
 #[test]

@@ -125,6 +125,10 @@ fn extreme_integers_are_errors_or_games_never_panics() {
             r#"{"player": {"init_items": [{"Armor": {"name": "ring mail", "def_plus": V}}]}}"#,
         ),
         (
+            "item.armor.armors[0]",
+            r#"{"item": {"armor": {"armors": [{"name": "ring mail", "def": V}]}}}"#,
+        ),
+        (
             "hit_plus",
             r#"{"player": {"init_items": [{"Weapon": {"name": "mace", "hit_plus": V, "dam_plus": 1}}]}}"#,
         ),

@@ -185,27 +185,18 @@ pub(crate) const WEAPONS: [(&str, (u32, u32)); 9] = [
     ("spear", (2, 3)),
 ];
 
-/// Looks up an armour's base defence by name (case-insensitive; spaces, `-` and `_` ignored).
-pub(crate) fn armor_by_name(name: &str) -> Option<i32> {
-    let n = normalize(name);
-    ARMORS
-        .iter()
-        .find(|(a, _)| normalize(a) == n)
-        .map(|&(_, d)| d)
-}
-
-/// Looks up a weapon's wield dice by name (same matching as [`armor_by_name`]).
-pub(crate) fn weapon_by_name(name: &str) -> Option<(u32, u32)> {
-    let n = normalize(name);
-    let n = if n == "bow" {
-        "shortbow".to_string()
-    } else {
-        n
+/// Whether two item names match: case-insensitive, with spaces, `-` and `_` ignored, and
+/// `bow` standing for `short bow` (the original's default inventory says `bow`).
+pub(crate) fn same_item_name(a: &str, b: &str) -> bool {
+    let alias = |s: &str| {
+        let n = normalize(s);
+        if n == "bow" {
+            "shortbow".to_string()
+        } else {
+            n
+        }
     };
-    WEAPONS
-        .iter()
-        .find(|(w, _)| normalize(w) == n)
-        .map(|&(_, d)| d)
+    alias(a) == alias(b)
 }
 
 fn normalize(s: &str) -> String {

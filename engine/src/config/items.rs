@@ -2,6 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::builtin::{ARMORS, WEAPONS, same_item_name};
+
 /// Item parameters (docs/rules.md §1). Each sub-object defaults when omitted (the original
 /// required all three; we are lenient).
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
@@ -34,6 +36,21 @@ impl Default for ArmorConfig {
             cursed_rate: 20,
             powerup_rate: 8,
         }
+    }
+}
+
+impl ArmorConfig {
+    /// The base defence of the armour called `name` in this table (builtin entries by their
+    /// builtin name, custom ones by theirs); `None` when the table has no such armour. The
+    /// starting inventory is looked up here, as in the original.
+    pub fn defense_of(&self, name: &str) -> Option<i32> {
+        self.armors.iter().find_map(|preset| match preset {
+            ArmorPreset::Builtin(i) => ARMORS
+                .get(*i)
+                .filter(|(n, _)| same_item_name(n, name))
+                .map(|&(_, def)| def),
+            ArmorPreset::Custom(c) => same_item_name(&c.name, name).then_some(c.def),
+        })
     }
 }
 
@@ -76,6 +93,22 @@ impl Default for WeaponConfig {
             cursed_rate: 10,
             powerup_rate: 5,
         }
+    }
+}
+
+impl WeaponConfig {
+    /// The wield dice `(times, max)` of the weapon called `name` in this table (matched as
+    /// [`ArmorConfig::defense_of`] does); `None` when the table has no such weapon.
+    pub fn dice_of(&self, name: &str) -> Option<(u32, u32)> {
+        self.weapons.iter().find_map(|preset| match preset {
+            WeaponPreset::Builtin(i) => WEAPONS
+                .get(*i)
+                .filter(|(n, _)| same_item_name(n, name))
+                .map(|&(_, dice)| dice),
+            WeaponPreset::Custom(c) => {
+                same_item_name(&c.name, name).then_some((c.dice.times, c.dice.max))
+            }
+        })
     }
 }
 

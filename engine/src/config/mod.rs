@@ -14,7 +14,6 @@ mod player;
 mod validate;
 
 pub use builtin::{CONFUSED, MEAN, RANDOM};
-pub(crate) use builtin::{armor_by_name, weapon_by_name};
 pub(crate) use enemies::EnemyKind;
 pub use enemies::{CustomEnemy, EnemiesConfig, EnemyPreset};
 pub use error::ConfigError;

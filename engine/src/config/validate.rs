@@ -2,7 +2,6 @@
 
 use super::keymap;
 use super::{ArmorPreset, ConfigError, EnemyPreset, GameConfig, InitItem, ItemKind, WeaponPreset};
-use super::{armor_by_name, weapon_by_name};
 
 /// Most extra-edge attempts a floor may make (`dungeon.max_extra_edges`).
 pub(crate) const MAX_EXTRA_EDGES: u32 = 10_000;
@@ -160,14 +159,22 @@ fn items(c: &GameConfig) -> Result<(), ConfigError> {
         ));
     }
     for (i, a) in c.item.armor.armors.iter().enumerate() {
-        if let ArmorPreset::Builtin(idx) = a
-            && *idx >= 8
-        {
-            return Err(ConfigError::invalid(
-                &format!("item.armor.armors[{i}]"),
-                idx,
-                "builtin armour index must be 0..8",
-            ));
+        match a {
+            ArmorPreset::Builtin(idx) if *idx >= 8 => {
+                return Err(ConfigError::invalid(
+                    &format!("item.armor.armors[{i}]"),
+                    idx,
+                    "builtin armour index must be 0..8",
+                ));
+            }
+            ArmorPreset::Custom(c) if c.def.unsigned_abs() > 100 => {
+                return Err(ConfigError::invalid(
+                    &format!("item.armor.armors[{i}].def"),
+                    c.def,
+                    "must be -100..=100",
+                ));
+            }
+            _ => {}
         }
     }
     for (i, w) in c.item.weapon.weapons.iter().enumerate() {
@@ -231,18 +238,18 @@ fn player(c: &GameConfig) -> Result<(), ConfigError> {
             ));
         }
         match item {
-            InitItem::Armor(a) if armor_by_name(&a.name).is_none() => {
+            InitItem::Armor(a) if c.item.armor.defense_of(&a.name).is_none() => {
                 return Err(ConfigError::invalid(
                     &format!("player.init_items[{i}].name"),
                     format!("{:?}", a.name),
-                    "unknown armour name",
+                    "no armour of that name in item.armor.armors",
                 ));
             }
-            InitItem::Weapon(w) if weapon_by_name(&w.name).is_none() => {
+            InitItem::Weapon(w) if c.item.weapon.dice_of(&w.name).is_none() => {
                 return Err(ConfigError::invalid(
                     &format!("player.init_items[{i}].name"),
                     format!("{:?}", w.name),
-                    "unknown weapon name",
+                    "no weapon of that name in item.weapon.weapons",
                 ));
             }
             InitItem::Armor(a) if a.def_plus.unsigned_abs() > 100 => {
