@@ -41,6 +41,7 @@ def smoke_config(
         eval_seeds=2,
         eval_episodes=1,
         eval_envs=2,
+        random_episodes=10,
         checkpoint_every=512,
         progress=False,
         threads=1,
@@ -151,6 +152,7 @@ def test_a_run_writes_progress_checkpoints_and_the_random_baseline(tmp_path: Pat
     assert row["frames"] == 1024
     rnd = json.loads((out / "random.json").read_text())
     assert rnd["suite"] == "paper-10" and rnd["eval_seeds"] == 2
+    assert rnd["train_episodes"] == 10 and rnd["train_score"] >= 0.0
     assert sorted(p.name for p in (out / "models").iterdir()) == [
         "frames-0000000512.pt",
         "frames-0000001024.pt",
@@ -231,6 +233,7 @@ def test_command_line_trains_and_reports_bad_flags(tmp_path: Path) -> None:
     cmd = [sys.executable, "-m", "rogue_gym.train", "--variant", "small", "--suite", "paper-10"]
     small = ["--num-envs", "8", "--num-steps", "32", "--epochs", "1", "--minibatch-size", "64"]
     small += ["--eval-seeds", "2", "--eval-episodes", "1", "--eval-envs", "2", "--no-progress"]
+    small += ["--random-episodes", "10"]
     done = subprocess.run(
         [*cmd, "--frames", "256", "--seed", "1", "--out", str(out), *small],
         capture_output=True,
@@ -258,3 +261,36 @@ def test_command_line_trains_and_reports_bad_flags(tmp_path: Path) -> None:
     )
     assert plot.returncode == 0, plot.stderr
     assert (tmp_path / "c.png").stat().st_size > 0
+
+
+def _collect(num_workers: int, seed: int) -> tuple:
+    """One rollout of 8 envs x 32 steps by a fresh network, through a pool of ``num_workers``."""
+    from rogue_gym.train.rollout import Collector, Rollout
+    from rogue_gym.train.trainer import _make_pool
+
+    cfg = smoke_config(Path("unused"), num_workers=num_workers).checked()
+    env = _make_pool(cfg, seed=seed)
+    try:
+        torch.manual_seed(0)
+        net = build_network("small", SYMBOLS, HEIGHT, WIDTH, ACTIONS)
+        collector = Collector(env, cfg.num_steps, torch.device("cpu"), seed=seed)
+        buf = Rollout.empty(cfg.num_steps, cfg.num_envs, (HEIGHT, WIDTH), torch.device("cpu"))
+        collector.collect(net, buf)
+        groups = len(collector._groups)
+    finally:
+        env.close()
+    return buf, groups
+
+
+def test_collection_overlaps_worker_groups_and_is_independent_of_the_layout() -> None:
+    two, groups_two = _collect(num_workers=2, seed=5)
+    four, groups_four = _collect(num_workers=4, seed=5)
+    assert (groups_two, groups_four) == (2, 4)  # one send/recv group per worker
+    assert two.obs.shape == (32, 8, HEIGHT, WIDTH) and two.obs.dtype == torch.uint8
+    assert int(two.obs.max()) > 0 and int(two.actions.max()) < ACTIONS
+    # The same envs, levels and sampling noise: the same actions and screens for any layout.
+    assert torch.equal(two.actions, four.actions)
+    assert torch.equal(two.obs, four.obs)
+    torch.testing.assert_close(two.values, four.values)
+    other, _ = _collect(num_workers=2, seed=6)
+    assert not torch.equal(two.actions, other.actions)

@@ -33,6 +33,7 @@ _HELP = {
     "eval_every": "frames between generalization evaluations (0: at the end only)",
     "eval_seeds": "test seeds per evaluation (paper: 1000)",
     "eval_episodes": "episodes per test seed (paper: 10)",
+    "random_episodes": "episodes behind random.json's training score",
     "threads": "torch CPU threads",
     "weight_decay": "L2 weight decay (default: 1e-4 for l2, else 0)",
 }

@@ -51,6 +51,9 @@ class TrainConfig:
     """Episodes per test seed (the paper: 10)."""
     eval_envs: int = 64
     """Envs of the evaluation pool."""
+    random_episodes: int = 1000
+    """Episodes behind the random agent's training score in ``random.json`` (spread evenly
+    over the training seeds; the trainer's own score averages 1000 too)."""
     checkpoint_every: int = 1_000_000
     """Frames between checkpoints (the last one is always written)."""
 
@@ -96,8 +99,16 @@ class TrainConfig:
             raise ValueError(
                 f"num_workers ({self.num_workers}) must divide num_envs ({self.num_envs})"
             )
-        if self.eval_seeds <= 0 or self.eval_episodes <= 0:
-            raise ValueError("eval_seeds and eval_episodes must be positive")
+        if self.eval_seeds <= 0 or self.eval_episodes <= 0 or self.random_episodes <= 0:
+            raise ValueError("eval_seeds, eval_episodes and random_episodes must be positive")
+        if str(self.device).startswith("cuda"):
+            import torch
+
+            if not torch.cuda.is_available():
+                raise ValueError(
+                    f"device {self.device!r}: torch sees no CUDA device (torch "
+                    f"{torch.__version__}); use --device cpu or a CUDA build of torch"
+                )
         wd = self.weight_decay
         if wd is None:
             wd = 1e-4 if self.variant == "l2" else 0.0

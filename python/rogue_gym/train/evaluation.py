@@ -89,11 +89,14 @@ def generalization(
 
 
 def random_baseline(
-    suite: Suite, seeds: int, episodes: int, num_envs: int, workers: int
+    suite: Suite, seeds: int, episodes: int, num_envs: int, workers: int, train_episodes: int
 ) -> Dict[str, Any]:
-    """The uniform random agent's training score (on the training seeds) and generalization
-    score (on the same test seeds as :func:`generalization`), for the plots."""
-    train = _run(suite, RandomPolicy(), suite.train_seed_list(), episodes, num_envs, workers, 0)
+    """The uniform random agent's training score (about ``train_episodes`` episodes spread
+    evenly over the training seeds) and generalization score (on the same test seeds as
+    :func:`generalization`), for the plots."""
+    train_seeds = suite.train_seed_list()
+    per_seed = -(-train_episodes // len(train_seeds))
+    train = _run(suite, RandomPolicy(), train_seeds, per_seed, num_envs, workers, 0)
     test = _run(
         suite, RandomPolicy(), suite.test_seed_list()[:seeds], episodes, num_envs, workers, 0
     )
@@ -101,6 +104,7 @@ def random_baseline(
     return {
         "suite": suite.name,
         "train_score": float(train.mean()),
+        "train_episodes": int(train.size),
         "gen_score": gen.mean,
         "gen_ci_low": gen.ci_low,
         "gen_ci_high": gen.ci_high,

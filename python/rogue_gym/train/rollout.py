@@ -106,6 +106,7 @@ class _Group:
     ids_t: torch.Tensor
     obs: Optional[torch.Tensor] = None
     step: int = 0
+    staging: Optional[torch.Tensor] = None
 
 
 class Collector:
@@ -143,17 +144,29 @@ class Collector:
             self.env_seconds += time.perf_counter() - t0
             ids = np.asarray(info["env_id"], dtype=np.int64)
             group = _Group(ids, torch.from_numpy(ids).to(self.device))
-            group.obs = self._to_device(obs)
+            group.obs = self._to_device(obs, group)
             self._groups.append(group)
             received += len(ids)
         self._groups.sort(key=lambda h: int(h.ids[0]))
         self._running.zero_()
 
-    def _to_device(self, obs: np.ndarray) -> torch.Tensor:
-        t = torch.from_numpy(np.array(obs, copy=True))  # the shared-memory sample is borrowed
-        if self.pin:
-            return t.pin_memory().to(self.device, non_blocking=True)
-        return t.to(self.device)
+    def _to_device(self, obs: np.ndarray, group: Optional[_Group] = None) -> torch.Tensor:
+        """A device copy of a received batch (the shared-memory sample is only borrowed).
+
+        On CUDA the screens go through the group's pinned staging buffer with a non-blocking
+        copy; the buffer is rewritten only after the group's next actions came back to the
+        host, which waits for that copy.
+        """
+        if not self.pin:
+            return torch.from_numpy(np.array(obs, copy=True)).to(self.device)
+        if group is None or group.staging is None or group.staging.shape != obs.shape:
+            staging = torch.empty(obs.shape, dtype=torch.uint8).pin_memory()
+            if group is not None:
+                group.staging = staging
+        else:
+            staging = group.staging
+        staging.numpy()[...] = obs
+        return staging.to(self.device, non_blocking=True)
 
     def _group_of(self, first_id: int) -> _Group:
         for h in self._groups:
@@ -206,7 +219,7 @@ class Collector:
             )
             buf.dones[t, group.ids_t] = torch.as_tensor(done, dtype=torch.float32).to(self.device)
             self._track(group.ids, reward, done)
-            group.obs = self._to_device(obs)
+            group.obs = self._to_device(obs, group)
             group.step += 1
             if group.step < self.num_steps:
                 self._act(net, group, buf, noise)

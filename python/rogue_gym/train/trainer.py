@@ -75,7 +75,12 @@ def train(cfg: TrainConfig) -> Dict[str, Any]:
     random_path = out / "random.json"
     if not random_path.exists():
         rnd = random_baseline(
-            suite, cfg.eval_seeds, cfg.eval_episodes, cfg.eval_envs, cfg.num_workers
+            suite,
+            cfg.eval_seeds,
+            cfg.eval_episodes,
+            cfg.eval_envs,
+            cfg.num_workers,
+            cfg.random_episodes,
         )
         random_path.write_text(json.dumps(rnd, indent=1) + "\n")
 
