@@ -211,6 +211,10 @@ def test_refuses_to_overwrite_a_run_and_to_resume_nothing(tmp_path: Path) -> Non
     train(smoke_config(out, frames=256, eval_every=0))
     with pytest.raises(FileExistsError, match="--resume"):
         train(smoke_config(out, frames=256))
+    with pytest.raises(ValueError, match="already has 256 frames"):
+        train(smoke_config(out, frames=256, resume=True))
+    with pytest.raises(ValueError, match="variant='small'"):
+        train(smoke_config(out, variant="large", frames=512, resume=True))
     with pytest.raises(ValueError, match="variant"):
         train(smoke_config(tmp_path / "x", variant="huge"))
     with pytest.raises(ValueError, match="minibatch_size"):

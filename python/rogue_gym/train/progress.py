@@ -2,8 +2,9 @@
 
 Columns: ``frames, updates, episodes, train_score, gen_score, gen_ci_low, gen_ci_high, fps``,
 then the update's losses and where the time went (``env_s``, ``policy_s``, ``update_s``,
-``eval_s``, cumulative seconds). ``gen_*`` are empty except on the rows of an evaluation.
-``train_score`` is the mean return of the last 1000 finished training episodes.
+``eval_s``: seconds since the process started or resumed the run). ``gen_*`` are empty except
+on the rows of an evaluation. ``train_score`` is the mean return of the last 1000 finished
+training episodes.
 
 Every column but the wall-clock ones (``fps`` and the ``*_s`` columns) is a function of the
 config and seed: two CPU runs with the same seed write the same values there.

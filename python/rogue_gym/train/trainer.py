@@ -60,11 +60,22 @@ def train(cfg: TrainConfig) -> Dict[str, Any]:
     device = torch.device(cfg.device)
     suite = get_suite(cfg.suite)
     torch.manual_seed(cfg.seed)
-    height, width = 16, 32  # checked against the pool below
 
     state: Optional[Dict[str, Any]] = None
     if cfg.resume:
         state = load(out)
+        saved = state["config"]
+        for key in ("variant", "suite", "num_envs", "num_steps"):
+            if saved[key] != getattr(cfg, key):
+                raise ValueError(
+                    f"--resume: the run in {out} has {key}={saved[key]!r}, not "
+                    f"{getattr(cfg, key)!r}; resume with the same {key}"
+                )
+        if int(state["frames"]) >= cfg.frames:
+            raise ValueError(
+                f"--resume: the run in {out} already has {state['frames']} frames; pass a "
+                "larger --frames to continue it"
+            )
     elif (out / CHECKPOINT).exists() or (out / "progress.csv").exists():
         raise FileExistsError(
             f"{out} already holds a run; pass --resume to continue it or choose another --out"
@@ -88,11 +99,11 @@ def train(cfg: TrainConfig) -> Dict[str, Any]:
     # A resumed run restarts its envs: a fresh episode schedule, not a replay of the first.
     env = _make_pool(cfg, seed=cfg.seed * 1_000_003 + updates)
     try:
-        obs_shape = tuple(env.single_observation_space.shape)
-        if obs_shape != (height, width):
-            height, width = obs_shape
+        space = env.single_observation_space  # symbol indices: Box(0, symbols - 1, (H, W))
+        obs_shape = tuple(space.shape)
+        symbols = int(space.high.max()) + 1
         net = build_network(
-            cfg.variant, env._core.symbols, height, width, int(env.single_action_space.n)
+            cfg.variant, symbols, obs_shape[0], obs_shape[1], int(env.single_action_space.n)
         ).to(device)
         optimizer = torch.optim.Adam(
             net.parameters(), lr=cfg.lr, eps=cfg.adam_eps, weight_decay=cfg.weight_decay or 0.0
