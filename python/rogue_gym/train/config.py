@@ -59,7 +59,8 @@ class TrainConfig:
 
     num_envs: int = 32
     num_workers: int = 2
-    """Worker processes of the training pool; an even count lets the two halves overlap."""
+    """Worker processes of the training pool; each one's block of envs steps while the policy
+    acts on another's (with 2, two halves; with 1, nothing overlaps)."""
     num_steps: int = 125
     """Rollout length per env and update."""
     epochs: int = 10
