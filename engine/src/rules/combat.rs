@@ -41,9 +41,10 @@ impl Game {
     pub(crate) fn player_attack(&mut self, k: usize) {
         self.player.quiet = 0;
         let e = self.enemies[k];
-        let bonus =
-            str_hit(self.player.str_cur) + if e.awake { 0 } else { 4 } + self.player.hit_plus;
+        // The original's attack wakes the monster before its roll, so its +4 against a sleeping
+        // monster never applies; neither does it here (docs/rules.md §7.3).
         self.enemies[k].awake = true;
+        let bonus = str_hit(self.player.str_cur) + self.player.hit_plus;
         let name = self.kinds[e.kind as usize].name.clone();
         if !self
             .rng

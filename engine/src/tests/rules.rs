@@ -242,6 +242,30 @@ fn player_kills_monster_in_several_hits() {
 }
 
 #[test]
+fn attacking_a_sleeping_monster_has_no_bonus() {
+    // The attack wakes the monster before its roll (as in the original), so a sleeping and an
+    // awake monster are hit alike: with the same play stream, the same outcome every time.
+    let rows = ["-------", "|.....|", "|..@Z.|", "|.....|", "-------"];
+    let mut differ = 0;
+    for seed in 0..300u64 {
+        let hp_after = |awake: bool| {
+            let mut g = Game::from_layout(&tough_config(), EpisodeConfig::default(), &rows, false);
+            g.rng = crate::rng::GameRng::new(seed, crate::rng::Stream::Play, 0);
+            g.enemies[0].hp = 1000;
+            g.enemies[0].awake = awake;
+            g.player_attack(0);
+            assert!(g.enemies[0].awake, "the attack wakes the monster");
+            g.enemies[0].hp
+        };
+        differ += usize::from(hp_after(false) != hp_after(true));
+    }
+    assert_eq!(
+        differ, 0,
+        "a sleeping monster was hit differently in {differ} of 300 plays"
+    );
+}
+
+#[test]
 fn monster_damages_player() {
     let rows = ["-------", "|.....|", "|..@Z.|", "|.....|", "-------"];
     let mut g = Game::from_layout(
