@@ -299,3 +299,65 @@ def test_collection_overlaps_worker_groups_and_is_independent_of_the_layout() ->
     torch.testing.assert_close(two.values, four.values)
     other, _ = _collect(num_workers=2, seed=6)
     assert not torch.equal(two.actions, other.actions)
+
+
+def _workers(pid: int) -> dict[int, str]:
+    """The pool workers among process ``pid``'s children: pid -> command line."""
+    import glob
+
+    found = {}
+    for path in glob.glob(f"/proc/{pid}/task/*/children"):
+        try:
+            with open(path) as f:
+                kids = [int(p) for p in f.read().split()]
+        except FileNotFoundError:
+            continue
+        for kid in kids:
+            try:
+                with open(f"/proc/{kid}/cmdline") as f:
+                    cmd = f.read().replace("\0", " ")
+            except FileNotFoundError:
+                continue
+            if "rogue_gym.worker" in cmd:
+                found[kid] = cmd
+    return found
+
+
+def test_training_survives_a_killed_worker(tmp_path: Path) -> None:
+    import os
+    import signal
+    import time
+
+    out = tmp_path / "run"
+    args = [sys.executable, "-m", "rogue_gym.train", "--frames", "4096", "--out", str(out)]
+    args += ["--num-envs", "8", "--num-steps", "32", "--epochs", "1", "--minibatch-size", "64"]
+    args += ["--eval-every", "0", "--eval-seeds", "2", "--eval-episodes", "1", "--eval-envs", "2"]
+    args += ["--random-episodes", "10", "--threads", "1", "--no-progress"]
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 180
+        while time.monotonic() < deadline and proc.poll() is None:
+            if (out / "progress.csv").exists() and len(_rows(out)) >= 2:
+                break  # the random baseline is done: the workers now are the training pool's
+            time.sleep(0.2)
+        workers = _workers(proc.pid)
+        victim = next((p for p, cmd in workers.items() if "--index 0 " in cmd), None)
+        assert victim is not None, f"no worker 0 among {workers}"
+        os.kill(victim, signal.SIGKILL)
+        # The pool notices the death when it next waits on that worker and starts generation 1.
+        respawned = False
+        while time.monotonic() < deadline + 120 and proc.poll() is None and not respawned:
+            respawned = any("--generation 1 " in c for c in _workers(proc.pid).values())
+            time.sleep(0.1)
+        stdout, stderr = proc.communicate(timeout=240)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=30)
+    assert proc.returncode == 0, stderr[-2000:]
+    assert "done: 4096 frames" in stdout
+    rows = _rows(out)
+    assert int(rows[-1]["frames"]) == 4096
+    # The killed worker's 4 envs were rebuilt and their episodes cut short, once.
+    restarted = [int(r["restarted_envs"]) for r in rows]
+    assert restarted[0] == 0 and restarted[-1] == 4, (respawned, restarted, stderr[-2000:])

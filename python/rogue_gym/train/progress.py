@@ -1,7 +1,8 @@
 """Run logging: ``progress.csv`` (one row per update) and the console progress bar.
 
-Columns: ``frames, updates, episodes, train_score, gen_score, gen_ci_low, gen_ci_high, fps``,
-then the update's losses and where the time went (``env_s``, ``policy_s``, ``update_s``,
+Columns: ``frames, updates, episodes, restarted_envs, train_score, gen_score, gen_ci_low,
+gen_ci_high, fps`` (``restarted_envs``: envs whose episode a crashed or hung worker's restart
+cut short, so far), then the update's losses and where the time went (``env_s``, ``policy_s``, ``update_s``,
 ``eval_s``: seconds since the process started or resumed the run). ``gen_*`` are empty except
 on the rows of an evaluation. ``train_score`` is the mean return of the last 1000 finished
 training episodes.
@@ -25,6 +26,7 @@ COLUMNS: List[str] = [
     "frames",
     "updates",
     "episodes",
+    "restarted_envs",
     "train_score",
     "gen_score",
     "gen_ci_low",

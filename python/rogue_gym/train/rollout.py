@@ -132,6 +132,8 @@ class Collector:
         self._running = torch.zeros(self.num_envs, dtype=torch.float64)
         self.env_seconds = 0.0
         self.policy_seconds = 0.0
+        #: Envs whose episode a worker restart cut short (each reports ``truncated``).
+        self.restarted_envs = 0
 
     def start(self) -> None:
         """Reset every env and receive the first screens."""
@@ -212,7 +214,9 @@ class Collector:
             group = self._group_of(int(ids[0]))
             done = np.logical_or(terminated, truncated)
             if "worker_restarted" in info:
-                done |= np.asarray(info["worker_restarted"], dtype=bool)
+                restarted = np.asarray(info["worker_restarted"], dtype=bool)
+                self.restarted_envs += int(restarted.sum())
+                done |= restarted
             t = group.step
             buf.rewards[t, group.ids_t] = torch.as_tensor(reward, dtype=torch.float32).to(
                 self.device

@@ -116,6 +116,7 @@ def train(cfg: TrainConfig) -> Dict[str, Any]:
             net.load_state_dict(state["model"])
             optimizer.load_state_dict(state["optimizer"])
             collector.stats.load_state_dict(state["episodes"])
+            collector.restarted_envs = int(state.get("restarted_envs", 0))
             collector.generator.set_state(state["collector_rng"])
             update_gen.set_state(state["update_rng"])
             torch.set_rng_state(state["torch_rng"])
@@ -138,6 +139,7 @@ def train(cfg: TrainConfig) -> Dict[str, Any]:
                     "frames": frames,
                     "updates": updates,
                     "episodes": collector.stats.episodes,
+                    "restarted_envs": collector.restarted_envs,
                     "train_score": collector.stats.score(),
                     "fps": cfg.batch_size / (t2 - t0),
                     **stats.as_dict(),
@@ -178,6 +180,7 @@ def train(cfg: TrainConfig) -> Dict[str, Any]:
                             "model": net.state_dict(),
                             "optimizer": optimizer.state_dict(),
                             "episodes": collector.stats.state_dict(),
+                            "restarted_envs": collector.restarted_envs,
                             "collector_rng": collector.generator.get_state(),
                             "update_rng": update_gen.get_state(),
                             "torch_rng": torch.get_rng_state(),
