@@ -11,6 +11,8 @@ from pathlib import Path
 
 import pytest
 
+from conftest import pid_alive
+
 torch = pytest.importorskip("torch")
 
 import torch.nn.functional as F  # noqa: E402
@@ -361,3 +363,38 @@ def test_training_survives_a_killed_worker(tmp_path: Path) -> None:
     # The killed worker's 4 envs were rebuilt and their episodes cut short, once.
     restarted = [int(r["restarted_envs"]) for r in rows]
     assert restarted[0] == 0 and restarted[-1] == 4, (respawned, restarted, stderr[-2000:])
+
+
+def test_sigterm_stops_training_and_leaves_nothing_behind(tmp_path: Path) -> None:
+    import os
+    import signal
+    import time
+
+    shm_before = set(os.listdir("/dev/shm"))
+    out = tmp_path / "run"
+    args = [sys.executable, "-m", "rogue_gym.train", "--frames", "100000", "--out", str(out)]
+    args += ["--num-envs", "8", "--num-steps", "32", "--epochs", "1", "--minibatch-size", "64"]
+    args += ["--eval-seeds", "2", "--eval-episodes", "1", "--eval-envs", "2"]
+    args += ["--random-episodes", "10", "--threads", "1", "--no-progress"]
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 180
+        while time.monotonic() < deadline and proc.poll() is None:
+            if (out / "progress.csv").exists() and len(_rows(out)) >= 1:
+                break
+            time.sleep(0.2)
+        workers = _workers(proc.pid)
+        assert workers, "no training workers"
+        proc.send_signal(signal.SIGTERM)
+        _, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=30)
+    assert proc.returncode == 130, stderr[-2000:]
+    assert "--resume" in stderr
+    time.sleep(0.5)
+    for pid in workers:
+        assert not pid_alive(pid), f"worker {pid} outlived the trainer"
+    leaked = set(os.listdir("/dev/shm")) - shm_before
+    assert not leaked, f"left in /dev/shm: {sorted(leaked)[:5]}"

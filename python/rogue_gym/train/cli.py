@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
+import signal
 import sys
 from pathlib import Path
 from typing import Any, Optional, Sequence
@@ -76,17 +77,31 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+def _raise_interrupt(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Parse the flags, train, print the final scores; returns the exit status."""
     args = parser().parse_args(argv)
     os.environ.setdefault("OMP_NUM_THREADS", str(args.threads or os.cpu_count() or 1))
     from .trainer import train  # torch is imported here, after the flags are checked
 
+    # SIGTERM (a scheduler's stop, `kill`) unwinds like Ctrl-C: the pools close and remove
+    # their shared memory; the last checkpoint stays for --resume.
+    signal.signal(signal.SIGTERM, _raise_interrupt)
     try:
         row = train(TrainConfig(**vars(args)))
     except (ValueError, KeyError, FileExistsError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(
+            f"interrupted; resume with: python -m rogue_gym.train --out {args.out} --resume "
+            "(and the same flags)",
+            file=sys.stderr,
+        )
+        return 130
     print(
         f"done: {row.get('frames')} frames, train score {row.get('train_score', float('nan')):.2f}, "
         f"generalization {row.get('gen_score', float('nan')):.2f} "
