@@ -325,37 +325,55 @@ def _workers(pid: int) -> dict[int, str]:
     return found
 
 
+def _start_cli_run(out: Path, frames: int, *extra: str) -> subprocess.Popen:
+    """A tiny CLI training run (8 envs x 32 steps, one epoch) in a child process."""
+    args = [sys.executable, "-m", "rogue_gym.train", "--frames", str(frames), "--out", str(out)]
+    args += ["--num-envs", "8", "--num-steps", "32", "--epochs", "1", "--minibatch-size", "64"]
+    args += ["--eval-seeds", "2", "--eval-episodes", "1", "--eval-envs", "2"]
+    args += ["--random-episodes", "10", "--threads", "1", "--no-progress", *extra]
+    return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for_rows(proc: subprocess.Popen, out: Path, rows: int, timeout: float = 180) -> None:
+    """Wait (bounded) until the run has written ``rows`` rows of ``progress.csv``: its random
+    baseline is done and its workers are the training pool's."""
+    import time
+
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and proc.poll() is None:
+        if (out / "progress.csv").exists() and len(_rows(out)) >= rows:
+            return
+        time.sleep(0.2)
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        proc.kill()
+        proc.wait(timeout=30)
+
+
 def test_training_survives_a_killed_worker(tmp_path: Path) -> None:
     import os
     import signal
     import time
 
     out = tmp_path / "run"
-    args = [sys.executable, "-m", "rogue_gym.train", "--frames", "4096", "--out", str(out)]
-    args += ["--num-envs", "8", "--num-steps", "32", "--epochs", "1", "--minibatch-size", "64"]
-    args += ["--eval-every", "0", "--eval-seeds", "2", "--eval-episodes", "1", "--eval-envs", "2"]
-    args += ["--random-episodes", "10", "--threads", "1", "--no-progress"]
-    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = _start_cli_run(out, 4096, "--eval-every", "0")
     try:
-        deadline = time.monotonic() + 180
-        while time.monotonic() < deadline and proc.poll() is None:
-            if (out / "progress.csv").exists() and len(_rows(out)) >= 2:
-                break  # the random baseline is done: the workers now are the training pool's
-            time.sleep(0.2)
+        _wait_for_rows(proc, out, 2)
         workers = _workers(proc.pid)
         victim = next((p for p, cmd in workers.items() if "--index 0 " in cmd), None)
         assert victim is not None, f"no worker 0 among {workers}"
         os.kill(victim, signal.SIGKILL)
         # The pool notices the death when it next waits on that worker and starts generation 1.
         respawned = False
-        while time.monotonic() < deadline + 120 and proc.poll() is None and not respawned:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and proc.poll() is None and not respawned:
             respawned = any("--generation 1 " in c for c in _workers(proc.pid).values())
             time.sleep(0.1)
         stdout, stderr = proc.communicate(timeout=240)
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(timeout=30)
+        _stop(proc)
     assert proc.returncode == 0, stderr[-2000:]
     assert "done: 4096 frames" in stdout
     rows = _rows(out)
@@ -372,25 +390,15 @@ def test_sigterm_stops_training_and_leaves_nothing_behind(tmp_path: Path) -> Non
 
     shm_before = set(os.listdir("/dev/shm"))
     out = tmp_path / "run"
-    args = [sys.executable, "-m", "rogue_gym.train", "--frames", "100000", "--out", str(out)]
-    args += ["--num-envs", "8", "--num-steps", "32", "--epochs", "1", "--minibatch-size", "64"]
-    args += ["--eval-seeds", "2", "--eval-episodes", "1", "--eval-envs", "2"]
-    args += ["--random-episodes", "10", "--threads", "1", "--no-progress"]
-    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = _start_cli_run(out, 100000)
     try:
-        deadline = time.monotonic() + 180
-        while time.monotonic() < deadline and proc.poll() is None:
-            if (out / "progress.csv").exists() and len(_rows(out)) >= 1:
-                break
-            time.sleep(0.2)
+        _wait_for_rows(proc, out, 1)
         workers = _workers(proc.pid)
         assert workers, "no training workers"
         proc.send_signal(signal.SIGTERM)
         _, stderr = proc.communicate(timeout=120)
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(timeout=30)
+        _stop(proc)
     assert proc.returncode == 130, stderr[-2000:]
     assert "--resume" in stderr
     time.sleep(0.5)
