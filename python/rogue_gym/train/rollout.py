@@ -152,7 +152,7 @@ class Collector:
         self._groups.sort(key=lambda h: int(h.ids[0]))
         self._running.zero_()
 
-    def _to_device(self, obs: np.ndarray, group: Optional[_Group] = None) -> torch.Tensor:
+    def _to_device(self, obs: np.ndarray, group: _Group) -> torch.Tensor:
         """A device copy of a received batch (the shared-memory sample is only borrowed).
 
         On CUDA the screens go through the group's pinned staging buffer with a non-blocking
@@ -161,14 +161,10 @@ class Collector:
         """
         if not self.pin:
             return torch.from_numpy(np.array(obs, copy=True)).to(self.device)
-        if group is None or group.staging is None or group.staging.shape != obs.shape:
-            staging = torch.empty(obs.shape, dtype=torch.uint8).pin_memory()
-            if group is not None:
-                group.staging = staging
-        else:
-            staging = group.staging
-        staging.numpy()[...] = obs
-        return staging.to(self.device, non_blocking=True)
+        if group.staging is None or group.staging.shape != obs.shape:
+            group.staging = torch.empty(obs.shape, dtype=torch.uint8).pin_memory()
+        group.staging.numpy()[...] = obs
+        return group.staging.to(self.device, non_blocking=True)
 
     def _group_of(self, first_id: int) -> _Group:
         for h in self._groups:
