@@ -58,7 +58,7 @@ impl Digests {
             b[..c.len()].copy_from_slice(c);
             eat(u64::from_le_bytes(b));
         }
-        eat(u64::from(out.reward[row].to_bits()));
+        eat(out.reward[row].to_bits());
         eat(u64::from(out.terminated[row]) | u64::from(out.truncated[row]) << 1);
         eat(out.episode[row]);
         eat(out.seed[row]);

@@ -150,22 +150,34 @@ fn raise_policy_reports_hangs_and_kills_then_recovers_after_reset() {
 }
 
 #[test]
-fn env_failure_in_worker_reports_its_stderr() {
-    let mut c = config(
+fn env_failure_is_raised_with_its_env_and_message_and_reset_recovers() {
+    let c = config(
         EXE,
         json!({"kind": "test", "obs_shape": [4], "fail_on_action": 3}),
+        4,
         2,
-        1,
     );
-    c.on_worker_failure = FailurePolicy::Raise;
     let mut p = pool(c);
-    let mut obs = vec![0u8; 2 * p.obs_bytes()];
+    let pids = p.worker_pids();
+    let _guard = PidGuard(pids.clone());
+    let mut obs = vec![0u8; 4 * p.obs_bytes()];
     let mut out = BatchOutput::default();
     p.reset(&mut obs, &mut out).unwrap();
-    let e = p.step(&[0, 3], &mut obs, &mut out).unwrap_err();
+    let e = p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap_err();
+    let PoolError::EnvFailed { fault, worker, .. } = &e else {
+        panic!("expected EnvFailed, got {e}");
+    };
+    assert_eq!((fault.env, *worker), (3, 1));
     let msg = e.to_string();
-    assert!(msg.contains("exited with code 3"), "{msg}");
     assert!(msg.contains("injected failure on action 3"), "{msg}");
+    assert!(msg.contains("env 3 failed in step (episode 0"), "{msg}");
+    // The env failed, not its worker: no restart, and step needs a reset first.
+    assert_eq!((p.worker_pids(), p.restarts()), (pids, 0));
+    let e = p.step(&[0, 0, 0, 0], &mut obs, &mut out).unwrap_err();
+    assert!(e.to_string().contains("call reset()"), "{e}");
+    p.reset(&mut obs, &mut out).unwrap();
+    p.step(&[0, 1, 2, 0], &mut obs, &mut out).unwrap();
+    assert_eq!(out.episode_length, vec![1; 4]);
 }
 
 #[test]

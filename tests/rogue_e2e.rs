@@ -53,7 +53,7 @@ fn rogue_pool_matches_a_bare_game() {
     let mut out = BatchOutput::default();
     p.reset(&mut obs, &mut out).unwrap();
     assert_eq!(out.seed[3], 1003);
-    let mut bare = reg.make(&rogue()).unwrap();
+    let mut bare = reg.make(&rogue(), 0).unwrap();
     let mut bobs = vec![0u8; ob];
     bare.reset(1003, &mut bobs).unwrap();
     assert_eq!(&obs[3 * ob..], &bobs[..]);
@@ -62,7 +62,7 @@ fn rogue_pool_matches_a_bare_game() {
         let actions: Vec<i64> = (0..4).map(|i| action(i, t, 11)).collect();
         p.step(&actions, &mut obs, &mut out).unwrap();
         let o = bare.step(actions[3] as usize, &mut bobs).unwrap();
-        ret += f64::from(o.reward);
+        ret += o.reward;
         assert_eq!(&obs[3 * ob..], &bobs[..], "step {t}");
         assert_eq!(out.reward[3], o.reward);
         assert_eq!(out.episode_return[3], ret);

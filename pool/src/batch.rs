@@ -15,7 +15,7 @@ pub struct BatchOutput {
     /// Env ids of the rows.
     pub env_ids: Vec<usize>,
     /// Rewards.
-    pub reward: Vec<f32>,
+    pub reward: Vec<f64>,
     /// Episode ended by the rules.
     pub terminated: Vec<bool>,
     /// Episode cut (step limit or worker restart).
@@ -36,6 +36,9 @@ pub struct BatchOutput {
     pub has_final_obs: Vec<bool>,
     /// (SAME_STEP) final observations, `rows x obs_bytes`; empty in NEXT_STEP mode.
     pub final_obs: Vec<u8>,
+    /// `(env id, bytes)` of the envs that wrote extra info ([`crate::Env::extra_info`]), in
+    /// row order; only those.
+    pub extras: Vec<(usize, Vec<u8>)>,
 }
 
 impl BatchOutput {
@@ -52,6 +55,7 @@ impl BatchOutput {
         self.info.clear();
         self.has_final_obs.clear();
         self.final_obs.clear();
+        self.extras.clear();
     }
 
     pub(crate) fn push(&mut self, env: usize, r: &EnvRecord, n_info: usize, fin: Option<&[u8]>) {
@@ -118,6 +122,11 @@ impl Block {
     /// (SAME_STEP) its final observations, same layout as [`Block::obs`].
     pub fn final_obs(&self) -> Option<&[u8]> {
         self.layout.final_obs(self.sample.payload())
+    }
+    /// Extra info of row `j` (empty if the env wrote none).
+    pub fn extra(&self, j: usize) -> &[u8] {
+        let len = self.layout.record(self.sample.payload(), j).extra_len;
+        self.layout.extra(self.sample.payload(), j, len)
     }
     /// Record of row `j` (with the restart flags applied).
     pub fn record(&self, j: usize) -> EnvRecord {
@@ -186,12 +195,16 @@ impl Batch {
             let fin = b.final_obs();
             let ob = b.layout.obs_bytes;
             for j in 0..b.layout.envs {
+                let r = b.record(j);
                 out.push(
                     b.env_start + j,
-                    &b.record(j),
+                    &r,
                     n_info,
                     fin.map(|f| &f[j * ob..(j + 1) * ob]),
                 );
+                if r.extra_len > 0 && !b.restarted {
+                    out.extras.push((b.env_start + j, b.extra(j).to_vec()));
+                }
             }
         }
     }

@@ -8,6 +8,7 @@ use serde_json::Value;
 
 use rogue_gym_ipc::WaitPolicy;
 
+use crate::env::EnvSpec;
 use crate::error::PoolError;
 use crate::seeds::SeedSchedule;
 
@@ -65,6 +66,9 @@ impl WorkerCommand {
 pub struct PoolConfig {
     /// JSON spec of the env (its `"kind"` selects the constructor in the [`EnvRegistry`]).
     pub env: Value,
+    /// What the env looks like, when the caller already knows (hosted envs, whose front end
+    /// has probed one); `None`: the supervisor builds one env to learn it.
+    pub spec: Option<EnvSpec>,
     /// Total envs; must be a multiple of `num_workers`.
     pub num_envs: usize,
     /// Worker processes; each steps `num_envs / num_workers` envs.
@@ -104,6 +108,7 @@ impl PoolConfig {
     pub fn new(env: Value, num_envs: usize, num_workers: usize, worker: WorkerCommand) -> Self {
         PoolConfig {
             env,
+            spec: None,
             num_envs,
             num_workers,
             batch_size: None,

@@ -42,6 +42,15 @@ pub struct EnvSpec {
     pub num_actions: usize,
     /// Names of the env's info values (at most [`MAX_INFO`]), e.g. `["floor", "gold", "hp"]`.
     pub info_names: Vec<String>,
+    /// `0`: actions are indices `0..num_actions` ([`Env::step`]). `n > 0`: each action is `n`
+    /// raw bytes that the env decodes and checks itself ([`Env::step_bytes`]); `num_actions` is
+    /// then unused.
+    #[serde(default)]
+    pub action_bytes: usize,
+    /// Room per env and step for variable-size extra info ([`Env::extra_info`]), in bytes;
+    /// `0`: the env has none.
+    #[serde(default)]
+    pub extra_bytes: usize,
 }
 
 impl EnvSpec {
@@ -53,6 +62,10 @@ impl EnvSpec {
     pub fn obs_bytes(&self) -> usize {
         self.obs_len() * self.dtype.size()
     }
+    /// Command words (`u64`) one env's action takes on the wire.
+    pub fn action_words(&self) -> usize {
+        self.action_bytes.div_ceil(8).max(1)
+    }
     /// Check the spec is usable by the pool.
     pub fn validate(&self) -> Result<(), EnvError> {
         if self.obs_len() == 0 {
@@ -61,7 +74,7 @@ impl EnvSpec {
                 self.obs_shape
             )));
         }
-        if self.num_actions == 0 {
+        if self.num_actions == 0 && self.action_bytes == 0 {
             return Err(EnvError::new("the env declares 0 actions"));
         }
         if self.info_names.len() > MAX_INFO {
@@ -78,7 +91,7 @@ impl EnvSpec {
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct StepOutcome {
     /// Reward of the step.
-    pub reward: f32,
+    pub reward: f64,
     /// The episode ended by the game's rules (death, win).
     pub terminated: bool,
     /// The episode was cut (step limit).
@@ -105,8 +118,31 @@ pub trait Env {
     fn spec(&self) -> EnvSpec;
     /// Start a new episode from `seed` and write its first observation.
     fn reset(&mut self, seed: u64, obs: &mut [u8]) -> Result<(), EnvError>;
+    /// Start episode `episode` (0, 1, ...: the `e` of the seed schedule) from `seed`. The
+    /// default ignores `episode` and calls [`Env::reset`]; hosted gymnasium envs override it to
+    /// seed only episode 0 and let later episodes continue the env's own generator.
+    fn reset_episode(&mut self, seed: u64, episode: u64, obs: &mut [u8]) -> Result<(), EnvError> {
+        let _ = episode;
+        self.reset(seed, obs)
+    }
     /// Apply `action` (already checked to be `< num_actions`) and write the new observation.
     fn step(&mut self, action: usize, obs: &mut [u8]) -> Result<StepOutcome, EnvError>;
+    /// Apply an action given as [`EnvSpec::action_bytes`] raw bytes (envs whose spec says so);
+    /// the env checks it. The default says the env takes action indices.
+    fn step_bytes(&mut self, action: &[u8], obs: &mut [u8]) -> Result<StepOutcome, EnvError> {
+        let _ = (action, obs);
+        Err(EnvError::new(
+            "this env kind takes action indices, not raw action bytes",
+        ))
+    }
+    /// Write the variable-size extra info of the last `reset`/`step` (at most
+    /// [`EnvSpec::extra_bytes`]) into `out` and return its length; `0`: none. Called once
+    /// after each reset or step; what it means is the env's business (hosted envs: their
+    /// pickled info dicts).
+    fn extra_info(&mut self, out: &mut [u8]) -> Result<usize, EnvError> {
+        let _ = out;
+        Ok(0)
+    }
     /// Write the env's info values (as many as [`EnvSpec::info_names`]) into `out`.
     fn info(&self, out: &mut [f64]) {
         let _ = out;

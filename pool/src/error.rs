@@ -127,6 +127,17 @@ pub enum PoolError {
     /// A worker died or hung (policy `raise`). The pool respawned it: call `reset` to go on.
     #[error("{0}; call reset() to continue")]
     WorkerFailed(Box<WorkerFailure>),
+    /// An env failed on a command (its reset or step returned an error, or it got a bad
+    /// action). The worker is fine and keeps its envs; call `reset` to go on.
+    #[error("env {} failed in {} (worker {worker}, pid {pid}): {}; call reset() to continue", fault.env, fault.context, fault.message)]
+    EnvFailed {
+        /// The report.
+        fault: Box<crate::wire::EnvFault>,
+        /// Index of the env's worker.
+        worker: usize,
+        /// Its process id.
+        pid: u32,
+    },
     /// Too many restarts.
     #[error("restart budget exhausted ({max_restarts} restarts); last failure: {last}")]
     RestartBudgetExceeded {

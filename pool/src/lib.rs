@@ -50,11 +50,11 @@ pub use kinds::test_env::TestEnv;
 pub use registry::{EnvCtor, EnvRegistry};
 pub use rogue_gym_ipc::WaitPolicy;
 pub use seeds::{SeedPolicy, SeedSchedule, SeedSet};
-pub use supervisor::{InterruptCheck, Pool, validate_actions};
+pub use supervisor::{Actions, InterruptCheck, Pool, validate_actions};
 pub use wire::layout::{
     EnvRecord, FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED,
 };
-pub use wire::{BATCH_SLOTS, WorkerConfig};
+pub use wire::{BATCH_SLOTS, EnvFault, WorkerConfig};
 pub use worker::worker_main;
 
 impl EnvRegistry {

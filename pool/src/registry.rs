@@ -5,8 +5,10 @@ use serde_json::Value;
 
 use crate::env::{Env, EnvError};
 
-/// Builds an env from its JSON spec (the whole object, including `"kind"`).
-pub type EnvCtor = fn(&Value) -> Result<Box<dyn Env>, EnvError>;
+/// Builds an env from its JSON spec (the whole object, including `"kind"`) and its global
+/// index in the pool (kinds that build each env differently, such as hosted envs with one
+/// callable per env, use it; `0` for the supervisor's probe).
+pub type EnvCtor = fn(&Value, u64) -> Result<Box<dyn Env>, EnvError>;
 
 /// The env kinds a worker (and the supervisor, to learn the spec) can build, by name. The JSON
 /// spec of an env is an object whose `"kind"` field selects the constructor, e.g.
@@ -30,8 +32,8 @@ impl EnvRegistry {
     pub fn kinds(&self) -> Vec<&str> {
         self.kinds.iter().map(|(k, _)| k.as_str()).collect()
     }
-    /// Build an env from its JSON spec.
-    pub fn make(&self, spec: &Value) -> Result<Box<dyn Env>, EnvError> {
+    /// Build env number `index` of a pool from its JSON spec.
+    pub fn make(&self, spec: &Value, index: u64) -> Result<Box<dyn Env>, EnvError> {
         let kind = spec.get("kind").and_then(Value::as_str).ok_or_else(|| {
             EnvError::new(format!(
                 "env spec must be a JSON object with a \"kind\" string (one of {:?}); got {spec}",
@@ -44,7 +46,7 @@ impl EnvRegistry {
                 self.kinds()
             ))
         })?;
-        let env = ctor(spec)?;
+        let env = ctor(spec, index)?;
         env.spec().validate()?;
         Ok(env)
     }

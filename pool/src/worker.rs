@@ -20,8 +20,9 @@ use crate::wire::layout::{
     BlockLayout, EnvRecord, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED, write_record_words,
 };
 use crate::wire::{
-    BATCH_BUFFER, BATCH_SLOTS, BLOCK_DATA, BLOCK_READY, CMD_CLOSE, CMD_RESET, CMD_STEP,
-    KEEP_EPISODE, RELOAD_SEEDS, TARGET_SHIFT, WorkerConfig, slot_bytes,
+    BATCH_BUFFER, BATCH_SLOTS, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_CLOSE, CMD_RESET,
+    CMD_STEP, EnvFault, KEEP_EPISODE, RELOAD_SEEDS, TARGET_SHIFT, WorkerConfig, env_fault_path,
+    slot_bytes,
 };
 
 #[derive(Debug, thiserror::Error)]
@@ -160,42 +161,65 @@ pub(crate) struct SlotCtx<'a> {
     pub(crate) num_envs: u64,
     pub(crate) autoreset: AutoresetMode,
     pub(crate) num_actions: usize,
+    /// `EnvSpec::action_bytes` (0: action indices).
+    pub(crate) action_bytes: usize,
     pub(crate) n_info: usize,
 }
 
-fn do_reset(s: &mut Slot, obs: &mut [u8], ctx: &SlotCtx) -> Result<(), String> {
+/// Where one env writes its answer to a command (parts of the block being filled).
+pub(crate) struct EnvOut<'a> {
+    pub(crate) obs: &'a mut [u8],
+    /// SAME_STEP final observation (empty in NEXT_STEP mode).
+    pub(crate) fin: &'a mut [u8],
+    /// Extra-info room (`EnvSpec::extra_bytes`).
+    pub(crate) extra: &'a mut [u8],
+}
+
+fn fault(s: &Slot, context: String, message: impl std::fmt::Display) -> EnvFault {
+    EnvFault {
+        env: s.global,
+        context,
+        message: message.to_string(),
+    }
+}
+
+fn do_reset(s: &mut Slot, obs: &mut [u8], ctx: &SlotCtx) -> Result<(), EnvFault> {
     s.seed = ctx.seeds.seed(s.global, s.episode, ctx.num_envs);
     s.ret = 0.0;
     s.len = 0;
     s.needs_reset = false;
-    s.env.reset(s.seed, obs).map_err(|e| {
-        format!(
-            "env {} reset (episode {}, seed {}) failed: {e}",
-            s.global, s.episode, s.seed
+    s.env.reset_episode(s.seed, s.episode, obs).map_err(|e| {
+        fault(
+            s,
+            format!("reset (episode {}, seed {})", s.episode, s.seed),
+            e,
         )
     })
 }
 
-/// Apply one command to one env: `CMD_RESET` (value = episode index) or `CMD_STEP` (value =
-/// action), with autoreset. Writes the observation into `obs` and, in SAME_STEP mode on an
-/// episode end, the final observation into `fin`. Returns the env's record.
+/// Apply one command to one env: `CMD_RESET` (`words[0]` = episode index) or `CMD_STEP`
+/// (`words` = the action: an index, or `action_bytes` raw bytes), with autoreset. Writes the
+/// observation, the final observation (SAME_STEP, on an episode end) and the extra info into
+/// `out`. Returns the env's record.
 pub(crate) fn apply(
     s: &mut Slot,
     kind: u32,
-    value: u64,
-    obs: &mut [u8],
-    fin: &mut [u8],
+    words: &[u64],
+    out: EnvOut<'_>,
     ctx: &SlotCtx,
-) -> Result<EnvRecord, String> {
+) -> Result<EnvRecord, EnvFault> {
+    let EnvOut { obs, fin, extra } = out;
+    let value = words.first().copied().unwrap_or(0);
     let mut rec = EnvRecord::default();
     match kind {
         CMD_RESET if value == KEEP_EPISODE => {
             // Partial reset, env not selected: no state change, same observation again.
             s.env.observe(obs).map_err(|e| {
-                format!(
-                    "env {} (episode {}, seed {}): cannot keep it through a partial reset: {e}",
-                    s.global, s.episode, s.seed
-                )
+                let c = format!(
+                    "a partial reset (episode {}, seed {}): cannot keep it",
+                    s.episode, s.seed
+                );
+                fault(s, c, e)
             })?;
         }
         CMD_RESET => {
@@ -208,26 +232,36 @@ pub(crate) fn apply(
             do_reset(s, obs, ctx)?;
         }
         CMD_STEP => {
-            let action = value as usize;
-            if value >= ctx.num_actions as u64 {
-                return Err(format!(
-                    "env {}: action {value} out of range 0..{}",
-                    s.global, ctx.num_actions
-                ));
-            }
-            let out = s.env.step(action, obs).map_err(|e| {
-                format!(
-                    "env {} step (episode {}, seed {}, step {}) failed: {e}",
-                    s.global, s.episode, s.seed, s.len
-                )
+            let result = if ctx.action_bytes > 0 {
+                let bytes = rogue_gym_ipc::words_as_bytes(words);
+                s.env
+                    .step_bytes(&bytes[..ctx.action_bytes.min(bytes.len())], obs)
+            } else if value >= ctx.num_actions as u64 {
+                let msg = format!("action {value} out of range 0..{}", ctx.num_actions);
+                return Err(fault(s, "step".into(), msg));
+            } else {
+                s.env.step(value as usize, obs)
+            };
+            let out = result.map_err(|e| {
+                let c = format!(
+                    "step (episode {}, seed {}, step {})",
+                    s.episode, s.seed, s.len
+                );
+                fault(s, c, e)
             })?;
-            s.ret += f64::from(out.reward);
+            s.ret += out.reward;
             s.len += 1;
             rec.reward = out.reward;
             rec.flags = (u32::from(out.terminated) * FLAG_TERMINATED)
                 | (u32::from(out.truncated) * FLAG_TRUNCATED);
         }
-        k => return Err(format!("unknown command kind {k}")),
+        k => {
+            return Err(fault(
+                s,
+                "a command".into(),
+                format!("unknown command kind {k}"),
+            ));
+        }
     }
     rec.episode = s.episode;
     rec.seed = s.seed;
@@ -247,6 +281,20 @@ pub(crate) fn apply(
             }
         }
     }
+    if !extra.is_empty() {
+        let n = s
+            .env
+            .extra_info(extra)
+            .map_err(|e| fault(s, "extra info".into(), e))?;
+        if n > extra.len() {
+            let msg = format!(
+                "extra info of {n} bytes does not fit its {} bytes",
+                extra.len()
+            );
+            return Err(fault(s, "extra info".into(), msg));
+        }
+        rec.extra_len = n as u32;
+    }
     Ok(rec)
 }
 
@@ -258,22 +306,33 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         )));
     }
     let epw = cfg.envs_per_worker;
+    let id = PoolId::from_parts(&cfg.pool_name, &cfg.base_dir)?;
+    let fault_path = env_fault_path(&id, a.index, a.generation);
     let mut slots = Vec::with_capacity(epw);
     for j in 0..epw {
-        let env = registry
-            .make(&cfg.env)
-            .map_err(|e| WorkerError::Msg(format!("cannot build env: {e}")))?;
-        slots.push(Slot::new(env, (a.index * epw + j) as u64));
+        let global = (a.index * epw + j) as u64;
+        let env = registry.make(&cfg.env, global).map_err(|e| {
+            // Reported like a failed step (the supervisor raises it rather than retrying).
+            let fault = EnvFault {
+                env: global,
+                context: "construction".into(),
+                message: e.to_string(),
+            };
+            let _ = fault.write(&fault_path);
+            WorkerError::Msg(format!("cannot build env {global}: {e}"))
+        })?;
+        slots.push(Slot::new(env, global));
     }
     let spec = slots[0].env.spec();
     let n_info = spec.info_names.len().min(MAX_INFO);
+    let aw = spec.action_words();
     let layout = BlockLayout {
         envs: epw,
         obs_bytes: spec.obs_bytes(),
         final_obs: cfg.autoreset == AutoresetMode::SameStep,
+        extra_bytes: spec.extra_bytes,
     };
     let words = layout.words();
-    let id = PoolId::from_parts(&cfg.pool_name, &cfg.base_dir)?;
     let node = id.node(&format!("w{}g{}", a.index, a.generation))?;
     let ports = WorkerPorts::new(&node, a.index, words, &cfg.channel_settings())?;
     let policy = WaitPolicy {
@@ -296,7 +355,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
     ports.send_block(ready)?;
 
     let mut seeds = cfg.seeds.clone();
-    let mut payload: Vec<u64> = vec![0; epw];
+    let mut payload: Vec<u64> = vec![0; epw * aw];
     loop {
         let mut cmd = None;
         hybrid_wait::<WorkerError>(ports.cmd_listener(), &policy, None, |call| {
@@ -312,16 +371,18 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         if h.kind == CMD_CLOSE {
             return Ok(());
         }
-        if n != epw {
+        let kind = h.kind & ((1 << TARGET_SHIFT) - 1);
+        // Words per env: one episode index per env for a reset, one action for a step.
+        let per_env = if kind == CMD_STEP { aw } else { 1 };
+        if n != epw * per_env {
             return Err(WorkerError::Msg(format!(
-                "command {} carries {n} values for {epw} envs",
+                "command {} carries {n} words for {epw} envs of {per_env} words",
                 h.seq
             )));
         }
-        payload.copy_from_slice(&cmd.payload()[..epw]);
+        payload[..n].copy_from_slice(&cmd.payload()[..n]);
         drop(cmd);
 
-        let kind = h.kind & ((1 << TARGET_SHIFT) - 1);
         let target = ((h.kind & (RELOAD_SEEDS - 1)) >> TARGET_SHIFT) as usize;
         if h.kind & RELOAD_SEEDS != 0 {
             let fresh: WorkerConfig = std::fs::read_to_string(&a.config)
@@ -337,6 +398,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
             num_envs: cfg.num_envs as u64,
             autoreset: cfg.autoreset,
             num_actions: spec.num_actions,
+            action_bytes: spec.action_bytes,
             n_info,
         };
         if target > BATCH_SLOTS {
@@ -344,9 +406,9 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         }
         let mut block = ports.loan_block(words)?;
         *block.user_header_mut() = header(h.seq, BLOCK_DATA);
-        let (records, obs_area, final_area) = layout.split_mut(block.payload_mut());
+        let areas = layout.split_mut(block.payload_mut());
         let obs_area: &mut [u8] = if target == 0 {
-            obs_area
+            areas.obs
         } else {
             // SAFETY: the shared batch buffer holds BATCH_SLOTS slots of `sb` bytes; this
             // worker's envs occupy bytes [first_env*ob, (first_env+epw)*ob) of slot
@@ -359,15 +421,32 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
                 )
             }
         };
+        let fob = if layout.final_obs { ob } else { 0 };
+        let xb = layout.extra_bytes;
+        let mut failed = None;
         for (j, s) in slots.iter_mut().enumerate() {
-            let obs = &mut obs_area[j * ob..(j + 1) * ob];
-            let fin = if ctx.autoreset == AutoresetMode::SameStep {
-                &mut final_area[j * ob..(j + 1) * ob]
-            } else {
-                &mut final_area[..0]
+            let out = EnvOut {
+                obs: &mut obs_area[j * ob..(j + 1) * ob],
+                fin: &mut areas.final_obs[j * fob..(j + 1) * fob],
+                extra: &mut areas.extra[j * xb..(j + 1) * xb],
             };
-            let rec = apply(s, kind, payload[j], obs, fin, &ctx).map_err(WorkerError::Msg)?;
-            write_record_words(records, j, &rec);
+            match apply(s, kind, &payload[j * per_env..(j + 1) * per_env], out, &ctx) {
+                Ok(rec) => write_record_words(areas.records, j, &rec),
+                Err(f) => {
+                    failed = Some(f);
+                    break;
+                }
+            }
+        }
+        if let Some(f) = failed {
+            // An env failed: report it (the supervisor raises it to the caller and requires a
+            // reset) and keep serving; the worker itself is fine.
+            drop(block);
+            f.write(&fault_path).map_err(WorkerError::Msg)?;
+            let mut report = ports.loan_block(words)?;
+            *report.user_header_mut() = header(h.seq, BLOCK_ERROR);
+            ports.send_block(report)?;
+            continue;
         }
         ports.send_block(block)?;
     }
@@ -384,12 +463,25 @@ mod tests {
         Slot::new(Box::new(env), 5)
     }
 
+    fn go(
+        s: &mut Slot,
+        kind: u32,
+        value: u64,
+        obs: &mut [u8],
+        fin: &mut [u8],
+        c: &SlotCtx,
+    ) -> Result<EnvRecord, EnvFault> {
+        let extra: &mut [u8] = &mut [];
+        apply(s, kind, &[value], EnvOut { obs, fin, extra }, c)
+    }
+
     fn ctx(seeds: &SeedSchedule, autoreset: AutoresetMode) -> SlotCtx<'_> {
         SlotCtx {
             seeds,
             num_envs: 8,
             autoreset,
             num_actions: 5,
+            action_bytes: 0,
             n_info: 2,
         }
     }
@@ -400,12 +492,12 @@ mod tests {
         let c = ctx(&seeds, AutoresetMode::NextStep);
         let mut s = slot();
         let (mut obs, mut fin) = ([0u8; 4], [0u8; 0]);
-        let r = apply(&mut s, CMD_RESET, 0, &mut obs, &mut fin, &c).unwrap();
+        let r = go(&mut s, CMD_RESET, 0, &mut obs, &mut fin, &c).unwrap();
         assert_eq!((r.episode, r.seed, r.flags), (0, seeds.seed(5, 0, 8), 0));
         let mut total = 0.0;
         for t in 1..=3 {
-            let r = apply(&mut s, CMD_STEP, 1, &mut obs, &mut fin, &c).unwrap();
-            total += f64::from(r.reward);
+            let r = go(&mut s, CMD_STEP, 1, &mut obs, &mut fin, &c).unwrap();
+            total += r.reward;
             assert_eq!(r.episode_length, t);
             if r.terminated() {
                 break;
@@ -414,7 +506,7 @@ mod tests {
         }
         // The episode ended: its last reward was reported; the next step only resets.
         assert_eq!(s.ret, total);
-        let r = apply(&mut s, CMD_STEP, 4, &mut obs, &mut fin, &c).unwrap();
+        let r = go(&mut s, CMD_STEP, 4, &mut obs, &mut fin, &c).unwrap();
         assert_eq!(r.reward, 0.0);
         assert!(!r.terminated() && !r.truncated());
         assert_eq!(
@@ -433,7 +525,7 @@ mod tests {
         let c = ctx(&seeds, AutoresetMode::SameStep);
         let mut s = slot();
         let (mut obs, mut fin) = ([0u8; 4], [0u8; 4]);
-        apply(&mut s, CMD_RESET, 0, &mut obs, &mut fin, &c).unwrap();
+        go(&mut s, CMD_RESET, 0, &mut obs, &mut fin, &c).unwrap();
         // Replay the same episode on a bare env to know the final obs.
         let mut bare =
             TestEnv::from_json(&serde_json::json!({"obs_shape": [4], "max_steps": 3})).unwrap();
@@ -441,7 +533,7 @@ mod tests {
         bare.reset(seeds.seed(5, 0, 8), &mut bobs).unwrap();
         loop {
             let o = bare.step(2, &mut bobs).unwrap();
-            let r = apply(&mut s, CMD_STEP, 2, &mut obs, &mut fin, &c).unwrap();
+            let r = go(&mut s, CMD_STEP, 2, &mut obs, &mut fin, &c).unwrap();
             assert_eq!(r.reward, o.reward, "the final reward is kept");
             if o.terminated || o.truncated {
                 assert_eq!((r.terminated(), r.truncated()), (o.terminated, o.truncated));
@@ -456,7 +548,7 @@ mod tests {
             assert_eq!(obs, bobs);
         }
         // The next step acts normally in the new episode.
-        let r = apply(&mut s, CMD_STEP, 0, &mut obs, &mut fin, &c).unwrap();
+        let r = go(&mut s, CMD_STEP, 0, &mut obs, &mut fin, &c).unwrap();
         assert_eq!((r.episode, r.episode_length), (1, 1));
     }
 
@@ -466,8 +558,9 @@ mod tests {
         let c = ctx(&seeds, AutoresetMode::NextStep);
         let mut s = slot();
         let (mut obs, mut fin) = ([0u8; 4], [0u8; 0]);
-        apply(&mut s, CMD_RESET, 0, &mut obs, &mut fin, &c).unwrap();
-        let e = apply(&mut s, CMD_STEP, 99, &mut obs, &mut fin, &c).unwrap_err();
-        assert!(e.contains("action 99"), "{e}");
+        go(&mut s, CMD_RESET, 0, &mut obs, &mut fin, &c).unwrap();
+        let e = go(&mut s, CMD_STEP, 99, &mut obs, &mut fin, &c).unwrap_err();
+        assert_eq!(e.env, 5);
+        assert!(e.message.contains("action 99"), "{}", e.message);
     }
 }

@@ -5,6 +5,8 @@ Three entry points:
 * :class:`rogue_gym.envs.RogueEnv`: one game as a gymnasium ``Env`` (the original API).
 * :func:`rogue_gym.make_vec` / :class:`rogue_gym.vector.RogueVectorEnv`: many games stepped by
   worker processes over shared memory, as a ``gymnasium.vector.VectorEnv``.
+* :class:`rogue_gym.PoolVectorEnv`: any gymnasium env hosted in the same worker processes (a
+  drop-in for ``AsyncVectorEnv``; ``make_vec("CartPole-v1", 64)`` builds one).
 * :class:`rogue_gym.sb3.RogueVecEnv`: the same pool as a Stable-Baselines3 ``VecEnv``
   (imported lazily: ``import rogue_gym`` needs neither SB3 nor torch).
 
@@ -27,7 +29,8 @@ from .envs import (
     StairRewardEnv,
     StatusFlag,
 )
-from .errors import WorkerCrashedError
+from .errors import EnvFailedError, WorkerCrashedError
+from .hosted import PoolVectorEnv
 from .registration import ENV_ID, register_envs
 from .vector import RogueVectorEnv, make_vec
 
@@ -36,8 +39,10 @@ __all__ = [
     "ENV_ID",
     "PAPER_CONFIG",
     "DungeonType",
+    "EnvFailedError",
     "FirstFloorEnv",
     "ImageSetting",
+    "PoolVectorEnv",
     "RogueEnv",
     "RogueVecEnv",
     "RogueVectorEnv",

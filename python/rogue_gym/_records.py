@@ -27,15 +27,16 @@ FLAG_RESTARTED: int = _native.FLAG_RESTARTED
 #: (SAME_STEP) the final observation of the ended episode is available.
 FLAG_FINAL_OBS: int = _native.FLAG_FINAL_OBS
 
-#: Mirrors the pool's ``#[repr(C)] EnvRecord`` (104 bytes); checked against the native size.
+#: Mirrors the pool's ``#[repr(C)] EnvRecord`` (112 bytes); checked against the native size.
 RECORD_DTYPE = np.dtype(
     [
-        ("reward", "<f4"),
+        ("reward", "<f8"),
         ("flags", "<u4"),
+        ("episode_length", "<u4"),
         ("episode_return", "<f8"),
         ("episode", "<u8"),
         ("seed", "<u8"),
-        ("episode_length", "<u4"),
+        ("extra_len", "<u4"),
         ("reserved", "<u4"),
         ("info", "<f8", (MAX_INFO,)),
     ],

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Optional
 
-__all__ = ["WorkerCrashedError"]
+__all__ = ["EnvFailedError", "WorkerCrashedError"]
 
 
 class WorkerCrashedError(RuntimeError):
@@ -42,3 +42,38 @@ class WorkerCrashedError(RuntimeError):
         self.signal = signal
         self.exit_code = exit_code
         self.stderr_tail = stderr_tail
+
+
+class EnvFailedError(RuntimeError):
+    """An env raised (or returned an error) in its reset or step inside a worker.
+
+    Hosted gymnasium envs re-raise the env's own exception instead, with the worker-side
+    traceback attached as a note; this class is for the rest (native env errors, and hosted
+    exceptions that could not be carried over).
+
+    Attributes:
+        env: index of the env that failed.
+        worker: index of its worker.
+        pid: the worker's process id (the worker is still alive).
+        context: what the env was doing, e.g. ``"step (episode 3, seed 7, step 12)"``.
+        detail: the env's own message.
+
+    The pool can be used again after ``reset()``.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        env: int,
+        worker: int,
+        pid: int,
+        context: str,
+        detail: str,
+    ) -> None:
+        super().__init__(message)
+        self.env = env
+        self.worker = worker
+        self.pid = pid
+        self.context = context
+        self.detail = detail

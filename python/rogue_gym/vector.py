@@ -2,18 +2,20 @@
 
 from __future__ import annotations
 
-from typing import Any, Optional, Sequence, Union
+import functools
+from typing import Any, Callable, Optional, Sequence, Union
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from gymnasium.vector import AutoresetMode
+from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ._config import ConfigLike
 from ._core import SUMMARY_FINAL, SUMMARY_RESTARTED, ActionHistory, PoolCore, PoolFacade
 from ._records import RECORD_DTYPE
 from .envs.rogue_env import ACTIONS
+from .registration import ENV_ID
 from .settings import PoolSettings
 
 __all__ = ["RogueVectorEnv", "make_vec"]
@@ -391,9 +393,19 @@ class RogueVectorEnv(gym.vector.VectorEnv, PoolFacade):
 
 
 def make_vec(
-    num_envs: int = PoolSettings.num_envs, config: ConfigLike = PoolSettings.config, **kwargs: Any
-) -> RogueVectorEnv:
-    """Create a :class:`RogueVectorEnv` (``num_envs`` games in worker processes).
+    env: Union[int, str, Callable[[], gym.Env]] = PoolSettings.num_envs,
+    num_envs: Optional[int] = None,
+    config: ConfigLike = PoolSettings.config,
+    **kwargs: Any,
+) -> VectorEnv:
+    """A vector env in the pool's worker processes.
+
+    * ``make_vec(64, config="paper", **pool_options)`` (or ``make_vec("RogueGym-v0", 64,
+      ...)``): the native game, :class:`RogueVectorEnv`.
+    * ``make_vec("CartPole-v1", 64, env_kwargs={...}, **options)``: any registered gymnasium
+      id, hosted as Python envs (:class:`rogue_gym.hosted.PoolVectorEnv`; ``options`` are its
+      keywords).
+    * ``make_vec(env_fn, 64, **options)``: ``env_fn()`` builds each env.
 
     Example::
 
@@ -402,4 +414,27 @@ def make_vec(
         obs, rewards, terminated, truncated, infos = envs.step(envs.action_space.sample())
         envs.close()
     """
-    return RogueVectorEnv(num_envs, config, **kwargs)
+    if isinstance(env, (int, np.integer)):
+        if num_envs is not None:
+            raise TypeError("make_vec(num_envs, ...) got num_envs twice")
+        return RogueVectorEnv(int(env), config, **kwargs)
+    if num_envs is None:
+        raise TypeError(f"make_vec({env!r}, num_envs, ...) needs num_envs")
+    if env == ENV_ID:
+        return RogueVectorEnv(num_envs, config, **kwargs)
+    if config is not PoolSettings.config:
+        raise TypeError(
+            "config= is an option of the native game only (make_vec(num_envs, config=...))"
+        )
+    from .hosted import PoolVectorEnv
+
+    env_kwargs = dict(kwargs.pop("env_kwargs", None) or {})
+    if isinstance(env, str):
+        env_fn: Callable[[], gym.Env] = functools.partial(gym.make, env, **env_kwargs)
+    elif callable(env):
+        if env_kwargs:
+            raise TypeError("env_kwargs is for gymnasium ids; bind arguments into the callable")
+        env_fn = env
+    else:
+        raise TypeError(f"make_vec needs a num_envs, a gymnasium id or a callable, got {env!r}")
+    return PoolVectorEnv([env_fn] * int(num_envs), **kwargs)

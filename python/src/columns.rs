@@ -162,7 +162,7 @@ pub(crate) unsafe fn write_columns(
             continue;
         }
         unsafe {
-            *w(0).add(i) = f64::from(out.reward[r]).to_bits();
+            *w(0).add(i) = out.reward[r].to_bits();
             *w(1).add(i) = out.seed[r];
             *w(2).add(i) = out.episode[r];
             *w(3).add(i) = out.episode_return[r].to_bits();

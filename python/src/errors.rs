@@ -14,6 +14,23 @@ pub(crate) fn pool_error(py: Python<'_>, e: PoolError) -> PyErr {
             &format!("restart budget exhausted ({max_restarts} restarts); last failure: {last}"),
             &last,
         ),
+        PoolError::EnvFailed { fault, worker, pid } => {
+            let msg = format!(
+                "env {} failed in {} (worker {worker}, pid {pid}): {}; call reset() to continue",
+                fault.env, fault.context, fault.message
+            );
+            let build = || -> PyResult<PyErr> {
+                let cls = py.import("rogue_gym.errors")?.getattr("EnvFailedError")?;
+                let kw = PyDict::new(py);
+                kw.set_item("env", fault.env)?;
+                kw.set_item("worker", worker)?;
+                kw.set_item("pid", pid)?;
+                kw.set_item("context", &fault.context)?;
+                kw.set_item("detail", &fault.message)?;
+                Ok(PyErr::from_value(cls.call((msg,), Some(&kw))?))
+            };
+            build().unwrap_or_else(|e| e)
+        }
         e @ (PoolError::Config(_)
         | PoolError::Env(_)
         | PoolError::BadAction { .. }

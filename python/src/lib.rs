@@ -1,6 +1,7 @@
 //! Native module of the `rogue_gym` Python package: the engine (`Game`), the environment
 //! pool (`Pool`, with zero-copy views of worker blocks) and the worker entry point
-//! (`worker_main`, run by `python -m rogue_gym.worker`).
+//! (`worker_main`, run by `python -m rogue_gym.worker`), which also hosts gymnasium envs
+//! written in Python ([`hosted`]).
 //!
 //! Every Rust error is mapped to a Python exception; nothing panics across the FFI boundary.
 
@@ -11,6 +12,7 @@ use pyo3::prelude::*;
 mod columns;
 mod errors;
 mod game;
+mod hosted;
 mod pool;
 mod settings;
 mod spec;
@@ -20,10 +22,15 @@ mod summary;
 /// and return its exit code. The GIL is released for the worker's whole life.
 #[pyfunction]
 fn worker_main(py: Python<'_>, argv: Vec<String>) -> i32 {
-    py.detach(|| {
-        let registry = rogue_gym_pool::EnvRegistry::with_defaults();
-        rogue_gym_pool::worker_main(&argv, &registry)
-    })
+    py.detach(|| rogue_gym_pool::worker_main(&argv, &registry()))
+}
+
+/// The env kinds of this extension's pools: the pool crate's own, plus `"python"` (hosted
+/// gymnasium envs, see [`hosted`]).
+pub(crate) fn registry() -> rogue_gym_pool::EnvRegistry {
+    let mut r = rogue_gym_pool::EnvRegistry::with_defaults();
+    r.register(hosted::KIND, hosted::make_hosted_env);
+    r
 }
 
 /// The `rogue_gym._native` module.

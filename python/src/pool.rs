@@ -9,8 +9,7 @@ use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyList};
 use rogue_gym_pool::{
-    Batch, BatchOutput, Block, EnvRecord, EnvRegistry, InterruptCheck, Pool, PoolError,
-    SeedSchedule,
+    Actions, Batch, BatchOutput, Block, EnvRecord, InterruptCheck, Pool, PoolError, SeedSchedule,
 };
 
 use crate::columns::{
@@ -59,6 +58,8 @@ pub struct PyPool {
     num_envs: usize,
     num_workers: usize,
     obs_bytes: usize,
+    /// Bytes of one raw action (hosted envs; 0: action indices).
+    action_bytes: usize,
     n_info: usize,
     obs_shape: Vec<usize>,
     dtype: &'static str,
@@ -148,6 +149,21 @@ impl PyPool {
     }
 }
 
+/// Raw action bytes (hosted envs with `action_bytes` per env): a 1-D uint8 array.
+fn action_bytes_vec(actions: &Bound<'_, PyAny>, expected: usize) -> PyResult<Vec<u8>> {
+    let arr: PyReadonlyArray1<'_, u8> = actions
+        .extract()
+        .map_err(|_| PyTypeError::new_err("raw actions must be a 1-D uint8 numpy array"))?;
+    let v = arr.as_array().to_vec();
+    if v.len() != expected {
+        return Err(PyValueError::new_err(format!(
+            "raw actions have {} bytes, expected {expected}",
+            v.len()
+        )));
+    }
+    Ok(v)
+}
+
 fn actions_vec(actions: &Bound<'_, PyAny>) -> PyResult<Vec<i64>> {
     let arr: PyReadonlyArray1<'_, i64> = actions.extract().map_err(|_| {
         PyTypeError::new_err("actions must be a 1-D int64 numpy array (one action per env)")
@@ -165,7 +181,7 @@ impl PyPool {
     fn new(py: Python<'_>, settings_json: &str, worker_command: Vec<String>) -> PyResult<Self> {
         let cfg = settings::pool_config(settings_json, worker_command)?;
         let mut pool = py
-            .detach(|| Pool::new(cfg, &EnvRegistry::with_defaults()))
+            .detach(|| Pool::new(cfg, &crate::registry()))
             .map_err(|e| pool_error(py, e))?;
         let interrupted = Arc::new(Mutex::new(None));
         pool.set_interrupt_check(Some(interrupt_check(interrupted.clone())));
@@ -174,6 +190,7 @@ impl PyPool {
             num_envs: pool.num_envs(),
             num_workers: pool.num_workers(),
             obs_bytes: pool.obs_bytes(),
+            action_bytes: spec.action_bytes,
             n_info: spec.info_names.len(),
             obs_shape: spec.obs_shape.clone(),
             dtype: spec.dtype.numpy_name(),
@@ -253,6 +270,38 @@ impl PyPool {
         let slot = self.with_pool(py, move |p, out| p.step_shared(&acts, out))?;
         self.fill_outputs(py, recs_out, final_out)?;
         Ok(slot)
+    }
+
+    /// [`step_shared`] for hosted envs whose actions travel as raw bytes: `actions` is a uint8
+    /// array of `num_envs x action_bytes` bytes. Returns the slot index.
+    #[pyo3(signature = (actions, recs_out, final_out = None))]
+    fn step_bytes_shared(
+        &self,
+        py: Python<'_>,
+        actions: &Bound<'_, PyAny>,
+        recs_out: &Bound<'_, PyUntypedArray>,
+        final_out: Option<&Bound<'_, PyUntypedArray>>,
+    ) -> PyResult<usize> {
+        let acts = action_bytes_vec(actions, self.num_envs * self.action_bytes)?;
+        let slot = self.with_pool(py, move |p, out| {
+            p.step_shared_actions(Actions::Bytes(&acts), out)
+        })?;
+        self.fill_outputs(py, recs_out, final_out)?;
+        Ok(slot)
+    }
+
+    /// The extra info of the last sync call's envs that wrote some: a list of `(env id,
+    /// bytes)` (hosted envs: their pickled info dicts).
+    fn take_extras<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let mut out = self
+            .out
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        let list = PyList::empty(py);
+        for (env, bytes) in out.extras.drain(..) {
+            list.append((env, PyBytes::new(py, &bytes)))?;
+        }
+        Ok(list)
     }
 
     /// Partial sync reset (gymnasium `reset_mask`) straight into the next shared batch slot:
@@ -393,6 +442,19 @@ impl PyPool {
     /// Async: reset every env; collect the results with `recv()`.
     fn async_reset(&self, py: Python<'_>) -> PyResult<()> {
         self.with_pool(py, |p, _| p.async_reset())
+    }
+
+    /// Async [`send`] of raw action bytes (`len(env_ids) x action_bytes` uint8).
+    fn send_bytes(
+        &self,
+        py: Python<'_>,
+        actions: &Bound<'_, PyAny>,
+        env_ids: Vec<usize>,
+    ) -> PyResult<()> {
+        let acts = action_bytes_vec(actions, env_ids.len() * self.action_bytes)?;
+        self.with_pool(py, move |p, _| {
+            p.send_actions(Actions::Bytes(&acts), &env_ids)
+        })
     }
 
     /// Async: send `actions` (int64) to `env_ids` (whole worker blocks, each in order).

@@ -15,6 +15,9 @@ use serde_json::Value;
 #[serde(deny_unknown_fields)]
 pub(crate) struct PyPoolSettings {
     env: Value,
+    /// The env's spec when the Python side knows it (hosted envs).
+    #[serde(default)]
+    spec: Option<rogue_gym_pool::EnvSpec>,
     num_envs: usize,
     num_workers: usize,
     #[serde(default)]
@@ -61,6 +64,7 @@ pub(crate) fn pool_config(
     };
     let mut cfg = PoolConfig::new(s.env, s.num_envs, s.num_workers, worker);
     cfg.batch_size = s.batch_size;
+    cfg.spec = s.spec;
     cfg.seeds = s.seeds;
     cfg.autoreset = s.autoreset;
     cfg.on_worker_failure = s.on_worker_failure;

@@ -397,7 +397,7 @@ def test_record_dtype_matches_the_native_layout() -> None:
     from rogue_gym import _native
     from rogue_gym._records import RECORD_DTYPE
 
-    assert RECORD_DTYPE.itemsize == _native.RECORD_BYTES == 104
+    assert RECORD_DTYPE.itemsize == _native.RECORD_BYTES == 112
 
 
 def _run(env, acts, mask_at=None, mask=None):

@@ -124,7 +124,7 @@ struct Raw {
 impl Raw {
     fn new(spec: &Value, a: &Args, reg: &EnvRegistry) -> Result<Raw, String> {
         let mut envs = (0..a.envs)
-            .map(|_| reg.make(spec))
+            .map(|i| reg.make(spec, i as u64))
             .collect::<Result<Vec<_>, _>>()
             .map_err(|e| e.to_string())?;
         let s = envs[0].spec();
@@ -300,7 +300,7 @@ fn bench(a: &Args) -> Result<(), String> {
     }
     let reg = EnvRegistry::with_defaults();
     let spec = env_spec(a)?;
-    let s = reg.make(&spec).map_err(|e| e.to_string())?.spec();
+    let s = reg.make(&spec, 0).map_err(|e| e.to_string())?.spec();
     let rounds = a.rounds.max(1);
     println!(
         "pool-bench: env={} envs={} workers={} mode={:?} steps={} (in {rounds} interleaved rounds) obs={:?} {} ({} B)",

@@ -70,6 +70,8 @@ impl RogueEnv {
             },
             num_actions: rogue_gym_engine::NUM_ACTIONS,
             info_names: ROGUE_INFO_NAMES.iter().map(|s| s.to_string()).collect(),
+            action_bytes: 0,
+            extra_bytes: 0,
         };
         Ok(RogueEnv { game, obs, spec })
     }
@@ -91,7 +93,7 @@ impl RogueEnv {
 }
 
 /// [`crate::EnvCtor`] of the `"rogue"` kind.
-pub fn make_rogue_env(v: &Value) -> Result<Box<dyn Env>, EnvError> {
+pub fn make_rogue_env(v: &Value, _index: u64) -> Result<Box<dyn Env>, EnvError> {
     Ok(Box::new(RogueEnv::from_json(v)?))
 }
 
@@ -115,7 +117,7 @@ impl Env for RogueEnv {
         let r = self.game.step(a);
         self.write(obs)?;
         Ok(StepOutcome {
-            reward: r.reward,
+            reward: f64::from(r.reward),
             terminated: r.terminated,
             truncated: r.truncated,
         })

@@ -69,6 +69,8 @@ impl TestEnv {
                 dtype,
                 num_actions: get_u64(v, "num_actions", 5)? as usize,
                 info_names: vec!["t".into(), "state_mod_1000".into()],
+                action_bytes: 0,
+                extra_bytes: 0,
             },
             max_steps: get_u64(v, "max_steps", 50)? as u32,
             work: get_u64(v, "work", 0)? as u32,
@@ -98,7 +100,7 @@ impl TestEnv {
 }
 
 /// [`crate::EnvCtor`] of the `"test"` kind.
-pub fn make_test_env(v: &Value) -> Result<Box<dyn Env>, EnvError> {
+pub fn make_test_env(v: &Value, _index: u64) -> Result<Box<dyn Env>, EnvError> {
     Ok(Box::new(TestEnv::from_json(v)?))
 }
 
@@ -127,7 +129,7 @@ impl Env for TestEnv {
         self.t += 1;
         self.write_obs(obs)?;
         Ok(StepOutcome {
-            reward: (s % 7) as f32 - 3.0,
+            reward: (s % 7) as f64 - 3.0,
             terminated: s.is_multiple_of(31),
             truncated: self.t >= self.max_steps,
         })

@@ -1,6 +1,7 @@
 //! EnvPool-style async stepping: `async_reset`, `send` and `recv` of whole worker blocks.
 
 use super::Pool;
+use super::stepping::Actions;
 use super::workers::SlotState;
 use crate::batch::Batch;
 use crate::error::PoolError;
@@ -22,20 +23,23 @@ impl Pool {
     /// order (`k*epw .. (k+1)*epw`), whose previous result has been received; `actions[r]` is
     /// for `env_ids[r]`.
     pub fn send(&mut self, actions: &[i64], env_ids: &[usize]) -> Result<(), PoolError> {
+        self.send_actions(Actions::Indices(actions), env_ids)
+    }
+
+    /// [`Pool::send`] with actions of either kind ([`Actions`]).
+    pub fn send_actions(
+        &mut self,
+        actions: Actions<'_>,
+        env_ids: &[usize],
+    ) -> Result<(), PoolError> {
         self.check_usable()?;
-        if actions.len() != env_ids.len() {
-            return Err(PoolError::BadActionsLength {
-                expected: env_ids.len(),
-                got: actions.len(),
-            });
-        }
         if self.core.must_reset {
             return Err(PoolError::State(
                 "call async_reset() before send() (after creation or after a worker failure)"
                     .into(),
             ));
         }
-        self.check_actions(actions, env_ids.iter().copied())?;
+        self.check_actions(actions, env_ids)?;
         let epw = self.core.epw;
         if !env_ids.len().is_multiple_of(epw) {
             return Err(PoolError::State(format!(
@@ -63,9 +67,10 @@ impl Pool {
             }
             workers.push(k);
         }
+        let ab = self.core.spec.action_bytes;
         for (r, &k) in workers.iter().enumerate() {
             self.core
-                .send_step(k, &actions[r * epw..(r + 1) * epw], 0)?;
+                .send_step(k, actions.rows(r * epw..(r + 1) * epw, ab), 0)?;
         }
         Ok(())
     }

@@ -26,7 +26,7 @@ use crate::seeds::SeedSchedule;
 use crate::wire::layout::BlockLayout;
 use crate::wire::{BATCH_BUFFER, BATCH_SLOTS, CMD_CLOSE, WorkerConfig, slot_bytes};
 
-pub use stepping::validate_actions;
+pub use stepping::{Actions, validate_actions};
 use workers::{SlotState, WorkerSlot};
 
 struct Core {
@@ -51,6 +51,8 @@ struct Core {
     /// Workers must re-read the seed schedule at their next reset.
     reload_seeds: Vec<bool>,
     worker_config: Option<WorkerConfig>,
+    /// An env failure reported by a worker, raised by the current wait.
+    env_fault: Option<PoolError>,
 }
 
 /// A pool of envs stepped by worker processes, with observations in shared memory.
@@ -114,11 +116,16 @@ impl Pool {
             ));
         }
         cfg.seeds.validate().map_err(PoolError::Config)?;
-        let spec = registry.make(&cfg.env)?.spec();
+        let spec = match &cfg.spec {
+            Some(s) => s.clone(),
+            None => registry.make(&cfg.env, 0)?.spec(),
+        };
+        spec.validate()?;
         let layout = BlockLayout {
             envs: epw,
             obs_bytes: spec.obs_bytes(),
             final_obs: cfg.autoreset == AutoresetMode::SameStep,
+            extra_bytes: spec.extra_bytes,
         };
         rogue_gym_ipc::sweep_stale_pools(&cfg.base_dir);
         let id = PoolId::new_unique(&cfg.base_dir)?;
@@ -168,6 +175,7 @@ impl Pool {
                 closed: false,
                 reload_seeds: vec![false; num_workers],
                 worker_config: None,
+                env_fault: None,
             },
         };
         // From here on, Drop cleans up whatever was created.
@@ -191,7 +199,7 @@ impl Pool {
         let node = c.id.node("sup")?;
         self.listener = Some(BlockListener::new(&node, &c.settings)?);
         for k in 0..c.cfg.num_workers {
-            let ports = SupervisorPorts::new(&node, k, c.epw, &c.settings)?;
+            let ports = SupervisorPorts::new(&node, k, c.epw * c.spec.action_words(), &c.settings)?;
             c.slots.push(WorkerSlot {
                 ports,
                 child: None,
@@ -313,6 +321,9 @@ impl Pool {
                 }
             }
             core.poll_all()?;
+            if let Some(e) = core.env_fault.take() {
+                return Err(e);
+            }
             Ok(done(core))
         })?;
         debug_assert_eq!(out, WaitOutcome::Done);
@@ -326,12 +337,38 @@ impl Pool {
         Ok(())
     }
 
-    fn check_actions(
-        &self,
-        actions: &[i64],
-        env_ids: impl Iterator<Item = usize>,
-    ) -> Result<(), PoolError> {
-        validate_actions(actions, env_ids, self.core.spec.num_actions)
+    /// Check one action per env of `env_ids` (indices in range, or the right byte count).
+    fn check_actions(&self, actions: Actions<'_>, env_ids: &[usize]) -> Result<(), PoolError> {
+        let spec = &self.core.spec;
+        match actions {
+            Actions::Indices(a) if spec.action_bytes == 0 => {
+                if a.len() != env_ids.len() {
+                    return Err(PoolError::BadActionsLength {
+                        expected: env_ids.len(),
+                        got: a.len(),
+                    });
+                }
+                validate_actions(a, env_ids.iter().copied(), spec.num_actions)
+            }
+            Actions::Bytes(b) if spec.action_bytes > 0 => {
+                if b.len() != env_ids.len() * spec.action_bytes {
+                    return Err(PoolError::BadBuffer {
+                        what: "action bytes",
+                        expected: env_ids.len() * spec.action_bytes,
+                        got: b.len(),
+                    });
+                }
+                Ok(())
+            }
+            Actions::Indices(_) => Err(PoolError::Config(format!(
+                "this env takes actions as {} raw bytes each, not indices",
+                spec.action_bytes
+            ))),
+            Actions::Bytes(_) => Err(PoolError::Config(format!(
+                "this env takes action indices 0..{}, not raw bytes",
+                spec.num_actions
+            ))),
+        }
     }
 
     fn check_obs_buf(&self, obs_out: &[u8]) -> Result<(), PoolError> {

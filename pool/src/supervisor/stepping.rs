@@ -1,10 +1,34 @@
 //! Sync stepping: reset, partial reset and step, with the observations copied into the
 //! caller's buffer or written by the workers straight into the shared batch slots.
 
+use std::ops::Range;
+
 use super::Pool;
 use crate::batch::{Batch, BatchOutput, Block};
 use crate::error::PoolError;
 use crate::wire::BATCH_SLOTS;
+
+/// The actions of a step, one per env: indices `0..num_actions`, or `EnvSpec::action_bytes`
+/// raw bytes each (envs that decode their own actions, such as hosted gymnasium envs).
+#[derive(Debug, Clone, Copy)]
+pub enum Actions<'a> {
+    /// One index per env.
+    Indices(&'a [i64]),
+    /// `action_bytes` bytes per env, env after env.
+    Bytes(&'a [u8]),
+}
+
+impl<'a> Actions<'a> {
+    /// The actions of rows `rows` (`action_bytes`: bytes per action, for `Bytes`).
+    pub(crate) fn rows(self, rows: Range<usize>, action_bytes: usize) -> Actions<'a> {
+        match self {
+            Actions::Indices(a) => Actions::Indices(&a[rows]),
+            Actions::Bytes(b) => {
+                Actions::Bytes(&b[rows.start * action_bytes..rows.end * action_bytes])
+            }
+        }
+    }
+}
 
 /// Check that every action is in `0..num_actions`; the error names the env and the value.
 pub fn validate_actions(
@@ -49,14 +73,30 @@ impl Pool {
         obs_out: &mut [u8],
         out: &mut BatchOutput,
     ) -> Result<(), PoolError> {
+        self.step_actions(Actions::Indices(actions), obs_out, out)
+    }
+
+    /// [`Pool::step`] with actions of either kind ([`Actions`]).
+    pub fn step_actions(
+        &mut self,
+        actions: Actions<'_>,
+        obs_out: &mut [u8],
+        out: &mut BatchOutput,
+    ) -> Result<(), PoolError> {
         self.check_obs_buf(obs_out)?;
         self.prepare_sync_step(actions)?;
-        let epw = self.core.epw;
-        for k in 0..self.core.slots.len() {
-            self.core
-                .send_step(k, &actions[k * epw..(k + 1) * epw], 0)?;
-        }
+        self.send_steps(actions, 0)?;
         self.gather_all(Some(obs_out), out)
+    }
+
+    /// Send each worker its block of `actions`.
+    fn send_steps(&mut self, actions: Actions<'_>, target: u32) -> Result<(), PoolError> {
+        let ab = self.core.spec.action_bytes;
+        for k in 0..self.core.slots.len() {
+            let rows = self.core.env_range(k);
+            self.core.send_step(k, actions.rows(rows, ab), target)?;
+        }
+        Ok(())
     }
 
     /// Like [`Pool::reset`], but the workers write the observations straight into the next
@@ -145,13 +185,18 @@ impl Pool {
         actions: &[i64],
         out: &mut BatchOutput,
     ) -> Result<usize, PoolError> {
+        self.step_shared_actions(Actions::Indices(actions), out)
+    }
+
+    /// [`Pool::step_shared`] with actions of either kind ([`Actions`]).
+    pub fn step_shared_actions(
+        &mut self,
+        actions: Actions<'_>,
+        out: &mut BatchOutput,
+    ) -> Result<usize, PoolError> {
         self.prepare_sync_step(actions)?;
-        let epw = self.core.epw;
         let slot = self.core.next_slot;
-        for k in 0..self.core.slots.len() {
-            self.core
-                .send_step(k, &actions[k * epw..(k + 1) * epw], slot as u32 + 1)?;
-        }
+        self.send_steps(actions, slot as u32 + 1)?;
         self.gather_all(None, out)?;
         self.core.next_slot = (slot + 1) % BATCH_SLOTS;
         Ok(slot)
@@ -197,15 +242,10 @@ impl Pool {
 
     /// Checks before a sync step: the pool is open and started, there is one valid action
     /// per env, and no async request is outstanding.
-    fn prepare_sync_step(&mut self, actions: &[i64]) -> Result<(), PoolError> {
+    fn prepare_sync_step(&mut self, actions: Actions<'_>) -> Result<(), PoolError> {
         self.check_usable()?;
-        if actions.len() != self.core.cfg.num_envs {
-            return Err(PoolError::BadActionsLength {
-                expected: self.core.cfg.num_envs,
-                got: actions.len(),
-            });
-        }
-        self.check_actions(actions, 0..actions.len())?;
+        let all: Vec<usize> = (0..self.core.cfg.num_envs).collect();
+        self.check_actions(actions, &all)?;
         if self.core.must_reset {
             return Err(PoolError::State(
                 "call reset() before step() (after creation or after a worker failure)".into(),

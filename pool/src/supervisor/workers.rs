@@ -12,11 +12,13 @@ use std::time::Instant;
 use rogue_gym_ipc::{BlockSample, SupervisorPorts};
 
 use super::Core;
+use super::stepping::Actions;
 use crate::batch::Block;
 use crate::config::{AutoresetMode, FailurePolicy};
 use crate::error::{FailureCause, PoolError, WorkerFailure, signal_name};
 use crate::wire::{
-    BLOCK_DATA, BLOCK_READY, CMD_RESET, CMD_STEP, KEEP_EPISODE, RELOAD_SEEDS, TARGET_SHIFT,
+    BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE,
+    RELOAD_SEEDS, TARGET_SHIFT, env_fault_path,
 };
 
 pub(super) enum SlotState {
@@ -143,19 +145,32 @@ impl Core {
         Ok(())
     }
 
+    /// Step command to worker `k`; `actions` holds exactly its block's actions.
     pub(super) fn send_step(
         &mut self,
         k: usize,
-        actions: &[i64],
+        actions: Actions<'_>,
         target: u32,
     ) -> Result<(), PoolError> {
+        let aw = self.spec.action_words();
         let s = &mut self.slots[k];
         s.seq += 1;
         s.target = target;
         let kind = CMD_STEP | (target << TARGET_SHIFT);
-        s.ports.send_cmd(s.seq, kind, actions.len(), |p| {
-            for (d, a) in p.iter_mut().zip(actions) {
-                *d = *a as u64;
+        let words = self.epw * aw;
+        s.ports.send_cmd(s.seq, kind, words, |p| match actions {
+            Actions::Indices(a) => {
+                for (d, a) in p.iter_mut().zip(a) {
+                    *d = *a as u64;
+                }
+            }
+            Actions::Bytes(b) => {
+                let ab = self.spec.action_bytes;
+                for (j, w) in p.chunks_mut(aw).enumerate() {
+                    w.fill(0);
+                    rogue_gym_ipc::words_as_bytes_mut(w)[..ab]
+                        .copy_from_slice(&b[j * ab..(j + 1) * ab]);
+                }
             }
         })?;
         s.state = SlotState::Pending {
@@ -227,6 +242,22 @@ impl Core {
                         self.slots[k].state = SlotState::Ready(sample);
                         self.ready_order.push_back(k);
                     }
+                    (SlotState::Pending { .. }, BLOCK_ERROR) if h.seq == s.seq => {
+                        drop(sample);
+                        s.state = SlotState::Idle;
+                        let path = env_fault_path(&self.id, k, s.generation);
+                        let fault = EnvFault::take(&path).unwrap_or_else(|e| EnvFault {
+                            env: (k * self.epw) as u64,
+                            context: "a command".into(),
+                            message: format!("an env of the worker failed; {e}"),
+                        });
+                        self.must_reset = true;
+                        self.env_fault.get_or_insert(PoolError::EnvFailed {
+                            fault: Box::new(fault),
+                            worker: k,
+                            pid: s.pid,
+                        });
+                    }
                     _ => {} // stale answer: drop it
                 }
             }
@@ -269,6 +300,16 @@ impl Core {
             let (code, signal) = status.as_ref().map(status_parts).unwrap_or((None, None));
             let tail = stderr_tail(&s.stderr_path);
             if starting {
+                // An env that failed to build: raise its report, do not retry.
+                let path = env_fault_path(&self.id, k, s.generation);
+                if path.exists() {
+                    let fault = EnvFault::take(&path).map_err(PoolError::Io)?;
+                    return Err(PoolError::EnvFailed {
+                        fault: Box::new(fault),
+                        worker: k,
+                        pid: s.pid,
+                    });
+                }
                 let reason = if hung {
                     format!(
                         "not ready within start_timeout {:?} (killed)",

@@ -1,7 +1,8 @@
 //! Layout of one worker block in shared memory, and the per-env record.
 //!
 //! A block is a slice of `u64` words (8-byte aligned):
-//! `[records: epw x EnvRecord][obs: epw x obs_bytes, padded to 8][final obs: same, SAME_STEP only]`.
+//! `[records: epw x EnvRecord][obs: epw x obs_bytes, padded to 8][final obs: same, SAME_STEP only]
+//! [extra: epw x extra_bytes, padded to 8]`.
 //! Observations of the block's envs are contiguous, so a block's observations are one
 //! `(epw, *obs_shape)` C-contiguous array.
 
@@ -26,17 +27,20 @@ pub const FLAG_FINAL_OBS: u32 = 8;
 #[repr(C)]
 pub struct EnvRecord {
     /// Reward of the step (0 on resets).
-    pub reward: f32,
+    pub reward: f64,
     /// `FLAG_*` bits.
     pub flags: u32,
+    /// Steps taken in the episode so far (including this step).
+    pub episode_length: u32,
     /// Sum of the episode's rewards so far (including this step).
     pub episode_return: f64,
     /// Episode index of the env (0, 1, 2, ...): the `e` of the seed schedule.
     pub episode: u64,
     /// Seed of the episode.
     pub seed: u64,
-    /// Steps taken in the episode so far (including this step).
-    pub episode_length: u32,
+    /// Bytes of extra info the env wrote into the block's extra area (see
+    /// `EnvSpec::extra_bytes`); 0: none.
+    pub extra_len: u32,
     /// Reserved (zero).
     pub reserved: u32,
     /// Env-defined info values (see `EnvSpec::info_names`); unused entries are 0.
@@ -76,6 +80,8 @@ pub struct BlockLayout {
     pub obs_bytes: usize,
     /// Whether the block has a final-obs area (SAME_STEP).
     pub final_obs: bool,
+    /// Bytes of extra info room per env (0: no extra area).
+    pub extra_bytes: usize,
 }
 
 impl BlockLayout {
@@ -90,14 +96,18 @@ impl BlockLayout {
     pub fn final_offset_words(&self) -> usize {
         self.obs_offset_words() + self.obs_area_words()
     }
-    /// Total words of a block.
-    pub fn words(&self) -> usize {
+    /// Word offset of the extra-info area.
+    pub fn extra_offset_words(&self) -> usize {
         self.final_offset_words()
             + if self.final_obs {
                 self.obs_area_words()
             } else {
                 0
             }
+    }
+    /// Total words of a block.
+    pub fn words(&self) -> usize {
+        self.extra_offset_words() + (self.envs * self.extra_bytes).div_ceil(8)
     }
 
     /// Read record `j` of a block.
@@ -130,22 +140,41 @@ impl BlockLayout {
         Some(&b[..self.envs * self.obs_bytes])
     }
 
-    /// Split a block into (records, obs area, final-obs area) for writing.
-    pub fn split_mut<'a>(
-        &self,
-        block: &'a mut [u64],
-    ) -> (&'a mut [u64], &'a mut [u8], &'a mut [u8]) {
+    /// The extra info env `j` wrote (`extra_len` bytes of its record), empty if none.
+    pub fn extra<'a>(&self, block: &'a [u64], j: usize, extra_len: u32) -> &'a [u8] {
+        let n = (extra_len as usize).min(self.extra_bytes);
+        let b = rogue_gym_ipc::words_as_bytes(&block[self.extra_offset_words()..]);
+        &b[j * self.extra_bytes..j * self.extra_bytes + n]
+    }
+
+    /// Split a block into its areas for writing.
+    pub fn split_mut<'a>(&self, block: &'a mut [u64]) -> BlockAreas<'a> {
         let (rec, rest) = block.split_at_mut(self.obs_offset_words());
-        let (obs, fin) = rest.split_at_mut(self.obs_area_words());
+        let (obs, rest) = rest.split_at_mut(self.obs_area_words());
+        let (fin, extra) = rest.split_at_mut(self.extra_offset_words() - self.final_offset_words());
         let n = self.envs * self.obs_bytes;
         let obs = &mut rogue_gym_ipc::words_as_bytes_mut(obs)[..n];
-        let fin = if self.final_obs {
-            &mut rogue_gym_ipc::words_as_bytes_mut(fin)[..n]
-        } else {
-            &mut rogue_gym_ipc::words_as_bytes_mut(fin)[..0]
-        };
-        (rec, obs, fin)
+        let fin = &mut rogue_gym_ipc::words_as_bytes_mut(fin)[..if self.final_obs { n } else { 0 }];
+        let extra = &mut rogue_gym_ipc::words_as_bytes_mut(extra)[..self.envs * self.extra_bytes];
+        BlockAreas {
+            records: rec,
+            obs,
+            final_obs: fin,
+            extra,
+        }
     }
+}
+
+/// The writable areas of a block (see [`BlockLayout::split_mut`]).
+pub struct BlockAreas<'a> {
+    /// The records (`envs x RECORD_WORDS` words).
+    pub records: &'a mut [u64],
+    /// The observations (`envs x obs_bytes`).
+    pub obs: &'a mut [u8],
+    /// The final observations (SAME_STEP; empty otherwise).
+    pub final_obs: &'a mut [u8],
+    /// The extra-info room (`envs x extra_bytes`).
+    pub extra: &'a mut [u8],
 }
 
 /// Write a record into a records area (as returned by [`BlockLayout::split_mut`]).
@@ -165,6 +194,7 @@ mod tests {
             envs: 3,
             obs_bytes: 5,
             final_obs: true,
+            extra_bytes: 6,
         };
         let mut block = vec![0u64; l.words()];
         let r = EnvRecord {
@@ -176,12 +206,15 @@ mod tests {
             ..Default::default()
         };
         {
-            let (rec, obs, fin) = l.split_mut(&mut block);
-            write_record_words(rec, 1, &r);
-            obs.fill(0xAA);
-            fin.fill(0xBB);
+            let a = l.split_mut(&mut block);
+            write_record_words(a.records, 1, &r);
+            a.obs.fill(0xAA);
+            a.final_obs.fill(0xBB);
+            a.extra.fill(0xCC);
         }
         assert_eq!(l.record(&block, 1), r);
+        assert_eq!(l.extra(&block, 2, 4), &[0xCC; 4]);
+        assert_eq!(l.extra(&block, 2, 99).len(), 6, "clamped to the room");
         assert_eq!(l.record(&block, 0), EnvRecord::default());
         assert!(l.obs(&block).iter().all(|&b| b == 0xAA));
         assert!(l.final_obs(&block).unwrap().iter().all(|&b| b == 0xBB));

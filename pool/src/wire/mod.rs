@@ -40,6 +40,46 @@ pub(crate) fn slot_bytes(num_envs: usize, obs_bytes: usize) -> usize {
 pub(crate) const BLOCK_READY: u32 = 1;
 /// Block: records and observations.
 pub(crate) const BLOCK_DATA: u32 = 2;
+/// Block: an env failed on the command (no data); the report is in the worker's fault file
+/// ([`env_fault_path`]).
+pub(crate) const BLOCK_ERROR: u32 = 3;
+
+/// An env's failure on a command, as the worker reports it: which env, during what, and the
+/// env's own message (for hosted Python envs, the encoded exception).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct EnvFault {
+    /// Global env id.
+    pub env: u64,
+    /// What the env was doing, e.g. `step (episode 3, seed 7, step 12)`.
+    pub context: String,
+    /// The env's error message.
+    pub message: String,
+}
+
+impl EnvFault {
+    /// Write the report (then rename, so a reader never sees a partial file).
+    pub(crate) fn write(&self, path: &std::path::Path) -> Result<(), String> {
+        let json =
+            serde_json::to_string(self).map_err(|e| format!("cannot encode {self:?}: {e}"))?;
+        let tmp = path.with_extension("tmp");
+        std::fs::write(&tmp, json)
+            .and_then(|_| std::fs::rename(&tmp, path))
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))
+    }
+    /// Read (and remove) a report.
+    pub(crate) fn take(path: &std::path::Path) -> Result<EnvFault, String> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        let _ = std::fs::remove_file(path);
+        serde_json::from_str(&text).map_err(|e| format!("bad env fault report: {e}"))
+    }
+}
+
+/// The file where worker `index` (generation `generation`) reports an env failure.
+pub(crate) fn env_fault_path(id: &rogue_gym_ipc::PoolId, index: usize, generation: u64) -> PathBuf {
+    id.aux_dir()
+        .join(format!("w{index}.g{generation}.fault.json"))
+}
 
 /// Everything a worker needs, written by the supervisor to a JSON file in the pool's directory.
 #[derive(Debug, Clone, Serialize, Deserialize)]

@@ -1,0 +1,183 @@
+"""The worker side of a hosted env: builds the caller's env from its cloudpickled callable and
+speaks the pool's flat bytes.
+
+The pool's Rust worker loop calls :class:`HostedEnv` (through ``python/src/hosted.rs``) for
+every reset and step of the env. Any exception of the env is raised as
+:class:`EncodedEnvError`, whose message carries the exception (type, message, worker-side
+traceback, and the exception itself pickled when it can be) to the caller, where
+:func:`decode_exception` rebuilds it.
+"""
+
+from __future__ import annotations
+
+import base64
+import contextlib
+import json
+import pickle
+import sys
+import traceback
+from typing import Any, Optional
+
+import cloudpickle
+import numpy as np
+
+from .layout import SpaceLayout
+
+__all__ = ["EncodedEnvError", "HostedEnv", "decode_exception", "encode_exception"]
+
+#: The key of an encoded exception in an env error message.
+_KEY = "rogue_gym_exception"
+
+
+class EncodedEnvError(Exception):
+    """An env's exception on its way to the caller; its message is the JSON encoding."""
+
+
+def encode_exception(exc: BaseException) -> str:
+    """Encode an exception for the trip to the caller (see :func:`decode_exception`)."""
+    kind = type(exc)
+    record: dict[str, Any] = {
+        "type": f"{kind.__module__}.{kind.__qualname__}",
+        "message": str(exc),
+        "traceback": "".join(traceback.format_exception(kind, exc, exc.__traceback__)),
+        "pickle": None,
+    }
+    # An exception that cannot be pickled still travels as text.
+    with contextlib.suppress(Exception):
+        record["pickle"] = base64.b64encode(cloudpickle.dumps(exc)).decode("ascii")
+    return json.dumps({_KEY: record})
+
+
+def decode_exception(message: str) -> Optional[tuple[BaseException, str]]:
+    """The exception and worker-side traceback encoded in an env error message, or ``None``
+    if the message is not such an encoding. An exception that cannot be unpickled comes back
+    as a ``RuntimeError`` naming its type."""
+    try:
+        record = json.loads(message)[_KEY]
+    except (ValueError, KeyError, TypeError):
+        return None
+    exc: Optional[BaseException] = None
+    if record.get("pickle"):
+        try:
+            exc = pickle.loads(base64.b64decode(record["pickle"]))
+        except Exception:
+            exc = None
+    if not isinstance(exc, BaseException):
+        exc = RuntimeError(f"{record['type']}: {record['message']}")
+    return exc, str(record.get("traceback", ""))
+
+
+def _guarded(method: Any) -> Any:
+    """Run ``method``; any exception becomes an :class:`EncodedEnvError`."""
+
+    def run(*args: Any) -> Any:
+        try:
+            return method(*args)
+        except EncodedEnvError:
+            raise
+        except BaseException as exc:
+            raise EncodedEnvError(encode_exception(exc)) from exc
+
+    run.__name__ = method.__name__
+    run.__doc__ = method.__doc__
+    return run
+
+
+class _DiscreteActions:
+    """A Discrete space's actions by index, as the numpy ints vector envs pass (a table for
+    spaces of up to 65536 actions)."""
+
+    def __init__(self, start: int, n: int) -> None:
+        self.start = start
+        self.table = [np.int64(start + i) for i in range(n)] if n <= 1 << 16 else None
+
+    def __getitem__(self, index: int) -> np.int64:
+        if self.table is not None:
+            return self.table[index]
+        return np.int64(self.start + index)
+
+
+class HostedEnv:
+    """One hosted env (built by :meth:`build`) and the byte codecs of its spaces."""
+
+    def __init__(self, env: Any, obs_space: Any, action_space: Any, discrete_start: Optional[int]):
+        self.env = env
+        self._obs = SpaceLayout(obs_space)
+        self._act = SpaceLayout(action_space)
+        self._encode_obs = self._obs.encode
+        self._discrete = (
+            None
+            if discrete_start is None
+            else _DiscreteActions(discrete_start, int(action_space.n))
+        )
+        self._fresh = True
+        self._last = b""
+        self._infos: list[tuple[str, dict[str, Any]]] = []
+
+    @classmethod
+    @_guarded
+    def build(cls, config_json: str, index: int) -> HostedEnv:
+        """Build env number ``index`` from the front end's adapter config: the caller's
+        ``sys_path``, the pickled callables and which one builds which env, and the spaces
+        every env must have."""
+        cfg = json.loads(config_json)
+        for path in reversed(cfg["sys_path"]):
+            if path not in sys.path:
+                sys.path.insert(0, path)
+        env_fn = cloudpickle.loads(base64.b64decode(cfg["env_fns"][cfg["fn_of_env"][index]]))
+        obs_space, action_space = cloudpickle.loads(base64.b64decode(cfg["spaces"]))
+        env = env_fn()
+        for what, got, want in (
+            ("observation", env.observation_space, obs_space),
+            ("action", env.action_space, action_space),
+        ):
+            if got != want:
+                env.close()
+                raise ValueError(
+                    f"env {index} has the {what} space {got}, but env 0 has {want}: every env of "
+                    "a vector env must have the same spaces"
+                )
+        return cls(env, obs_space, action_space, cfg["discrete_start"])
+
+    def reset(self, seed: int, episode: int) -> tuple[bytes, bool]:
+        """Start an episode: seeded with ``seed`` if it is the schedule's first (episode 0) or
+        this env was just built; otherwise the env continues its own generator (gymnasium's
+        convention). Returns the observation's bytes and whether there is info to take."""
+        try:
+            use_seed = seed if (episode == 0 or self._fresh) else None
+            self._fresh = False
+            obs, info = self.env.reset(seed=use_seed)
+            self._last = self._encode_obs(obs)
+            if info:
+                self._infos.append(("reset", info))
+            return self._last, bool(self._infos)
+        except BaseException as exc:
+            raise EncodedEnvError(encode_exception(exc)) from exc
+
+    def step(self, action: Any) -> tuple[bytes, float, bool, bool, bool]:
+        """Step with an action index (Discrete action spaces) or the action's bytes."""
+        try:
+            action = self._act.decode(action) if self._discrete is None else self._discrete[action]
+            obs, reward, terminated, truncated, info = self.env.step(action)
+            self._last = self._encode_obs(obs)
+            if info:
+                self._infos.append(("step", info))
+            return self._last, float(reward), bool(terminated), bool(truncated), bool(self._infos)
+        except BaseException as exc:
+            raise EncodedEnvError(encode_exception(exc)) from exc
+
+    @_guarded
+    def take_info(self) -> bytes:
+        """The infos since the last call, pickled: a list of ``("reset" | "step", info)``."""
+        data = pickle.dumps(self._infos, protocol=pickle.HIGHEST_PROTOCOL)
+        self._infos = []
+        return data
+
+    def observe(self) -> bytes:
+        """The current observation's bytes again (for partial resets)."""
+        return self._last
+
+    def close(self) -> None:
+        """Close the env (when the worker exits); errors are ignored."""
+        with contextlib.suppress(Exception):
+            self.env.close()

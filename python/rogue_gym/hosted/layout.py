@@ -1,0 +1,209 @@
+"""How a gymnasium space is laid out as flat bytes in shared memory, leaf by leaf.
+
+A space is a tree: ``Dict`` and ``Tuple`` nodes, and leaves (``Box``, ``Discrete``,
+``MultiDiscrete``, ``MultiBinary``). Each leaf is one numpy array of a fixed dtype and shape
+(a ``Discrete`` is an ``int64`` scalar), placed at an offset aligned to its item size. One value
+of the space is ``nbytes`` bytes; a batch of ``n`` values is an ``(n, stride)`` uint8 array (the
+stride is ``nbytes`` rounded up to 8, so every row is 8-byte aligned), and each leaf of the
+batch is a zero-copy strided view of it. Nothing is pickled.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable, Union
+
+import numpy as np
+from gymnasium import spaces
+
+__all__ = ["Leaf", "SpaceLayout", "UnsupportedSpaceError"]
+
+#: Alignment of a batch row (so leaves of every dtype stay aligned in every row).
+ROW_ALIGN = 8
+
+Path = tuple[Union[str, int], ...]
+
+
+class UnsupportedSpaceError(TypeError):
+    """A space the pool cannot lay out in shared memory (Text, Graph, Sequence, custom)."""
+
+
+@dataclass(frozen=True)
+class Leaf:
+    """One array of a space: where it sits in a value's bytes and what it holds."""
+
+    path: Path
+    dtype: np.dtype
+    shape: tuple[int, ...]
+    offset: int
+    #: The leaf's own space (for bounds checks and messages).
+    space: spaces.Space
+
+    @property
+    def nbytes(self) -> int:
+        return int(np.prod(self.shape, dtype=np.int64)) * self.dtype.itemsize
+
+
+def _leaf_array(space: spaces.Space) -> tuple[np.dtype, tuple[int, ...]]:
+    if isinstance(space, spaces.Box):
+        return np.dtype(space.dtype), tuple(space.shape)
+    if isinstance(space, spaces.Discrete):
+        return np.dtype(space.dtype), ()
+    if isinstance(space, spaces.MultiDiscrete):
+        return np.dtype(space.dtype), tuple(space.shape)
+    if isinstance(space, spaces.MultiBinary):
+        return np.dtype(space.dtype), tuple(space.shape)
+    raise UnsupportedSpaceError(
+        f"the pool cannot carry a {type(space).__name__} space ({space}) in shared memory: it "
+        "supports Box, Discrete, MultiDiscrete, MultiBinary and Dict/Tuple nests of them. "
+        "Wrap the env so that its space is one of these (e.g. encode Text as a Box of codes)."
+    )
+
+
+class SpaceLayout:
+    """The flat byte layout of one space (see the module docs)."""
+
+    def __init__(self, space: spaces.Space) -> None:
+        self.space = space
+        self.leaves: list[Leaf] = []
+        offset = 0
+
+        def visit(s: spaces.Space, path: Path) -> None:
+            nonlocal offset
+            if isinstance(s, spaces.Dict):
+                for key, sub in s.spaces.items():
+                    visit(sub, (*path, key))
+            elif isinstance(s, spaces.Tuple):
+                for i, sub in enumerate(s.spaces):
+                    visit(sub, (*path, i))
+            else:
+                dtype, shape = _leaf_array(s)
+                offset = -(-offset // dtype.itemsize) * dtype.itemsize
+                leaf = Leaf(path, dtype, shape, offset, s)
+                self.leaves.append(leaf)
+                offset += leaf.nbytes
+
+        visit(space, ())
+        #: Bytes of one value (unpadded).
+        self.nbytes = offset
+        #: Bytes of one row of a batch (``nbytes`` rounded up to 8, at least 8).
+        self.stride = max(ROW_ALIGN, -(-offset // ROW_ALIGN) * ROW_ALIGN)
+        self._single = len(self.leaves) == 1 and self.leaves[0].path == ()
+        self._encode = self._make_encoder()
+
+    # -- one value <-> bytes (worker side and action encoding) -------------------------------
+
+    def _make_encoder(self) -> Callable[[Any], bytes]:
+        if self._single:
+            leaf = self.leaves[0]
+            dtype, size = leaf.dtype, leaf.nbytes
+
+            def encode_single(value: Any) -> bytes:
+                if type(value) is np.ndarray and value.dtype == dtype:
+                    b = value.tobytes()
+                else:
+                    b = np.asarray(value, dtype=dtype).tobytes()
+                if len(b) != size:
+                    raise ValueError(
+                        f"value of shape {np.shape(value)} does not fit the space {leaf.space}"
+                    )
+                return b
+
+            return encode_single
+        buf = np.zeros(self.nbytes, np.uint8)
+        views = [
+            (
+                leaf.path,
+                buf[leaf.offset : leaf.offset + leaf.nbytes].view(leaf.dtype).reshape(leaf.shape),
+            )
+            for leaf in self.leaves
+        ]
+
+        def encode_tree(value: Any) -> bytes:
+            for path, view in views:
+                v = value
+                for key in path:
+                    v = v[key]
+                view[...] = v
+            return buf.tobytes()
+
+        return encode_tree
+
+    def encode(self, value: Any) -> bytes:
+        """The ``nbytes`` bytes of one value (checks each leaf's shape)."""
+        return self._encode(value)
+
+    def decode(self, data: bytes) -> Any:
+        """One value from its bytes: writable arrays (a ``Discrete`` leaf as a numpy int)."""
+        buf = bytearray(data)
+        leaves = [self._leaf_value(buf, leaf) for leaf in self.leaves]
+        return self._assemble(self.space, (), iter(leaves))
+
+    @staticmethod
+    def _leaf_value(buf: bytearray, leaf: Leaf) -> Any:
+        count = int(np.prod(leaf.shape, dtype=np.int64))
+        arr = np.frombuffer(buf, leaf.dtype, count, leaf.offset).reshape(leaf.shape)
+        return arr[()] if leaf.shape == () else arr
+
+    def _assemble(self, space: spaces.Space, path: Path, leaves: Any) -> Any:
+        if isinstance(space, spaces.Dict):
+            return {k: self._assemble(s, (*path, k), leaves) for k, s in space.spaces.items()}
+        if isinstance(space, spaces.Tuple):
+            return tuple(self._assemble(s, (*path, i), leaves) for i, s in enumerate(space.spaces))
+        return next(leaves)
+
+    # -- batches (front end) ---------------------------------------------------------------
+
+    def batch_views(self, rows: np.ndarray) -> Any:
+        """Zero-copy views of a batch: ``rows`` is an ``(n, >= nbytes)`` uint8 array; the
+        result has the structure of the space with one ``(n, *shape)`` array per leaf."""
+        n = rows.shape[0]
+        views = [
+            rows[:, leaf.offset : leaf.offset + leaf.nbytes]
+            .view(leaf.dtype)
+            .reshape((n, *leaf.shape))
+            for leaf in self.leaves
+        ]
+        return self._assemble(self.space, (), iter(views))
+
+    def write_batch(self, values: Any, rows: np.ndarray) -> None:
+        """Write a batch (the structure of the space, one ``(n, *shape)`` array per leaf) into
+        ``rows``, casting to each leaf's dtype; raises ``ValueError`` on a shape mismatch."""
+        n = rows.shape[0]
+        for leaf in self.leaves:
+            v = values
+            for key in leaf.path:
+                v = v[key]
+            arr = np.asarray(v)
+            if arr.shape != (n, *leaf.shape):
+                where = "".join(f"[{k!r}]" for k in leaf.path) or "actions"
+                raise ValueError(
+                    f"{where} has shape {arr.shape}; expected {(n, *leaf.shape)} for {n} envs of {leaf.space}"
+                )
+            dest = rows[:, leaf.offset : leaf.offset + leaf.nbytes].view(leaf.dtype)
+            dest.reshape((n, *leaf.shape))[...] = arr
+
+    def check_batch(self, rows: np.ndarray) -> None:
+        """Raise ``ValueError`` naming the first env whose value lies outside the space's
+        bounds (Discrete, MultiDiscrete, MultiBinary and integer or finite-bounded Box)."""
+        n = rows.shape[0]
+        for leaf in self.leaves:
+            v = (
+                rows[:, leaf.offset : leaf.offset + leaf.nbytes]
+                .view(leaf.dtype)
+                .reshape((n, *leaf.shape))
+            )
+            s = leaf.space
+            if isinstance(s, spaces.Discrete):
+                lo, hi = s.start, s.start + s.n - 1
+            elif isinstance(s, spaces.MultiDiscrete):
+                lo, hi = s.start, s.start + s.nvec - 1
+            elif isinstance(s, spaces.MultiBinary):
+                lo, hi = 0, 1
+            else:
+                continue  # Box: envs clip or reject out-of-bounds values themselves
+            bad = np.any((v < lo) | (v > hi), axis=tuple(range(1, v.ndim)))
+            if np.any(bad):
+                i = int(np.argmax(bad))
+                where = "".join(f"[{k!r}]" for k in leaf.path)
+                raise ValueError(f"env {i}: action{where} {v[i].tolist()} is outside {s}")

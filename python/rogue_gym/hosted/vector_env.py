@@ -1,0 +1,393 @@
+"""``PoolVectorEnv``: any gymnasium env in the pool's worker processes, as a gymnasium
+``VectorEnv`` (a drop-in for ``AsyncVectorEnv``).
+
+The callables are cloudpickled once, in this process; each worker process
+(``python -m rogue_gym.worker``, never a fork) builds its block of envs from them and runs the
+pool's Rust loop, which calls the envs through :mod:`rogue_gym.hosted.adapter`. Observations and
+actions cross in shared memory, laid out leaf by leaf (:mod:`rogue_gym.hosted.layout`); infos
+cross only when an env returns a non-empty one.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import os
+import pickle
+import sys
+import weakref
+from typing import Any, Callable, NoReturn, Optional, Sequence, Union
+
+import cloudpickle
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from .. import _native
+from .._records import FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED, RECORD_DTYPE
+from ..errors import EnvFailedError
+from ..settings import FAILURE_POLICIES, PoolSettings
+from .adapter import decode_exception
+from .layout import SpaceLayout
+
+__all__ = ["PoolVectorEnv"]
+
+#: Room per env and step for an env's pickled info dicts, in bytes (``info_bytes``).
+DEFAULT_INFO_BYTES = 4096
+
+EnvFn = Callable[[], gym.Env]
+
+
+def _default_workers(num_envs: int) -> int:
+    workers = min(num_envs, os.cpu_count() or 1)
+    while num_envs % workers:
+        workers -= 1
+    return workers
+
+
+def _copy_tree(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _copy_tree(v) for k, v in value.items()}
+    if isinstance(value, tuple):
+        return tuple(_copy_tree(v) for v in value)
+    return value.copy()
+
+
+class PoolVectorEnv(VectorEnv):
+    """``num_envs = len(env_fns)`` gymnasium envs, stepped by worker processes over shared
+    memory.
+
+    Example::
+
+        envs = rogue_gym.PoolVectorEnv([lambda: gym.make("CartPole-v1")] * 64, num_workers=2)
+        obs, infos = envs.reset(seed=0)
+        obs, rewards, terminations, truncations, infos = envs.step(envs.action_space.sample())
+        envs.close()
+
+    Args:
+        env_fns: one callable per env, each returning a gymnasium env; all envs must have the
+            same spaces. They are cloudpickled, so closures and lambdas work.
+        num_workers: worker processes (default: as many as CPUs, dividing ``num_envs``).
+        copy: return copies of the observations (default, like ``AsyncVectorEnv``); with
+            ``False`` they are views of shared memory, valid until the second following
+            ``step``/``reset``.
+        autoreset_mode: ``NEXT_STEP`` (default), ``SAME_STEP`` (``final_obs`` and
+            ``final_info`` in the infos) or ``DISABLED`` (reset finished envs yourself with
+            ``reset(options={"reset_mask": ...})``).
+        on_worker_failure: ``"restart"`` (a dead or hung worker's envs are rebuilt and report
+            ``truncated`` plus ``info["worker_restarted"]``) or ``"raise"``
+            (:class:`rogue_gym.WorkerCrashedError`).
+        step_timeout: seconds after which a worker that has not answered is treated as hung.
+        max_restarts: worker restarts allowed over the pool's life.
+        info_bytes: room per env and step for the env's pickled info dicts.
+        worker_command: program and leading args of a worker (default:
+            ``[sys.executable, "-m", "rogue_gym.worker"]``).
+        shared_memory, context, daemon: accepted for ``AsyncVectorEnv`` compatibility; the
+            pool always uses shared memory and fresh (spawned) worker processes that die with
+            this one.
+        observation_mode: only ``"same"`` is supported.
+
+    An exception raised by an env (constructor, ``reset`` or ``step``) is re-raised here with
+    its type and message, and the worker-side traceback as a note; the pool works again after
+    ``reset()``.
+    """
+
+    def __init__(
+        self,
+        env_fns: Sequence[EnvFn],
+        *,
+        num_workers: Optional[int] = None,
+        copy: bool = True,
+        autoreset_mode: Union[str, AutoresetMode] = AutoresetMode.NEXT_STEP,
+        on_worker_failure: str = PoolSettings.on_worker_failure,
+        step_timeout: Optional[float] = PoolSettings.step_timeout,
+        max_restarts: Optional[int] = PoolSettings.max_restarts,
+        info_bytes: int = DEFAULT_INFO_BYTES,
+        worker_command: Optional[Sequence[str]] = None,
+        shared_memory: bool = True,
+        context: Optional[str] = None,
+        daemon: bool = True,
+        observation_mode: str = "same",
+    ) -> None:
+        del shared_memory, context, daemon  # always shared memory and spawned workers
+        env_fns = list(env_fns)
+        if not env_fns:
+            raise ValueError("env_fns is empty: give one callable per env")
+        if observation_mode != "same":
+            raise ValueError(
+                f"observation_mode={observation_mode!r} is not supported: every env must have the same observation space"
+            )
+        if on_worker_failure not in FAILURE_POLICIES:
+            raise ValueError(
+                f"on_worker_failure must be one of {FAILURE_POLICIES}, got {on_worker_failure!r}"
+            )
+        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        self.num_envs = len(env_fns)
+        self.copy = bool(copy)
+        workers = _default_workers(self.num_envs) if num_workers is None else int(num_workers)
+
+        # Probe one env here for the spaces and metadata, as AsyncVectorEnv does.
+        probe = env_fns[0]()
+        try:
+            self.single_observation_space = probe.observation_space
+            self.single_action_space = probe.action_space
+            self.metadata = dict(probe.metadata)
+            self.render_mode = probe.render_mode
+            self.spec = probe.spec
+        finally:
+            probe.close()
+        self.metadata["autoreset_mode"] = self.autoreset_mode
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self._obs_layout = SpaceLayout(self.single_observation_space)
+        act = self.single_action_space
+        num_actions = int(act.n) if isinstance(act, spaces.Discrete) else 0
+        self._discrete_start: Optional[int] = (
+            int(act.start) if isinstance(act, spaces.Discrete) else None
+        )
+        self._act_layout = SpaceLayout(act)
+
+        pickled = [cloudpickle.dumps(fn) for fn in env_fns]
+        unique = list(dict.fromkeys(pickled))
+        spec = {
+            "obs_shape": [self._obs_layout.stride],
+            "dtype": "u8",
+            "num_actions": num_actions,
+            "info_names": [],
+            "action_bytes": 0 if self._discrete_start is not None else self._act_layout.nbytes,
+            "extra_bytes": int(info_bytes),
+        }
+        adapter = {
+            "sys_path": [p for p in sys.path if p],
+            "env_fns": [base64.b64encode(p).decode("ascii") for p in unique],
+            "fn_of_env": [unique.index(p) for p in pickled],
+            "spaces": base64.b64encode(
+                cloudpickle.dumps((self.single_observation_space, act))
+            ).decode("ascii"),
+            "discrete_start": self._discrete_start,
+        }
+        self._settings: dict[str, Any] = {
+            "env": {"kind": "python", "spec": spec, "adapter": adapter},
+            "spec": spec,
+            "num_envs": self.num_envs,
+            "num_workers": workers,
+            "seeds": self._seeds(None),
+            "autoreset": "same_step"
+            if self.autoreset_mode == AutoresetMode.SAME_STEP
+            else "next_step",
+            "on_worker_failure": on_worker_failure,
+            "step_timeout": step_timeout,
+            "max_restarts": max_restarts,
+        }
+        command = list(worker_command or [sys.executable, "-m", "rogue_gym.worker"])
+        try:
+            self._pool: Any = _native.Pool(json.dumps(self._settings), command)
+        except EnvFailedError as err:
+            _reraise(err)
+        self._finalizer = weakref.finalize(self, _native.Pool.close, self._pool)
+        #: The pool's name: the prefix of its shared-memory files.
+        self.pool_name: str = self._pool.name()
+        self.num_workers = workers
+        n, stride = self.num_envs, self._obs_layout.stride
+        self._slots = [np.asarray(v).reshape(n, stride) for v in self._pool.shared_views()]
+        self._slot_views = [self._obs_layout.batch_views(s) for s in self._slots]
+        self._recs = np.zeros(n, RECORD_DTYPE)
+        self._final = (
+            np.zeros((n, stride), np.uint8) if self._settings["autoreset"] == "same_step" else None
+        )
+        self._act_rows = np.zeros((n, self._act_layout.nbytes), np.uint8)
+        self._done = np.zeros(n, bool)
+        self._started = False
+        self.closed = False
+
+    # -- seeds ---------------------------------------------------------------------------
+
+    def _seeds(self, seed: Union[int, Sequence[Optional[int]], None]) -> dict[str, Any]:
+        """The pool's seed schedule for ``reset(seed=...)``: env ``i``'s first episode gets
+        ``seed + i`` (or ``seed[i]``); later episodes are not reseeded."""
+        if seed is None:
+            seed = int.from_bytes(os.urandom(8), "little") >> 2
+        if isinstance(seed, (int, np.integer)):
+            start = int(seed)
+            if start < 0 or start + self.num_envs > 2**63:
+                raise ValueError(f"seed must be in [0, 2**63 - num_envs), got {seed}")
+            return {
+                "base": start,
+                "set": {"range": {"start": start, "end": start + self.num_envs}},
+                "policy": "sequential",
+            }
+        seeds = list(seed)
+        if len(seeds) != self.num_envs:
+            raise ValueError(
+                f"seed list has {len(seeds)} entries; expected one per env ({self.num_envs})"
+            )
+        if any(s is None for s in seeds):
+            raise ValueError(
+                "a seed list cannot mix None and seeds; pass seed=None to seed from entropy"
+            )
+        values = [int(s) for s in seeds if s is not None]
+        if any(s < 0 or s >= 2**63 for s in values):
+            raise ValueError("seeds must be in [0, 2**63)")
+        return {"base": 0, "set": {"list": values}, "policy": "sequential"}
+
+    # -- the VectorEnv API -----------------------------------------------------------------
+
+    def reset(
+        self,
+        *,
+        seed: Union[int, Sequence[Optional[int]], None] = None,
+        options: Optional[dict[str, Any]] = None,
+    ) -> tuple[Any, dict[str, Any]]:
+        """Reset every env (or those of ``options["reset_mask"]``). ``seed``: an int seeds env
+        ``i`` with ``seed + i``, a list seeds each env; ``None`` keeps each env's generator
+        (the first reset without a seed seeds from entropy)."""
+        self._check_open()
+        options = dict(options or {})
+        mask = options.pop("reset_mask", None)
+        if options:
+            raise ValueError(
+                f"reset options {sorted(options)} are not carried to hosted envs; only reset_mask is"
+            )
+        recs = self._recs
+        if mask is not None:
+            mask = np.asarray(mask)
+            if mask.shape != (self.num_envs,) or mask.dtype != np.bool_:
+                raise ValueError(f"reset_mask must be a bool array of shape ({self.num_envs},)")
+            if seed is not None:
+                raise ValueError("reset(seed=...) cannot be combined with a reset_mask")
+            if not self._started:
+                raise ValueError("a reset_mask needs a full reset() first")
+            slot = self._call(lambda: self._pool.reset_envs_shared(mask, recs))
+            self._done &= ~mask
+        else:
+            if seed is not None or not self._started:
+                self._pool.set_seeds(json.dumps(self._seeds(seed)))
+            slot = self._call(lambda: self._pool.reset_shared(recs))
+            self._done[:] = False
+            self._started = True
+        return self._observations(slot), self._infos(recs)
+
+    def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """Step every env with ``actions`` (a batch of the action space)."""
+        self._check_open()
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        if self.autoreset_mode == AutoresetMode.DISABLED and self._done.any():
+            envs = np.flatnonzero(self._done).tolist()
+            raise ValueError(
+                f"envs {envs} finished their episode: with autoreset_mode DISABLED, reset them with reset(options={{'reset_mask': mask}}) before stepping"
+            )
+        recs = self._recs
+        if self._discrete_start is not None:
+            a = np.asarray(actions)
+            if a.shape != (self.num_envs,) or a.dtype.kind not in "iu":
+                raise ValueError(
+                    f"expected integer actions of shape ({self.num_envs},), got {a.dtype} {a.shape}"
+                )
+            acts = a.astype(np.int64) - self._discrete_start
+            slot = self._call(lambda: self._pool.step_shared(acts, recs, self._final))
+        else:
+            self._act_layout.write_batch(actions, self._act_rows)
+            self._act_layout.check_batch(self._act_rows)
+            flat = self._act_rows.reshape(-1)
+            slot = self._call(lambda: self._pool.step_bytes_shared(flat, recs, self._final))
+        flags = recs["flags"]
+        terminated = (flags & FLAG_TERMINATED) != 0
+        truncated = (flags & FLAG_TRUNCATED) != 0
+        self._done = terminated | truncated
+        rewards = recs["reward"].astype(np.float64)
+        return self._observations(slot), rewards, terminated, truncated, self._infos(recs)
+
+    def close_extras(self, **kwargs: Any) -> None:
+        """Stop the workers and remove the pool's shared-memory files (idempotent)."""
+        self._finalizer()
+
+    @property
+    def worker_pids(self) -> list[int]:
+        """Process ids of the workers (in worker order)."""
+        return [] if self.closed else list(self._pool.worker_pids())
+
+    # -- helpers ---------------------------------------------------------------------------
+
+    def _check_open(self) -> None:
+        if self.closed:
+            raise RuntimeError("the vector env is closed")
+
+    def _call(self, fn: Callable[[], int]) -> int:
+        """Run a native call; an env's own exception is re-raised as itself."""
+        try:
+            return int(fn())
+        except EnvFailedError as err:
+            _reraise(err)
+
+    def _observations(self, slot: int) -> Any:
+        views = self._slot_views[slot]
+        return _copy_tree(views) if self.copy else views
+
+    def _infos(self, recs: np.ndarray) -> dict[str, Any]:
+        infos: dict[str, Any] = {}
+        flags = recs["flags"]
+        restarted = (flags & FLAG_RESTARTED) != 0
+        if restarted.any():
+            infos["worker_restarted"] = restarted.copy()
+            infos["_worker_restarted"] = restarted.copy()
+        extras = {env: _loads(data) for env, data in self._pool.take_extras()}
+        final = (
+            set(np.flatnonzero((flags & FLAG_FINAL_OBS) != 0).tolist())
+            if self._final is not None
+            else set()
+        )
+        for env in sorted(set(extras) | final):
+            infos = self._add_info(
+                infos, self._env_info(env, extras.get(env, []), env in final), env
+            )
+        return infos
+
+    def _env_info(
+        self, env: int, entries: list[tuple[str, dict[str, Any]]], final: bool
+    ) -> dict[str, Any]:
+        """One env's info for this call, as gymnasium's vector envs build it: the reset's (or
+        step's) info and, when the episode ended in SAME_STEP mode, ``final_obs`` and the last
+        step's info as ``final_info``."""
+        info: dict[str, Any] = {}
+        final_info: dict[str, Any] = {}
+        for kind, entry in entries:
+            if kind == "step" and final:
+                final_info = entry
+            else:
+                info.update(entry)
+        if final and self._final is not None:
+            row = self._final[env : env + 1]
+            info["final_obs"] = _copy_tree(_first(self._obs_layout.batch_views(row)))
+            info["final_info"] = final_info
+        return info
+
+
+def _reraise(err: EnvFailedError) -> NoReturn:
+    """Raise the env's own exception carried by ``err`` (with the worker-side traceback as a
+    note), or ``err`` itself if it carries none."""
+    decoded = decode_exception(err.detail)
+    if decoded is None:
+        raise err
+    exc, tb = decoded
+    if hasattr(exc, "add_note"):  # Python 3.11+
+        exc.add_note(
+            f"raised by env {err.env} during {err.context} in worker {err.worker} (pid {err.pid}); "
+            f"call reset() to continue. Worker-side traceback:\n{tb}"
+        )
+    raise exc from None
+
+
+def _loads(data: bytes) -> Any:
+    return pickle.loads(data)
+
+
+def _first(tree: Any) -> Any:
+    """Row 0 of a batch tree."""
+    if isinstance(tree, dict):
+        return {k: _first(v) for k, v in tree.items()}
+    if isinstance(tree, tuple):
+        return tuple(_first(v) for v in tree)
+    return tree[0]

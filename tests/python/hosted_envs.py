@@ -1,0 +1,121 @@
+"""Small gymnasium envs for the hosting tests: nested spaces of every supported kind, and envs
+that fail on purpose. Workers import this module by name (it is on the caller's sys.path)."""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Optional
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+
+class NestedEnv(gym.Env):
+    """Dict/Tuple observations and actions with Box (float64, float16, uint8), Discrete (with a
+    start), MultiDiscrete and MultiBinary leaves. Each observation echoes the last action and
+    the generator's draws, so a test sees both that actions arrive intact and that seeding
+    follows gymnasium's convention. Episodes last 3 to 7 steps; every step has an info."""
+
+    observation_space = spaces.Dict(
+        {
+            "pos": spaces.Box(-10.0, 10.0, (2,), np.float64),
+            "grid": spaces.Box(0, 255, (3, 4), np.uint8),
+            "flags": spaces.MultiBinary(3),
+            "nest": spaces.Tuple(
+                (
+                    spaces.Discrete(5, start=2),
+                    spaces.MultiDiscrete([3, 4]),
+                    spaces.Box(-1.0, 1.0, (2,), np.float16),
+                )
+            ),
+        }
+    )
+    action_space = spaces.Dict(
+        {
+            "move": spaces.Box(-1.0, 1.0, (2,), np.float64),
+            "pick": spaces.Discrete(3, start=1),
+            "multi": spaces.MultiDiscrete([2, 5]),
+        }
+    )
+
+    def __init__(self) -> None:
+        self.t = 0
+        self.length = 0
+        self.last: Any = None
+
+    def _obs(self) -> dict[str, Any]:
+        move = np.zeros(2) if self.last is None else np.asarray(self.last["move"], np.float64)
+        pick = 2 if self.last is None else int(self.last["pick"]) + 1
+        multi = np.zeros(2, np.int64) if self.last is None else np.asarray(self.last["multi"])
+        grid = self.np_random.integers(0, 256, (3, 4), dtype=np.uint8)
+        return {
+            "pos": move * 3.0 + self.t,
+            "grid": grid,
+            "flags": np.array([self.t % 2, 1, 0], np.int8),
+            "nest": (np.int64(pick), multi % np.array([3, 4]), np.full(2, 0.5, np.float16)),
+        }
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> Any:
+        super().reset(seed=seed)
+        self.t = 0
+        self.last = None
+        self.length = int(self.np_random.integers(3, 8))
+        return self._obs(), {"start": self.length}
+
+    def step(self, action: Any) -> Any:
+        assert self.action_space.contains(action), action
+        self.t += 1
+        self.last = action
+        reward = float(action["pick"]) + float(np.sum(action["move"]))
+        return self._obs(), reward, self.t >= self.length, False, {"t": self.t}
+
+
+class RaisingEnv(gym.Env):
+    """CartPole-like spaces; raises ``SpecialError`` in ``reset`` when seeded with 999, and in
+    ``step`` on action 1 once ``fail_after`` steps have passed."""
+
+    observation_space = spaces.Box(-1.0, 1.0, (4,), np.float32)
+    action_space = spaces.Discrete(2)
+
+    def __init__(self, fail_after: int = 3) -> None:
+        self.fail_after = fail_after
+        self.t = 0
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> Any:
+        super().reset(seed=seed)
+        if seed == 999:
+            raise SpecialError("reset refused seed 999")
+        self.t = 0
+        return np.zeros(4, np.float32), {}
+
+    def step(self, action: Any) -> Any:
+        self.t += 1
+        if action == 1 and self.t > self.fail_after:
+            raise SpecialError(f"step {self.t} refused action 1")
+        return np.full(4, self.t / 100, np.float32), 1.0, False, self.t >= 50, {}
+
+
+class SpecialError(ValueError):
+    """A user-defined exception, to check that the type survives the trip."""
+
+
+class BigInfoEnv(RaisingEnv):
+    """Returns an info too large for a small ``info_bytes``."""
+
+    def step(self, action: Any) -> Any:
+        obs, r, term, trunc, _ = super().step(0)
+        return obs, r, term, trunc, {"blob": np.zeros(10_000, np.uint8)}
+
+
+class TextEnv(RaisingEnv):
+    """An observation space the pool cannot lay out."""
+
+    observation_space = spaces.Text(8)  # type: ignore[assignment]
+
+
+def fails_in_workers(creator: int) -> gym.Env:
+    """An env that builds in the creating process but raises in any other (a worker)."""
+    if os.getpid() != creator:
+        raise SpecialError("no env in a worker")
+    return RaisingEnv()

@@ -1,0 +1,290 @@
+"""Any gymnasium env hosted in the pool (``PoolVectorEnv``): the same trajectories as
+gymnasium's own vector envs, every supported space both ways, env exceptions, crashes, hangs,
+seeding across worker layouts, and cleanup."""
+
+from __future__ import annotations
+
+import functools
+import gc
+import os
+import signal
+from collections.abc import Iterator
+from typing import Any, Callable
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import rogue_gym
+from gymnasium.vector import AutoresetMode, SyncVectorEnv
+from rogue_gym import EnvFailedError, PoolVectorEnv, WorkerCrashedError
+from rogue_gym.hosted import UnsupportedSpaceError
+
+from conftest import pid_alive, pool_files, wait_until
+from hosted_envs import (
+    BigInfoEnv,
+    NestedEnv,
+    RaisingEnv,
+    SpecialError,
+    TextEnv,
+    fails_in_workers,
+)
+
+
+def cartpole() -> gym.Env:
+    return gym.make("CartPole-v1")
+
+
+@pytest.fixture
+def pool() -> Iterator[Callable[..., PoolVectorEnv]]:
+    """``pool(env_fns, **kw)``: vector envs closed at teardown, checked for leftover files
+    and workers."""
+    made: list[PoolVectorEnv] = []
+
+    def factory(env_fns: Any, **kw: Any) -> PoolVectorEnv:
+        env = PoolVectorEnv(env_fns, **kw)
+        made.append(env)
+        return env
+
+    yield factory
+    for env in made:
+        pids, name = env.worker_pids, env.pool_name
+        env.close()
+        assert wait_until(lambda pids=pids: not any(pid_alive(p) for p in pids))
+        assert pool_files(name) == []
+
+
+def assert_tree_equal(a: Any, b: Any) -> None:
+    if isinstance(a, dict):
+        assert isinstance(b, dict) and sorted(a) == sorted(b), (list(a), list(b))
+        for k in a:
+            assert_tree_equal(a[k], b[k])
+    elif isinstance(a, tuple):
+        assert isinstance(b, tuple) and len(a) == len(b)
+        for x, y in zip(a, b):
+            assert_tree_equal(x, y)
+    elif isinstance(a, np.ndarray) and a.dtype == object:  # final_obs: one entry per env
+        assert isinstance(b, np.ndarray) and b.dtype == object and a.shape == b.shape
+        for x, y in zip(a, b):
+            if x is None or y is None:
+                assert x is None and y is None
+            else:
+                assert_tree_equal(x, y)
+    else:
+        x, y = np.asarray(a), np.asarray(b)
+        assert x.dtype == y.dtype and x.shape == y.shape, (x.dtype, x.shape, y.dtype, y.shape)
+        assert np.array_equal(x, y), (x, y)
+
+
+def run_both(
+    ours: gym.vector.VectorEnv, ref: gym.vector.VectorEnv, steps: int, seed: int = 0
+) -> None:
+    """Step both vector envs with the same random actions; every output must be equal."""
+    o1, i1 = ours.reset(seed=seed)
+    o2, i2 = ref.reset(seed=seed)
+    assert_tree_equal(o1, o2)
+    assert_tree_equal(i1, i2)
+    ref.action_space.seed(seed)
+    for _ in range(steps):
+        actions = ref.action_space.sample()
+        r1, r2 = ours.step(actions), ref.step(actions)
+        for x, y in zip(r1, r2):
+            assert_tree_equal(x, y)
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_cartpole_matches_sync_vector_env(pool, mode) -> None:
+    ours = pool([cartpole] * 6, num_workers=2, autoreset_mode=mode)
+    ref = SyncVectorEnv([cartpole] * 6, autoreset_mode=mode)
+    assert ours.single_observation_space == ref.single_observation_space
+    assert ours.action_space == ref.action_space and ours.metadata["autoreset_mode"] == mode
+    run_both(ours, ref, steps=300, seed=7)
+    ref.close()
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_nested_spaces_and_infos_match_sync_vector_env(pool, mode) -> None:
+    """Dict/Tuple nests of Box float64/float16/uint8, Discrete with a start, MultiDiscrete and
+    MultiBinary, as observations and as actions; infos on every step and reset."""
+    ours = pool([NestedEnv] * 4, num_workers=2, autoreset_mode=mode)
+    ref = SyncVectorEnv([NestedEnv] * 4, autoreset_mode=mode)
+    assert ours.observation_space == ref.observation_space
+    assert ours.action_space == ref.action_space
+    run_both(ours, ref, steps=40, seed=3)
+    ref.close()
+
+
+def test_observations_are_copies_or_views(pool) -> None:
+    copied = pool([cartpole] * 2, num_workers=1)
+    obs, _ = copied.reset(seed=0)
+    kept = obs.copy()
+    copied.step(np.ones(2, np.int64))
+    copied.step(np.ones(2, np.int64))
+    assert np.array_equal(obs, kept), "copy=True returns arrays the pool never touches again"
+
+    views = pool([cartpole] * 2, num_workers=1, copy=False)
+    obs, _ = views.reset(seed=0)
+    assert not obs.flags.owndata
+    nxt, *_ = views.step(np.ones(2, np.int64))
+    assert not np.shares_memory(obs, nxt), "double buffered: the last batch stays intact"
+
+
+def test_trajectories_do_not_depend_on_the_worker_layout(pool) -> None:
+    runs = []
+    for workers in (1, 2, 4):
+        env = pool([NestedEnv] * 8, num_workers=workers)
+        obs, _ = env.reset(seed=11)
+        env.action_space.seed(5)
+        trace = [obs["grid"].copy()]
+        for _ in range(30):
+            obs, rew, term, trunc, _ = env.step(env.action_space.sample())
+            trace += [obs["grid"].copy(), rew, term]
+        runs.append(trace)
+        env.close()
+    for other in runs[1:]:
+        for x, y in zip(runs[0], other):
+            assert np.array_equal(x, y)
+
+
+def test_seeding_follows_gymnasium(pool) -> None:
+    env = pool([NestedEnv] * 3, num_workers=1)
+    a, _ = env.reset(seed=[5, 6, 7])
+    b, _ = env.reset(seed=5)
+    assert np.array_equal(a["grid"], b["grid"]), "seed=s seeds env i with s + i"
+    c, _ = env.reset()  # no seed: every env continues its own generator
+    assert not np.array_equal(b["grid"], c["grid"])
+    single = NestedEnv()
+    o, _ = single.reset(seed=6)
+    assert np.array_equal(o["grid"], a["grid"][1])
+
+
+def test_env_exceptions_reach_the_caller_and_reset_recovers(pool) -> None:
+    env = pool([functools.partial(RaisingEnv, fail_after=1)] * 4, num_workers=2)
+    env.reset(seed=0)
+    env.step(np.zeros(4, np.int64))
+    with pytest.raises(SpecialError, match="step 2 refused action 1") as info:
+        env.step(np.array([0, 0, 0, 1]))
+    notes = "\n".join(getattr(info.value, "__notes__", []))
+    if notes:  # Python 3.11+: the worker-side traceback travels as a note
+        assert "raised by env 3 during step" in notes and "hosted_envs.py" in notes
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.zeros(4, np.int64))
+    obs, _ = env.reset(seed=0)  # usable again
+    env.step(np.zeros(4, np.int64))
+
+    with pytest.raises(SpecialError, match="seed 999"):
+        env.reset(seed=996)  # env 3 gets seed 999
+    env.reset(seed=0)
+    env.step(np.zeros(4, np.int64))
+
+
+def test_constructor_exceptions_reach_the_caller() -> None:
+    with pytest.raises(SpecialError, match="no env in a worker"):
+        PoolVectorEnv([functools.partial(fails_in_workers, os.getpid())] * 2, num_workers=1)
+
+
+def test_oversized_info_is_a_clear_error(pool) -> None:
+    env = pool([BigInfoEnv] * 2, num_workers=1, info_bytes=256)
+    env.reset(seed=0)
+    with pytest.raises(EnvFailedError, match="info_bytes"):
+        env.step(np.zeros(2, np.int64))
+    roomy = pool([BigInfoEnv] * 2, num_workers=1, info_bytes=20_000)
+    roomy.reset(seed=0)
+    infos = roomy.step(np.zeros(2, np.int64))[-1]
+    assert infos["blob"].shape == (2, 10_000) and infos["_blob"].all()
+
+
+def test_unsupported_spaces_and_bad_actions_are_clear_errors(pool) -> None:
+    with pytest.raises(UnsupportedSpaceError, match="Text"):
+        PoolVectorEnv([TextEnv] * 2, num_workers=1)
+    env = pool([NestedEnv] * 2, num_workers=1)
+    env.reset(seed=0)
+    actions = env.action_space.sample()
+    actions["pick"] = np.array([1, 7])
+    with pytest.raises(ValueError, match=r"env 1: action\['pick'\] 7"):
+        env.step(actions)
+    actions = env.action_space.sample()
+    actions["move"] = np.zeros((3, 2))
+    with pytest.raises(ValueError, match=r"\['move'\] has shape \(3, 2\)"):
+        env.step(actions)
+    cp = pool([cartpole] * 2, num_workers=1)
+    cp.reset(seed=0)
+    with pytest.raises(ValueError, match="out of range"):
+        cp.step(np.array([0, 2]))
+
+
+def test_autoreset_disabled_needs_a_masked_reset(pool) -> None:
+    env = pool([NestedEnv] * 2, num_workers=1, autoreset_mode=AutoresetMode.DISABLED)
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    done = np.zeros(2, bool)
+    while not done.any():
+        last, _, term, trunc, _ = env.step(env.action_space.sample())
+        done = term | trunc
+    with pytest.raises(ValueError, match="reset_mask"):
+        env.step(env.action_space.sample())
+    obs, _ = env.reset(options={"reset_mask": done})
+    assert (obs["pos"][done] == 0).all(), "the finished envs start a new episode"
+    assert np.array_equal(obs["pos"][~done], last["pos"][~done]), "the others keep theirs"
+    env.step(env.action_space.sample())
+
+
+def test_killed_worker_is_restarted_with_flagged_envs(pool) -> None:
+    env = pool([cartpole] * 4, num_workers=2)
+    env.reset(seed=0)
+    victim = env.worker_pids[1]
+    os.kill(victim, signal.SIGKILL)
+    _, _, _, trunc, infos = env.step(np.zeros(4, np.int64))
+    assert infos["worker_restarted"].tolist() == [False, False, True, True]
+    assert trunc[2:].all()
+    assert env.worker_pids[1] != victim
+    env.step(np.zeros(4, np.int64))
+
+
+def test_hung_worker_is_restarted(pool) -> None:
+    env = pool([cartpole] * 2, num_workers=2, step_timeout=1.0)
+    env.reset(seed=0)
+    victim = env.worker_pids[0]
+    os.kill(victim, signal.SIGSTOP)
+    try:
+        _, _, _, trunc, infos = env.step(np.zeros(2, np.int64))
+    finally:
+        if pid_alive(victim):
+            os.kill(victim, signal.SIGKILL)
+    assert infos["worker_restarted"].tolist() == [True, False] and trunc[0]
+
+
+def test_killed_worker_raises_under_raise_policy(pool) -> None:
+    env = pool([cartpole] * 2, num_workers=2, on_worker_failure="raise")
+    env.reset(seed=0)
+    victim = env.worker_pids[1]
+    os.kill(victim, signal.SIGKILL)
+    with pytest.raises(WorkerCrashedError) as info:
+        env.step(np.zeros(2, np.int64))
+    assert info.value.pid == victim and info.value.signal == signal.SIGKILL
+    assert info.value.envs == (1,)
+    env.reset(seed=0)
+    env.step(np.zeros(2, np.int64))
+
+
+def test_make_vec_builds_any_registered_id(pool) -> None:
+    env = rogue_gym.make_vec("CartPole-v1", 4, num_workers=2, env_kwargs={"max_episode_steps": 5})
+    try:
+        env.reset(seed=0)
+        for _ in range(5):
+            _, _, _, trunc, _ = env.step(np.zeros(4, np.int64))
+        assert trunc.all(), "env_kwargs reach gymnasium.make"
+    finally:
+        env.close()
+    with pytest.raises(TypeError, match="num_envs"):
+        rogue_gym.make_vec("CartPole-v1")
+
+
+def test_garbage_collection_closes_the_pool() -> None:
+    env = PoolVectorEnv([cartpole] * 2, num_workers=2)
+    env.reset(seed=0)
+    pids, name = env.worker_pids, env.pool_name
+    assert pool_files(name)
+    del env
+    gc.collect()
+    assert wait_until(lambda: not any(pid_alive(p) for p in pids))
+    assert pool_files(name) == []
