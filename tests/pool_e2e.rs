@@ -9,10 +9,10 @@ use serde_json::json;
 const EXE: &str = env!("CARGO_BIN_EXE_e2e_worker");
 
 #[test]
-fn trajectories_identical_for_1_2_4_8_workers_and_sync_async() {
+fn trajectories_identical_for_any_worker_count_even_or_not_and_sync_async() {
     let steps = 40;
     let mut reference = None;
-    for workers in [1, 2, 4, 8] {
+    for workers in [1, 2, 3, 4, 5, 8] {
         let mut p = pool(config(EXE, test_env(), 8, workers));
         let d = run_sync(&mut p, steps).unwrap();
         let id = p.id().clone();
@@ -24,7 +24,7 @@ fn trajectories_identical_for_1_2_4_8_workers_and_sync_async() {
         }
     }
     let reference = reference.unwrap();
-    for workers in [1, 2, 4, 8] {
+    for workers in [1, 2, 3, 4, 7, 8] {
         let mut p = pool(config(EXE, test_env(), 8, workers));
         let d = run_sync_shared(&mut p, steps).unwrap();
         assert_eq!(
@@ -32,7 +32,7 @@ fn trajectories_identical_for_1_2_4_8_workers_and_sync_async() {
             "shared-slot sync with {workers} workers differs"
         );
     }
-    for (workers, batch) in [(4, 4), (2, 4), (4, 8), (8, 1), (8, 4)] {
+    for (workers, batch) in [(4, 4), (2, 4), (4, 8), (8, 1), (8, 4), (3, 8), (5, 8)] {
         let mut c = config(EXE, test_env(), 8, workers);
         c.batch_size = Some(batch);
         let mut p = pool(c);
@@ -118,8 +118,12 @@ fn bad_input_is_an_error_value() {
 
     // Config errors.
     let reg = EnvRegistry::with_defaults();
-    let e = Pool::new(config(EXE, test_env(), 5, 2), &reg).unwrap_err();
-    assert!(e.to_string().contains("multiple of num_workers"), "{e}");
+    let e = Pool::new(config(EXE, test_env(), 2, 3), &reg).unwrap_err();
+    assert!(e.to_string().contains("must not exceed num_envs"), "{e}");
+    let mut c = config(EXE, test_env(), 5, 2);
+    c.batch_size = Some(2);
+    let e = Pool::new(c, &reg).unwrap_err();
+    assert!(e.to_string().contains("must equal num_envs (5)"), "{e}");
     let e = Pool::new(config(EXE, json!({"kind": "nope"}), 2, 1), &reg).unwrap_err();
     assert!(e.to_string().contains("unknown env kind"), "{e}");
     // A worker that cannot start: its stderr is in the error.

@@ -69,12 +69,13 @@ pub struct PoolConfig {
     /// What the env looks like, when the caller already knows (hosted envs, whose front end
     /// has probed one); `None`: the supervisor builds one env to learn it.
     pub spec: Option<EnvSpec>,
-    /// Total envs; must be a multiple of `num_workers`.
+    /// Total envs (at least `num_workers`).
     pub num_envs: usize,
-    /// Worker processes; each steps `num_envs / num_workers` envs.
+    /// Worker processes; each steps a contiguous block of envs ([`crate::wire::block_range`]:
+    /// blocks differ by at most one env).
     pub num_workers: usize,
-    /// Envs returned by one async [`Pool::recv`]; a multiple of the envs per worker. `None`:
-    /// all envs.
+    /// Envs returned by one async [`Pool::recv`]: `num_envs`, or (when `num_workers` divides
+    /// `num_envs`) a multiple of the envs per worker. `None`: all envs.
     pub batch_size: Option<usize>,
     /// Episode seed schedule.
     pub seeds: SeedSchedule,

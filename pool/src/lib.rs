@@ -4,8 +4,8 @@
 //! and this crate puts them together into a multi-process vector env. A [`Pool`] (the
 //! supervisor, living in the trainer's process, e.g. behind the Python front end) spawns
 //! `num_workers` worker processes with `std::process::Command`; each worker ([`worker_main`])
-//! builds `num_envs / num_workers` envs from a JSON spec through an [`EnvRegistry`], steps them,
-//! and writes observations straight into a loaned shared-memory block, which the supervisor
+//! builds its block of envs (blocks differ by at most one env) from a JSON spec through an
+//! [`EnvRegistry`], steps them, and writes observations straight into a loaned shared-memory block, which the supervisor
 //! copies into the caller's batch buffer (sync [`Pool::step`]) or hands over zero-copy (async
 //! [`Pool::recv`] returns [`Block`]s that own the samples). A third, copy-free sync form,
 //! [`Pool::step_shared`], has the workers write straight into one of two pool-owned shared

@@ -299,18 +299,19 @@ pub(crate) fn apply(
 }
 
 fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), WorkerError> {
-    if a.index >= cfg.num_workers || cfg.envs_per_worker == 0 {
+    if a.index >= cfg.num_workers || cfg.envs_of(a.index).is_empty() {
         return Err(WorkerError::Msg(format!(
-            "worker index {} out of range (pool has {} workers of {} envs)",
-            a.index, cfg.num_workers, cfg.envs_per_worker
+            "worker index {} out of range (pool has {} workers for {} envs)",
+            a.index, cfg.num_workers, cfg.num_envs
         )));
     }
-    let epw = cfg.envs_per_worker;
+    let envs = cfg.envs_of(a.index);
+    let epw = envs.len();
     let id = PoolId::from_parts(&cfg.pool_name, &cfg.base_dir)?;
     let fault_path = env_fault_path(&id, a.index, a.generation);
     let mut slots = Vec::with_capacity(epw);
     for j in 0..epw {
-        let global = (a.index * epw + j) as u64;
+        let global = (envs.start + j) as u64;
         let env = registry.make(&cfg.env, global).map_err(|e| {
             // Reported like a failed step (the supervisor raises it rather than retrying).
             let fault = EnvFault {
@@ -349,7 +350,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
     let ob = layout.obs_bytes;
     let sb = slot_bytes(cfg.num_envs, ob);
     let batch = rogue_gym_ipc::SharedBuffer::open(&id, BATCH_BUFFER, BATCH_SLOTS * sb)?;
-    let first_env = a.index * epw;
+    let first_env = envs.start;
     let mut ready = ports.loan_block(words)?;
     *ready.user_header_mut() = header(0, BLOCK_READY);
     ports.send_block(ready)?;

@@ -247,8 +247,8 @@ class PoolCore:
 
     def envs_of_worker(self, worker: int) -> range:
         """Indices of the envs hosted by ``worker``."""
-        epw = self.num_envs // self.num_workers
-        return range(worker * epw, (worker + 1) * epw)
+        self._check_open()
+        return range(*self._pool.worker_envs(worker))
 
     def _check_open(self) -> None:
         if self._closed or self._pool is None:

@@ -35,8 +35,9 @@ class PoolSettings:
         num_envs: number of games.
         config: game config: ``"paper"`` (32x16, 2x2 rooms, no monsters, seeds [0, 40)), a
             dict, a JSON string or a path; ``{}`` is the original default game.
-        num_workers: worker processes; must divide ``num_envs`` (default: the largest divisor
-            of ``num_envs`` that is at most the CPU count).
+        num_workers: worker processes, at most ``num_envs`` (default: the CPU count, at most
+            ``num_envs``); each hosts a contiguous block of envs, the blocks differing by at
+            most one env.
         seed: base of the episode-seed schedule (default: random).
         seeds: the dungeons episodes are drawn from: a list, a ``range`` or ``(lo, hi)``
             (default: the config's ``seed_range`` / ``seed``, else unrestricted).
@@ -54,7 +55,8 @@ class PoolSettings:
         max_restarts: worker restarts allowed over the pool's life.
         worker_command: program and leading args of a worker (default:
             ``[sys.executable, "-m", "rogue_gym.worker"]``).
-        batch_size: envs per async ``recv`` (a multiple of the envs per worker; default all).
+        batch_size: envs per async ``recv`` (default all; otherwise a multiple of the envs per
+            worker, which needs ``num_workers`` to divide ``num_envs``).
     """
 
     num_envs: int = 8
@@ -98,8 +100,6 @@ class PoolSettings:
         num_workers = self.num_workers
         if num_workers is None:
             num_workers = min(num_envs, os.cpu_count() or 1)
-            while num_envs % num_workers:
-                num_workers -= 1
         if self.on_worker_failure not in FAILURE_POLICIES:
             raise ValueError(
                 f"on_worker_failure must be one of {FAILURE_POLICIES}, got {self.on_worker_failure!r}"

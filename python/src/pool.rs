@@ -510,6 +510,17 @@ impl PyPool {
         Ok(list)
     }
 
+    /// The envs worker `k` hosts, as `(start, end)` (contiguous blocks differing by at most one
+    /// env, the larger first).
+    fn worker_envs(&self, k: usize) -> PyResult<(usize, usize)> {
+        let guard = self
+            .pool
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        let r = guard.as_ref().map(|p| p.worker_envs(k)).unwrap_or(0..0);
+        Ok((r.start, r.end))
+    }
+
     /// Current worker process ids (index = worker).
     fn worker_pids(&self) -> PyResult<Vec<u32>> {
         let guard = self

@@ -129,8 +129,9 @@ def test_observations_are_copies_or_views(pool) -> None:
 
 
 def test_trajectories_do_not_depend_on_the_worker_layout(pool) -> None:
+    """1, 2, 4 and 8 workers, and uneven blocks (3 and 5 workers for 8 envs)."""
     runs = []
-    for workers in (1, 2, 4):
+    for workers in (1, 2, 3, 4, 5, 8):
         env = pool([NestedEnv] * 8, num_workers=workers)
         obs, _ = env.reset(seed=11)
         env.action_space.seed(5)

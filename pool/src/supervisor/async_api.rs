@@ -19,9 +19,9 @@ impl Pool {
         Ok(())
     }
 
-    /// Async: send actions to envs. `env_ids` must consist of whole worker blocks, each in
-    /// order (`k*epw .. (k+1)*epw`), whose previous result has been received; `actions[r]` is
-    /// for `env_ids[r]`.
+    /// Async: send actions to envs. `env_ids` must consist of whole worker blocks
+    /// ([`Pool::worker_envs`]), each in order, whose previous result has been received;
+    /// `actions[r]` is for `env_ids[r]`.
     pub fn send(&mut self, actions: &[i64], env_ids: &[usize]) -> Result<(), PoolError> {
         self.send_actions(Actions::Indices(actions), env_ids)
     }
@@ -40,37 +40,38 @@ impl Pool {
             ));
         }
         self.check_actions(actions, env_ids)?;
-        let epw = self.core.epw;
-        if !env_ids.len().is_multiple_of(epw) {
-            return Err(PoolError::State(format!(
-                "send() got {} env ids; they must form whole worker blocks of {epw} envs",
-                env_ids.len()
-            )));
-        }
-        let mut workers = Vec::with_capacity(env_ids.len() / epw);
-        for chunk in env_ids.chunks(epw) {
-            let k = chunk[0] / epw;
-            if !chunk[0].is_multiple_of(epw)
-                || k >= self.core.slots.len()
-                || chunk.iter().enumerate().any(|(j, &e)| e != k * epw + j)
+        // Split env_ids into whole worker blocks, each in order.
+        let mut workers: Vec<(usize, usize)> = Vec::new();
+        let mut pos = 0;
+        while pos < env_ids.len() {
+            let first = env_ids[pos];
+            let Some(k) = self.core.blocks.iter().position(|b| b.start == first) else {
+                return Err(PoolError::State(format!(
+                    "send() env ids must form whole worker blocks, each in order; env {first} does not start a block (blocks: {:?})",
+                    self.core.blocks
+                )));
+            };
+            let block = self.core.blocks[k].clone();
+            let got = &env_ids[pos..(pos + block.len()).min(env_ids.len())];
+            if !got.iter().copied().eq(block.clone()) {
+                return Err(PoolError::State(format!(
+                    "send() env ids {got:?} do not form worker block {block:?}: give each block's ids in order"
+                )));
+            }
+            if !matches!(self.core.slots[k].state, SlotState::Idle)
+                || workers.iter().any(|&(w, _)| w == k)
             {
                 return Err(PoolError::State(format!(
-                    "send() env ids {chunk:?} do not form a worker block: give each block's ids in order, k*{epw}..(k+1)*{epw}"
+                    "send() to envs {block:?} whose previous request has not been received yet: recv() first"
                 )));
             }
-            if !matches!(self.core.slots[k].state, SlotState::Idle) || workers.contains(&k) {
-                return Err(PoolError::State(format!(
-                    "send() to envs {}..{} whose previous request has not been received yet: recv() first",
-                    k * epw,
-                    (k + 1) * epw
-                )));
-            }
-            workers.push(k);
+            workers.push((k, pos));
+            pos += block.len();
         }
         let ab = self.core.spec.action_bytes;
-        for (r, &k) in workers.iter().enumerate() {
-            self.core
-                .send_step(k, actions.rows(r * epw..(r + 1) * epw, ab), 0)?;
+        for &(k, pos) in &workers {
+            let rows = pos..pos + self.core.blocks[k].len();
+            self.core.send_step(k, actions.rows(rows, ab), 0)?;
         }
         Ok(())
     }
@@ -79,7 +80,8 @@ impl Pool {
     /// their blocks over (zero-copy; see [`Block`] for lifetimes).
     pub fn recv(&mut self) -> Result<Batch, PoolError> {
         self.check_usable()?;
-        let want = self.batch_size() / self.core.epw;
+        // Blocks per batch: batch_size is num_envs, or a multiple of the (even) block size.
+        let want = self.batch_size() * self.core.blocks.len() / self.core.cfg.num_envs;
         let outstanding = self
             .core
             .slots

@@ -10,6 +10,7 @@ mod workers;
 
 use std::collections::VecDeque;
 use std::fs;
+use std::ops::Range;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -24,7 +25,7 @@ use crate::error::PoolError;
 use crate::registry::EnvRegistry;
 use crate::seeds::SeedSchedule;
 use crate::wire::layout::BlockLayout;
-use crate::wire::{BATCH_BUFFER, BATCH_SLOTS, CMD_CLOSE, WorkerConfig, slot_bytes};
+use crate::wire::{BATCH_BUFFER, BATCH_SLOTS, CMD_CLOSE, WorkerConfig, block_range, slot_bytes};
 
 pub use stepping::{Actions, validate_actions};
 use workers::{SlotState, WorkerSlot};
@@ -32,8 +33,10 @@ use workers::{SlotState, WorkerSlot};
 struct Core {
     cfg: PoolConfig,
     spec: EnvSpec,
-    layout: BlockLayout,
-    epw: usize,
+    /// Block layout of each worker (blocks may differ by one env).
+    layouts: Vec<BlockLayout>,
+    /// The envs of each worker ([`block_range`]).
+    blocks: Vec<Range<usize>>,
     id: PoolId,
     config_path: PathBuf,
     settings: ChannelSettings,
@@ -95,20 +98,32 @@ impl Pool {
                 "num_envs and num_workers must be at least 1".into(),
             ));
         }
-        if !cfg.num_envs.is_multiple_of(cfg.num_workers) {
+        if cfg.num_workers > cfg.num_envs {
             return Err(PoolError::Config(format!(
-                "num_envs ({}) must be a multiple of num_workers ({}): each worker steps the same number of envs",
-                cfg.num_envs, cfg.num_workers
+                "num_workers ({}) must not exceed num_envs ({}): each worker hosts at least one env",
+                cfg.num_workers, cfg.num_envs
             )));
         }
+        let blocks: Vec<Range<usize>> = (0..cfg.num_workers)
+            .map(|k| block_range(cfg.num_envs, cfg.num_workers, k))
+            .collect();
+        let even = cfg.num_envs.is_multiple_of(cfg.num_workers);
         let epw = cfg.num_envs / cfg.num_workers;
         if let Some(b) = cfg.batch_size
-            && (b == 0 || !b.is_multiple_of(epw) || b > cfg.num_envs)
+            && b != cfg.num_envs
+            && (b == 0 || !even || !b.is_multiple_of(epw) || b > cfg.num_envs)
         {
-            return Err(PoolError::Config(format!(
-                "batch_size ({b}) must be a positive multiple of the envs per worker ({epw}) and at most num_envs ({}): async batches are made of whole worker blocks",
-                cfg.num_envs
-            )));
+            return Err(PoolError::Config(if even {
+                format!(
+                    "batch_size ({b}) must be a positive multiple of the envs per worker ({epw}) and at most num_envs ({}): async batches are made of whole worker blocks",
+                    cfg.num_envs
+                )
+            } else {
+                format!(
+                    "batch_size ({b}) must equal num_envs ({}) when num_workers ({}) does not divide it: async batches are made of whole worker blocks, and these differ in size",
+                    cfg.num_envs, cfg.num_workers
+                )
+            }));
         }
         if cfg.max_borrowed < 2 {
             return Err(PoolError::Config(
@@ -121,12 +136,15 @@ impl Pool {
             None => registry.make(&cfg.env, 0)?.spec(),
         };
         spec.validate()?;
-        let layout = BlockLayout {
-            envs: epw,
-            obs_bytes: spec.obs_bytes(),
-            final_obs: cfg.autoreset == AutoresetMode::SameStep,
-            extra_bytes: spec.extra_bytes,
-        };
+        let layouts = blocks
+            .iter()
+            .map(|b| BlockLayout {
+                envs: b.len(),
+                obs_bytes: spec.obs_bytes(),
+                final_obs: cfg.autoreset == AutoresetMode::SameStep,
+                extra_bytes: spec.extra_bytes,
+            })
+            .collect();
         rogue_gym_ipc::sweep_stale_pools(&cfg.base_dir);
         let id = PoolId::new_unique(&cfg.base_dir)?;
         id.create_dirs()?;
@@ -139,7 +157,6 @@ impl Pool {
             base_dir: cfg.base_dir.clone(),
             num_envs: cfg.num_envs,
             num_workers: cfg.num_workers,
-            envs_per_worker: epw,
             env: cfg.env.clone(),
             seeds: cfg.seeds.clone(),
             autoreset: cfg.autoreset,
@@ -157,8 +174,8 @@ impl Pool {
             core: Core {
                 cfg,
                 spec,
-                layout,
-                epw,
+                layouts,
+                blocks,
                 id,
                 config_path,
                 settings,
@@ -190,7 +207,7 @@ impl Pool {
             .map_err(|e| PoolError::Config(format!("cannot serialize worker config: {e}")))?;
         fs::write(&c.config_path, json)
             .map_err(|e| PoolError::Io(format!("cannot write {}: {e}", c.config_path.display())))?;
-        c.slot_bytes = slot_bytes(c.cfg.num_envs, c.layout.obs_bytes);
+        c.slot_bytes = slot_bytes(c.cfg.num_envs, c.spec.obs_bytes());
         c.batch = Some(std::sync::Arc::new(rogue_gym_ipc::SharedBuffer::create(
             &c.id,
             BATCH_BUFFER,
@@ -199,7 +216,8 @@ impl Pool {
         let node = c.id.node("sup")?;
         self.listener = Some(BlockListener::new(&node, &c.settings)?);
         for k in 0..c.cfg.num_workers {
-            let ports = SupervisorPorts::new(&node, k, c.epw * c.spec.action_words(), &c.settings)?;
+            let words = c.blocks[k].len() * c.spec.action_words();
+            let ports = SupervisorPorts::new(&node, k, words, &c.settings)?;
             c.slots.push(WorkerSlot {
                 ports,
                 child: None,
@@ -265,9 +283,10 @@ impl Pool {
     pub fn num_workers(&self) -> usize {
         self.core.cfg.num_workers
     }
-    /// Envs per worker (the async granularity).
-    pub fn envs_per_worker(&self) -> usize {
-        self.core.epw
+    /// The envs worker `k` hosts (contiguous; blocks differ by at most one env, the larger
+    /// first).
+    pub fn worker_envs(&self, k: usize) -> Range<usize> {
+        self.core.blocks.get(k).cloned().unwrap_or(0..0)
     }
     /// Envs per async [`Pool::recv`].
     pub fn batch_size(&self) -> usize {
@@ -275,7 +294,7 @@ impl Pool {
     }
     /// Bytes of one observation.
     pub fn obs_bytes(&self) -> usize {
-        self.core.layout.obs_bytes
+        self.core.spec.obs_bytes()
     }
     /// The pool's files (name, prefix, directories).
     pub fn id(&self) -> &PoolId {
@@ -372,7 +391,7 @@ impl Pool {
     }
 
     fn check_obs_buf(&self, obs_out: &[u8]) -> Result<(), PoolError> {
-        let expected = self.core.cfg.num_envs * self.core.layout.obs_bytes;
+        let expected = self.core.cfg.num_envs * self.core.spec.obs_bytes();
         if obs_out.len() != expected {
             return Err(PoolError::BadBuffer {
                 what: "observation buffer",

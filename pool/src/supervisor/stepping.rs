@@ -205,7 +205,7 @@ impl Pool {
     /// The observations of shared batch slot `slot` (`num_envs x obs_bytes`, env-major,
     /// 64-byte aligned). See [`Pool::step_shared`] for when they are valid.
     pub fn shared_obs(&self, slot: usize) -> &[u8] {
-        let n = self.core.cfg.num_envs * self.core.layout.obs_bytes;
+        let n = self.core.cfg.num_envs * self.core.spec.obs_bytes();
         match &self.core.batch {
             // SAFETY: the slot lies inside the mapping. Workers write a slot only during a
             // `*_shared` call, which needs `&mut self`: none runs while this borrow lives.
@@ -261,7 +261,7 @@ impl Pool {
     ) -> Result<(), PoolError> {
         // Copy each block as soon as it arrives, overlapping with the other workers' steps.
         let w = self.core.slots.len();
-        let blk_bytes = self.core.epw * self.core.layout.obs_bytes;
+        let ob = self.core.spec.obs_bytes();
         let mut blocks: Vec<Option<Block>> = (0..w).map(|_| None).collect();
         let mut got = 0;
         while got < w {
@@ -269,7 +269,8 @@ impl Pool {
             while let Some(k) = self.core.ready_order.pop_front() {
                 let b = self.core.take_block(k)?;
                 if let Some(o) = obs_out.as_deref_mut() {
-                    o[k * blk_bytes..(k + 1) * blk_bytes].copy_from_slice(b.obs());
+                    let envs = b.env_ids();
+                    o[envs.start * ob..envs.end * ob].copy_from_slice(b.obs());
                 }
                 blocks[k] = Some(b);
                 got += 1;

@@ -63,7 +63,7 @@ fn status_parts(st: &ExitStatus) -> (Option<i32>, Option<i32>) {
 
 impl Core {
     pub(super) fn env_range(&self, k: usize) -> Range<usize> {
-        k * self.epw..(k + 1) * self.epw
+        self.blocks[k].clone()
     }
 
     pub(super) fn spawn(&mut self, k: usize, then_reset: bool) -> Result<(), PoolError> {
@@ -157,7 +157,7 @@ impl Core {
         s.seq += 1;
         s.target = target;
         let kind = CMD_STEP | (target << TARGET_SHIFT);
-        let words = self.epw * aw;
+        let words = self.blocks[k].len() * aw;
         s.ports.send_cmd(s.seq, kind, words, |p| match actions {
             Actions::Indices(a) => {
                 for (d, a) in p.iter_mut().zip(a) {
@@ -186,8 +186,8 @@ impl Core {
                 let restarted = std::mem::take(&mut s.restarted);
                 Ok(Block {
                     worker: k,
-                    env_start: k * self.epw,
-                    layout: self.layout,
+                    env_start: self.blocks[k].start,
+                    layout: self.layouts[k],
                     restarted,
                     sample,
                 })
@@ -230,14 +230,15 @@ impl Core {
                     }
                     (SlotState::Pending { .. }, BLOCK_DATA) if h.seq == s.seq => {
                         let same_step = self.cfg.autoreset == AutoresetMode::SameStep;
-                        for j in 0..self.epw {
-                            let r = self.layout.record(sample.payload(), j);
+                        let first = self.blocks[k].start;
+                        for j in 0..self.blocks[k].len() {
+                            let r = self.layouts[k].record(sample.payload(), j);
                             let done = r.terminated() || r.truncated();
                             // In SAME_STEP mode a finished env already started the next
                             // episode (not yet reported).
-                            self.cur_episode[k * self.epw + j] =
+                            self.cur_episode[first + j] =
                                 Some(r.episode + u64::from(same_step && done));
-                            self.cur_seed[k * self.epw + j] = r.seed;
+                            self.cur_seed[first + j] = r.seed;
                         }
                         self.slots[k].state = SlotState::Ready(sample);
                         self.ready_order.push_back(k);
@@ -247,7 +248,7 @@ impl Core {
                         s.state = SlotState::Idle;
                         let path = env_fault_path(&self.id, k, s.generation);
                         let fault = EnvFault::take(&path).unwrap_or_else(|e| EnvFault {
-                            env: (k * self.epw) as u64,
+                            env: self.blocks[k].start as u64,
                             context: "a command".into(),
                             message: format!("an env of the worker failed; {e}"),
                         });

@@ -32,6 +32,15 @@ pub(crate) const BATCH_BUFFER: &str = "batch";
 /// Number of slots of the shared batch buffer (double buffering).
 pub const BATCH_SLOTS: usize = 2;
 
+/// The envs worker `k` of `num_workers` hosts: contiguous blocks, the first
+/// `num_envs % num_workers` workers one env more than the rest (so any `num_envs >= num_workers`
+/// works).
+pub fn block_range(num_envs: usize, num_workers: usize, k: usize) -> std::ops::Range<usize> {
+    let (q, r) = (num_envs / num_workers, num_envs % num_workers);
+    let start = k * q + k.min(r);
+    start..start + q + usize::from(k < r)
+}
+
 /// Bytes of one slot of the shared batch buffer (64-byte aligned).
 pub(crate) fn slot_bytes(num_envs: usize, obs_bytes: usize) -> usize {
     (num_envs * obs_bytes).div_ceil(64) * 64
@@ -92,8 +101,6 @@ pub struct WorkerConfig {
     pub num_envs: usize,
     /// Workers of the pool.
     pub num_workers: usize,
-    /// Envs per worker (worker `k` hosts envs `k*epw .. (k+1)*epw`).
-    pub envs_per_worker: usize,
     /// JSON spec of the env (see [`crate::EnvRegistry`]).
     pub env: Value,
     /// Episode seed schedule.
@@ -116,11 +123,40 @@ fn default_true() -> bool {
 }
 
 impl WorkerConfig {
+    /// The envs worker `k` hosts ([`block_range`]).
+    pub fn envs_of(&self, k: usize) -> std::ops::Range<usize> {
+        block_range(self.num_envs, self.num_workers, k)
+    }
     /// The channel settings both sides use.
     pub fn channel_settings(&self) -> ChannelSettings {
         ChannelSettings {
             num_workers: self.num_workers,
             max_borrowed: self.max_borrowed,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::block_range;
+
+    #[test]
+    fn blocks_cover_every_env_once_and_differ_by_at_most_one() {
+        for n in 1..40 {
+            for w in 1..=n.min(9) {
+                let blocks: Vec<_> = (0..w).map(|k| block_range(n, w, k)).collect();
+                assert_eq!(blocks[0].start, 0);
+                assert_eq!(blocks[w - 1].end, n);
+                assert!(blocks.windows(2).all(|p| p[0].end == p[1].start));
+                let sizes: Vec<usize> = blocks.iter().map(|b| b.len()).collect();
+                assert!(sizes.iter().max().unwrap() - sizes.iter().min().unwrap() <= 1);
+                assert!(
+                    sizes.windows(2).all(|p| p[0] >= p[1]),
+                    "larger blocks first"
+                );
+            }
+        }
+        assert_eq!(block_range(10, 4, 1), 3..6);
+        assert_eq!(block_range(10, 4, 3), 8..10);
     }
 }

@@ -40,13 +40,6 @@ DEFAULT_INFO_BYTES = 4096
 EnvFn = Callable[[], gym.Env]
 
 
-def _default_workers(num_envs: int) -> int:
-    workers = min(num_envs, os.cpu_count() or 1)
-    while num_envs % workers:
-        workers -= 1
-    return workers
-
-
 def _copy_tree(value: Any) -> Any:
     if isinstance(value, dict):
         return {k: _copy_tree(v) for k, v in value.items()}
@@ -69,7 +62,8 @@ class PoolVectorEnv(VectorEnv):
     Args:
         env_fns: one callable per env, each returning a gymnasium env; all envs must have the
             same spaces. They are cloudpickled, so closures and lambdas work.
-        num_workers: worker processes (default: as many as CPUs, dividing ``num_envs``).
+        num_workers: worker processes (default: as many as CPUs, at most ``num_envs``); each
+            hosts a contiguous block of envs, the blocks differing by at most one env.
         copy: return copies of the observations (default, like ``AsyncVectorEnv``); with
             ``False`` they are views of shared memory, valid until the second following
             ``step``/``reset``.
@@ -126,7 +120,9 @@ class PoolVectorEnv(VectorEnv):
         self.autoreset_mode = AutoresetMode(autoreset_mode)
         self.num_envs = len(env_fns)
         self.copy = bool(copy)
-        workers = _default_workers(self.num_envs) if num_workers is None else int(num_workers)
+        workers = (
+            min(self.num_envs, os.cpu_count() or 1) if num_workers is None else int(num_workers)
+        )
 
         # Probe one env here for the spaces and metadata, as AsyncVectorEnv does.
         probe = env_fns[0]()
