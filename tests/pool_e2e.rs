@@ -378,3 +378,36 @@ fn partial_reset_needs_a_started_pool_and_a_full_mask() {
     assert_eq!(out.episode, vec![1, 0, 1, 0]);
     p.step_shared(&[0; 4], &mut out).unwrap();
 }
+
+#[test]
+fn env_calls_reach_the_chosen_envs_in_order_and_errors_name_the_env() {
+    // 5 envs on 2 workers: blocks 0..3 and 3..5.
+    let mut p = pool(config(EXE, test_env(), 5, 2));
+    let mut out = BatchOutput::default();
+    // Before any reset: the envs exist.
+    let r = p.call_envs(&[(4, b"t".to_vec())]).unwrap();
+    assert_eq!(r, vec![(4, 0u32.to_le_bytes().to_vec())]);
+    p.reset_shared(&mut out).unwrap();
+    for _ in 0..3 {
+        p.step_shared(&[0; 5], &mut out).unwrap();
+    }
+    let t = |env: usize| out.episode_length[env];
+    let r = p
+        .call_envs(&[(4, b"t".to_vec()), (0, b"t".to_vec()), (3, b"t".to_vec())])
+        .unwrap();
+    let got: Vec<(usize, u32)> = r
+        .iter()
+        .map(|(e, b)| (*e, u32::from_le_bytes(b[..4].try_into().unwrap())))
+        .collect();
+    assert_eq!(got, vec![(4, t(4)), (0, t(0)), (3, t(3))]);
+    let e = p.call_envs(&[(1, b"nope".to_vec())]).unwrap_err();
+    assert!(
+        matches!(&e, PoolError::EnvFailed { fault, .. } if fault.env == 1),
+        "{e}"
+    );
+    assert!(e.to_string().contains("unknown call"), "{e}");
+    let e = p.call_envs(&[(9, b"t".to_vec())]).unwrap_err();
+    assert!(e.to_string().contains("env 9 does not exist"), "{e}");
+    p.reset_shared(&mut out).unwrap();
+    p.step_shared(&[0; 5], &mut out).unwrap();
+}

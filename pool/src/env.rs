@@ -147,6 +147,13 @@ pub trait Env {
     fn info(&self, out: &mut [f64]) {
         let _ = out;
     }
+    /// Answer a call from the caller, off the hot path (attribute reads and writes, method
+    /// calls, renders): `request` and the reply are bytes whose meaning is the env's business
+    /// (hosted envs: pickles). The default says the env takes no calls.
+    fn call(&mut self, request: &[u8]) -> Result<Vec<u8>, EnvError> {
+        let _ = request;
+        Err(EnvError::new("this env kind takes no calls"))
+    }
     /// Re-write the current observation (the bytes the last `reset`/`step` wrote) without
     /// changing any state. The pool's partial reset ([`crate::Pool::reset_envs`]) calls it for
     /// the envs it does *not* reset, so that their current observation lands in the new batch.

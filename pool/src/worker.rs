@@ -20,9 +20,9 @@ use crate::wire::layout::{
     BlockLayout, EnvRecord, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED, write_record_words,
 };
 use crate::wire::{
-    BATCH_BUFFER, BATCH_SLOTS, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_CLOSE, CMD_RESET,
-    CMD_STEP, EnvFault, KEEP_EPISODE, RELOAD_SEEDS, TARGET_SHIFT, WorkerConfig, env_fault_path,
-    slot_bytes,
+    BATCH_BUFFER, BATCH_SLOTS, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_CALL,
+    CMD_CLOSE, CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE, RELOAD_SEEDS, TARGET_SHIFT,
+    WorkerConfig, calls, env_fault_path, slot_bytes,
 };
 
 #[derive(Debug, thiserror::Error)]
@@ -298,6 +298,35 @@ pub(crate) fn apply(
     Ok(rec)
 }
 
+/// Answer the call requests of the worker's call file ([`calls`]), env by env.
+fn answer_calls(id: &PoolId, a: &Args, slots: &mut [Slot]) -> Result<(), EnvFault> {
+    let fail = |env: u64, message: String| EnvFault {
+        env,
+        context: "a call".into(),
+        message,
+    };
+    let first = slots.first().map_or(0, |s| s.global);
+    let requests =
+        calls::take(&calls::request_path(id, a.index, a.generation)).map_err(|e| fail(first, e))?;
+    let mut replies = Vec::with_capacity(requests.len());
+    for (row, request) in &requests {
+        let s = slots
+            .get_mut(*row as usize)
+            .ok_or_else(|| fail(first, format!("call for row {row}, outside the block")))?;
+        let reply = s
+            .env
+            .call(request)
+            .map_err(|e| fail(s.global, e.to_string()))?;
+        replies.push((*row, reply));
+    }
+    let entries: Vec<(u32, &[u8])> = replies.iter().map(|(r, b)| (*r, b.as_slice())).collect();
+    calls::write(
+        &calls::reply_path(id, a.index, a.generation),
+        &calls::encode(&entries),
+    )
+    .map_err(|e| fail(first, e))
+}
+
 fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), WorkerError> {
     if a.index >= cfg.num_workers || cfg.envs_of(a.index).is_empty() {
         return Err(WorkerError::Msg(format!(
@@ -373,6 +402,20 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
             return Ok(());
         }
         let kind = h.kind & ((1 << TARGET_SHIFT) - 1);
+        if kind == CMD_CALL {
+            drop(cmd);
+            let kind = match answer_calls(&id, a, &mut slots) {
+                Ok(()) => BLOCK_CALL,
+                Err(f) => {
+                    f.write(&fault_path).map_err(WorkerError::Msg)?;
+                    BLOCK_ERROR
+                }
+            };
+            let mut reply = ports.loan_block(words)?;
+            *reply.user_header_mut() = header(h.seq, kind);
+            ports.send_block(reply)?;
+            continue;
+        }
         // Words per env: one episode index per env for a reset, one action for a step.
         let per_env = if kind == CMD_STEP { aw } else { 1 };
         if n != epw * per_env {

@@ -1,7 +1,11 @@
-"""``RogueVecEnv``: the pool as a Stable-Baselines3 ``VecEnv`` (needs ``stable-baselines3``).
+"""The pool as a Stable-Baselines3 ``VecEnv`` (needs ``stable-baselines3``).
 
-Import it explicitly (``from rogue_gym.sb3 import RogueVecEnv``): ``import rogue_gym`` does not
-import SB3 or torch.
+* :class:`RogueVecEnv`: the native game.
+* :class:`PoolVecEnv`: any gymnasium env (a drop-in for ``SubprocVecEnv``; defined in
+  :mod:`rogue_gym.hosted.sb3_vec_env`).
+
+Import them explicitly (``from rogue_gym.sb3 import RogueVecEnv``): ``import rogue_gym`` does
+not import SB3 or torch.
 """
 
 from __future__ import annotations
@@ -17,9 +21,10 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 from ._config import ConfigLike
 from ._core import ActionHistory, PoolCore, PoolFacade, screen_to_rgb
 from .envs.rogue_env import ACTIONS
+from .hosted.sb3_vec_env import PoolVecEnv
 from .settings import PoolSettings
 
-__all__ = ["RogueVecEnv"]
+__all__ = ["PoolVecEnv", "RogueVecEnv"]
 
 
 class RogueVecEnv(VecEnv, PoolFacade):

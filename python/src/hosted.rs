@@ -195,6 +195,20 @@ impl Env for HostedEnv {
         })
     }
 
+    fn call(&mut self, request: &[u8]) -> Result<Vec<u8>, EnvError> {
+        Python::attach(|py| {
+            let b = self
+                .adapter
+                .bind(py)
+                .call_method1(intern!(py, "call"), (PyBytes::new(py, request),))
+                .map_err(|e| env_error(py, &self.encoded, e))?;
+            let bytes = b
+                .cast::<PyBytes>()
+                .map_err(|_| EnvError::new("the adapter's call returned non-bytes"))?;
+            Ok(bytes.as_bytes().to_vec())
+        })
+    }
+
     fn observe(&self, obs: &mut [u8]) -> Result<(), EnvError> {
         Python::attach(|py| {
             let b = self

@@ -510,6 +510,21 @@ impl PyPool {
         Ok(list)
     }
 
+    /// Call into envs off the hot path: `requests` are `(env id, request bytes)`; returns
+    /// `(env id, reply bytes)` in the same order (GIL released while the workers answer).
+    fn call_envs<'py>(
+        &self,
+        py: Python<'py>,
+        requests: Vec<(usize, Vec<u8>)>,
+    ) -> PyResult<Bound<'py, PyList>> {
+        let replies = self.with_pool(py, move |p, _| p.call_envs(&requests))?;
+        let list = PyList::empty(py);
+        for (env, bytes) in replies {
+            list.append((env, PyBytes::new(py, &bytes)))?;
+        }
+        Ok(list)
+    }
+
     /// The envs worker `k` hosts, as `(start, end)` (contiguous blocks differing by at most one
     /// env, the larger first).
     fn worker_envs(&self, k: usize) -> PyResult<(usize, usize)> {

@@ -43,6 +43,15 @@ class NestedEnv(gym.Env):
         self.t = 0
         self.length = 0
         self.last: Any = None
+        self.options: Optional[dict] = None
+
+    def render(self) -> np.ndarray:
+        return np.full((2, 2, 3), self.t, np.uint8)
+
+    def scaled_t(self, factor: int, *, offset: int = 0) -> int:
+        if factor < 0:
+            raise SpecialError("negative factor")
+        return self.t * factor + offset
 
     def _obs(self) -> dict[str, Any]:
         move = np.zeros(2) if self.last is None else np.asarray(self.last["move"], np.float64)
@@ -58,6 +67,7 @@ class NestedEnv(gym.Env):
 
     def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> Any:
         super().reset(seed=seed)
+        self.options = options
         self.t = 0
         self.last = None
         self.length = int(self.np_random.integers(3, 8))

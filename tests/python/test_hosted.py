@@ -158,6 +158,25 @@ def test_seeding_follows_gymnasium(pool) -> None:
     assert np.array_equal(o["grid"], a["grid"][1])
 
 
+def test_call_get_attr_set_attr_render_and_reset_options(pool) -> None:
+    env = pool([NestedEnv] * 3, num_workers=2)
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    assert env.call("scaled_t", 10, offset=1) == (11, 11, 11)
+    assert env.get_attr("t") == (1, 1, 1)
+    env.set_attr("t", [5, 6, 7])
+    assert env.get_attr("t") == (5, 6, 7)
+    env.set_attr("t", 2)
+    frames = env.render()
+    assert len(frames) == 3 and all((f == 2).all() and f.shape == (2, 2, 3) for f in frames)
+    with pytest.raises(SpecialError, match="negative factor"):
+        env.call("scaled_t", -1)
+    env.reset(options={"level": 3})
+    assert env.get_attr("options") == ({"level": 3},) * 3
+    env.reset()
+    assert env.get_attr("options") == (None,) * 3, "options apply to one reset"
+
+
 def test_env_exceptions_reach_the_caller_and_reset_recovers(pool) -> None:
     env = pool([functools.partial(RaisingEnv, fail_after=1)] * 4, num_workers=2)
     env.reset(seed=0)

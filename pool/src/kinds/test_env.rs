@@ -139,6 +139,17 @@ impl Env for TestEnv {
         self.write_obs(obs)
     }
 
+    /// Calls: `b"t"` answers the episode's step count (u32, little endian).
+    fn call(&mut self, request: &[u8]) -> Result<Vec<u8>, EnvError> {
+        match request {
+            b"t" => Ok(self.t.to_le_bytes().to_vec()),
+            other => Err(EnvError::new(format!(
+                "test env: unknown call {:?}",
+                String::from_utf8_lossy(other)
+            ))),
+        }
+    }
+
     fn info(&self, out: &mut [f64]) {
         if let [t, m, ..] = out {
             *t = f64::from(self.t);

@@ -1,10 +1,12 @@
 //! The supervisor ([`Pool`]): its state and life cycle (start, seeds, waiting, close).
 //!
 //! The rest of its job is split by concern: [`stepping`] (sync reset/step, into the caller's
-//! buffer or the shared batch slots), [`async_api`] (EnvPool-style `send`/`recv`) and
-//! [`workers`] (spawning, commanding and watching the worker processes).
+//! buffer or the shared batch slots), [`async_api`] (EnvPool-style `send`/`recv`), [`calls`]
+//! (env calls off the hot path) and [`workers`] (spawning, commanding and watching the worker
+//! processes).
 
 mod async_api;
+mod calls;
 mod stepping;
 mod workers;
 

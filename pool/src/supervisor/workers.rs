@@ -17,7 +17,7 @@ use crate::batch::Block;
 use crate::config::{AutoresetMode, FailurePolicy};
 use crate::error::{FailureCause, PoolError, WorkerFailure, signal_name};
 use crate::wire::{
-    BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE,
+    BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE,
     RELOAD_SEEDS, TARGET_SHIFT, env_fault_path,
 };
 
@@ -242,6 +242,9 @@ impl Core {
                         }
                         self.slots[k].state = SlotState::Ready(sample);
                         self.ready_order.push_back(k);
+                    }
+                    (SlotState::Pending { .. }, BLOCK_CALL) if h.seq == s.seq => {
+                        s.state = SlotState::Idle;
                     }
                     (SlotState::Pending { .. }, BLOCK_ERROR) if h.seq == s.seq => {
                         drop(sample);

@@ -1,7 +1,8 @@
 //! The wire protocol between the supervisor and its workers, imported by both sides: command
-//! and block kinds, the shared batch buffer, the worker's config file ([`WorkerConfig`]) and the
-//! layout of a block ([`layout`]).
+//! and block kinds, the shared batch buffer, the worker's config file ([`WorkerConfig`]), the
+//! layout of a block ([`layout`]) and the files of env calls ([`calls`]).
 
+pub mod calls;
 pub mod layout;
 
 use std::path::PathBuf;
@@ -22,6 +23,9 @@ pub(crate) const KEEP_EPISODE: u64 = u64::MAX;
 pub(crate) const CMD_STEP: u32 = 2;
 /// Command: exit cleanly.
 pub(crate) const CMD_CLOSE: u32 = 3;
+/// Command: call into envs (off the hot path); the requests are in the worker's call file
+/// ([`calls::request_path`]), the replies go to [`calls::reply_path`]. No payload.
+pub(crate) const CMD_CALL: u32 = 4;
 /// Command kinds carry the observation target in bits 8..: 0 = the block's own obs area,
 /// `s + 1` = slot `s` of the shared batch buffer.
 pub(crate) const TARGET_SHIFT: u32 = 8;
@@ -52,6 +56,8 @@ pub(crate) const BLOCK_DATA: u32 = 2;
 /// Block: an env failed on the command (no data); the report is in the worker's fault file
 /// ([`env_fault_path`]).
 pub(crate) const BLOCK_ERROR: u32 = 3;
+/// Block: the replies of a [`CMD_CALL`] are written (no data).
+pub(crate) const BLOCK_CALL: u32 = 4;
 
 /// An env's failure on a command, as the worker reports it: which env, during what, and the
 /// env's own message (for hosted Python envs, the encoded exception).

@@ -23,7 +23,31 @@ import numpy as np
 
 from .layout import SpaceLayout
 
-__all__ = ["EncodedEnvError", "HostedEnv", "decode_exception", "encode_exception"]
+__all__ = [
+    "CALL_OPS",
+    "NO_SEED",
+    "EncodedEnvError",
+    "HostedEnv",
+    "decode_exception",
+    "encode_exception",
+]
+
+#: The seed the front end schedules to mean "reset without a seed" (no reseeding at all, as
+#: gymnasium's vector envs do on a first ``reset()`` without one).
+NO_SEED = 2**64 - 1
+
+#: The operations of :meth:`HostedEnv.call`.
+CALL_OPS = (
+    "call",
+    "env_method",
+    "get_attr",
+    "has_attr",
+    "set_wrapper_attr",
+    "setattr",
+    "is_wrapped",
+    "render",
+    "set_reset_options",
+)
 
 #: The key of an encoded exception in an env error message.
 _KEY = "rogue_gym_exception"
@@ -111,6 +135,8 @@ class HostedEnv:
             else _DiscreteActions(discrete_start, int(action_space.n))
         )
         self._fresh = True
+        #: Options for the next reset only (set by a call, as SB3's set_options does).
+        self._options: Optional[dict[str, Any]] = None
         self._last = b""
         self._infos: list[tuple[str, dict[str, Any]]] = []
 
@@ -141,12 +167,16 @@ class HostedEnv:
 
     def reset(self, seed: int, episode: int) -> tuple[bytes, bool]:
         """Start an episode: seeded with ``seed`` if it is the schedule's first (episode 0) or
-        this env was just built; otherwise the env continues its own generator (gymnasium's
-        convention). Returns the observation's bytes and whether there is info to take."""
+        this env was just built, unless it is :data:`NO_SEED`; otherwise the env continues its
+        own generator (gymnasium's convention). Returns the observation's bytes and whether there is info to take."""
         try:
-            use_seed = seed if (episode == 0 or self._fresh) else None
+            use_seed = seed if (episode == 0 or self._fresh) and seed != NO_SEED else None
             self._fresh = False
-            obs, info = self.env.reset(seed=use_seed)
+            options, self._options = self._options, None
+            if options:
+                obs, info = self.env.reset(seed=use_seed, options=options)
+            else:
+                obs, info = self.env.reset(seed=use_seed)
             self._last = self._encode_obs(obs)
             if info:
                 self._infos.append(("reset", info))
@@ -172,6 +202,59 @@ class HostedEnv:
         data = pickle.dumps(self._infos, protocol=pickle.HIGHEST_PROTOCOL)
         self._infos = []
         return data
+
+    def call(self, request: bytes) -> bytes:
+        """Answer a call from the caller (off the hot path): ``request`` is a pickled
+        ``(op, name, args, kwargs)``; the reply a cloudpickled ``("ok", value)`` or ``("err",
+        encoded exception)``. ``op`` is one of :data:`CALL_OPS`."""
+        try:
+            op, name, args, kwargs = pickle.loads(request)
+            value = getattr(self, f"_op_{op}")(name, *args, **kwargs)
+            return bytes(cloudpickle.dumps(("ok", value)))
+        except BaseException as exc:
+            return bytes(cloudpickle.dumps(("err", encode_exception(exc))))
+
+    # The call operations (see CALL_OPS): gymnasium's and SB3's worker commands.
+    def _op_call(self, name: str, *args: Any, **kwargs: Any) -> Any:
+        if name in ("reset", "step", "close", "set_wrapper_attr"):
+            raise ValueError(f"call({name!r}) is not allowed; use the vector env's own {name}()")
+        attr = self.env.get_wrapper_attr(name)
+        return attr(*args, **kwargs) if callable(attr) else attr
+
+    def _op_env_method(self, name: str, *args: Any, **kwargs: Any) -> Any:
+        return self.env.get_wrapper_attr(name)(*args, **kwargs)
+
+    def _op_get_attr(self, name: str) -> Any:
+        return self.env.get_wrapper_attr(name)
+
+    def _op_has_attr(self, name: str) -> bool:
+        try:
+            self.env.get_wrapper_attr(name)
+        except AttributeError:
+            return False
+        return True
+
+    def _op_set_wrapper_attr(self, name: str, value: Any) -> None:
+        self.env.set_wrapper_attr(name, value)
+
+    def _op_setattr(self, name: str, value: Any) -> None:
+        setattr(self.env, name, value)
+
+    def _op_is_wrapped(self, name: str, wrapper_class: type) -> bool:
+        env = self.env
+        while True:
+            if isinstance(env, wrapper_class):
+                return True
+            inner = getattr(env, "env", None)
+            if inner is None or inner is env:
+                return False
+            env = inner
+
+    def _op_render(self, name: str) -> Any:
+        return self.env.render()
+
+    def _op_set_reset_options(self, name: str, options: Optional[dict[str, Any]]) -> None:
+        self._options = options
 
     def observe(self) -> bytes:
         """The current observation's bytes again (for partial resets)."""

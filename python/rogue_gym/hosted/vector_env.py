@@ -29,7 +29,7 @@ from .. import _native
 from .._records import FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED, RECORD_DTYPE
 from ..errors import EnvFailedError
 from ..settings import FAILURE_POLICIES, PoolSettings
-from .adapter import decode_exception
+from .adapter import NO_SEED, decode_exception
 from .layout import SpaceLayout
 
 __all__ = ["PoolVectorEnv"]
@@ -202,9 +202,10 @@ class PoolVectorEnv(VectorEnv):
 
     def _seeds(self, seed: Union[int, Sequence[Optional[int]], None]) -> dict[str, Any]:
         """The pool's seed schedule for ``reset(seed=...)``: env ``i``'s first episode gets
-        ``seed + i`` (or ``seed[i]``); later episodes are not reseeded."""
+        ``seed + i`` (or ``seed[i]``), or no seed at all for ``None``; later episodes are not
+        reseeded."""
         if seed is None:
-            seed = int.from_bytes(os.urandom(8), "little") >> 2
+            return {"base": 0, "set": {"list": [NO_SEED]}, "policy": "sequential"}
         if isinstance(seed, (int, np.integer)):
             start = int(seed)
             if start < 0 or start + self.num_envs > 2**63:
@@ -238,14 +239,13 @@ class PoolVectorEnv(VectorEnv):
     ) -> tuple[Any, dict[str, Any]]:
         """Reset every env (or those of ``options["reset_mask"]``). ``seed``: an int seeds env
         ``i`` with ``seed + i``, a list seeds each env; ``None`` keeps each env's generator
-        (the first reset without a seed seeds from entropy)."""
+        (and a first reset without a seed reseeds nothing, as gymnasium's vector envs).
+        Other ``options`` go to every env's next reset."""
         self._check_open()
         options = dict(options or {})
         mask = options.pop("reset_mask", None)
-        if options:
-            raise ValueError(
-                f"reset options {sorted(options)} are not carried to hosted envs; only reset_mask is"
-            )
+        if options:  # for each env's next reset, as AsyncVectorEnv passes them
+            self.call_envs("set_reset_options", "", [((options,), {})] * self.num_envs)
         recs = self._recs
         if mask is not None:
             mask = np.asarray(mask)
@@ -299,6 +299,69 @@ class PoolVectorEnv(VectorEnv):
     def close_extras(self, **kwargs: Any) -> None:
         """Stop the workers and remove the pool's shared-memory files (idempotent)."""
         self._finalizer()
+
+    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
+        """``getattr(env, name)(*args, **kwargs)`` in every env (or the attribute itself if it
+        is not callable), through the wrappers; one result per env."""
+        return tuple(self.call_envs("call", name, [(args, kwargs)] * self.num_envs))
+
+    def get_attr(self, name: str) -> tuple[Any, ...]:
+        """The attribute ``name`` of every env (called if callable, as ``AsyncVectorEnv``)."""
+        return self.call(name)
+
+    def set_attr(self, name: str, values: Any) -> None:
+        """Set ``name`` in every env: ``values`` is one value per env (list or tuple) or one
+        value for all."""
+        if not isinstance(values, (list, tuple)):
+            values = [values] * self.num_envs
+        if len(values) != self.num_envs:
+            raise ValueError(
+                f"set_attr needs one value per env ({self.num_envs}), got {len(values)}"
+            )
+        self.call_envs("set_wrapper_attr", name, [((v,), {}) for v in values])
+
+    def render(self) -> tuple[Any, ...]:
+        """Every env's ``render()``."""
+        return tuple(self.call_envs("render", "", [((), {})] * self.num_envs))
+
+    def call_envs(
+        self,
+        op: str,
+        name: str,
+        arguments: Sequence[tuple[tuple[Any, ...], dict[str, Any]]],
+        indices: Optional[Sequence[int]] = None,
+    ) -> list[Any]:
+        """Run call operation ``op`` (see :data:`rogue_gym.hosted.adapter.CALL_OPS`) on the
+        envs ``indices`` (default all), with ``arguments[j]`` = ``(args, kwargs)`` for the
+        ``j``-th of them; returns their results in that order. An env's exception is re-raised
+        here."""
+        self._check_open()
+        envs = list(range(self.num_envs)) if indices is None else [int(i) for i in indices]
+        if len(arguments) != len(envs):
+            raise ValueError(f"{len(arguments)} argument sets for {len(envs)} envs")
+        requests = [
+            (env, pickle.dumps((op, name, args, kwargs), protocol=pickle.HIGHEST_PROTOCOL))
+            for env, (args, kwargs) in zip(envs, arguments)
+        ]
+        try:
+            replies = self._pool.call_envs(requests)
+        except EnvFailedError as err:
+            _reraise(err)
+        results = []
+        for env, data in replies:
+            status, value = pickle.loads(data)
+            if status == "err":
+                decoded = decode_exception(value)
+                if decoded is None:
+                    raise RuntimeError(f"env {env}: {value}")
+                exc, tb = decoded
+                if hasattr(exc, "add_note"):
+                    exc.add_note(
+                        f"raised by env {env} during {op}({name!r}); worker-side traceback:\n{tb}"
+                    )
+                raise exc
+            results.append(value)
+        return results
 
     @property
     def worker_pids(self) -> list[int]:

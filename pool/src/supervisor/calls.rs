@@ -1,0 +1,91 @@
+//! Env calls: requests to chosen envs answered by their workers off the hot path (attribute
+//! reads and writes, method calls, renders), through files in the pool's directory.
+
+use super::Pool;
+use super::workers::SlotState;
+use crate::error::PoolError;
+use crate::wire::{CMD_CALL, calls};
+
+impl Pool {
+    /// Send `requests` (`(env id, request bytes)`) to their envs ([`crate::Env::call`]) and
+    /// return the replies, `(env id, reply bytes)` in the same order. Needs no outstanding
+    /// async request; works before the first reset. An env's error is
+    /// [`PoolError::EnvFailed`]; a worker that fails meanwhile is handled per policy and the
+    /// call fails (a reset is then needed).
+    pub fn call_envs(
+        &mut self,
+        requests: &[(usize, Vec<u8>)],
+    ) -> Result<Vec<(usize, Vec<u8>)>, PoolError> {
+        self.check_usable()?;
+        self.all_idle()?;
+        let c = &mut self.core;
+        let mut per_worker: Vec<Vec<(u32, &[u8])>> = vec![Vec::new(); c.blocks.len()];
+        for (env, request) in requests {
+            let k = c
+                .blocks
+                .iter()
+                .position(|b| b.contains(env))
+                .ok_or_else(|| {
+                    PoolError::Config(format!(
+                        "env {env} does not exist (the pool has {} envs)",
+                        c.cfg.num_envs
+                    ))
+                })?;
+            per_worker[k].push(((env - c.blocks[k].start) as u32, request.as_slice()));
+        }
+        let mut asked = Vec::new();
+        for (k, entries) in per_worker.iter().enumerate() {
+            if entries.is_empty() {
+                continue;
+            }
+            let s = &mut c.slots[k];
+            calls::write(
+                &calls::request_path(&c.id, k, s.generation),
+                &calls::encode(entries),
+            )
+            .map_err(PoolError::Io)?;
+            s.seq += 1;
+            s.ports.send_cmd(s.seq, CMD_CALL, 0, |_| {})?;
+            s.state = SlotState::Pending {
+                since: std::time::Instant::now(),
+            };
+            asked.push((k, s.generation));
+        }
+        self.wait_until(|c| {
+            asked.iter().all(|&(k, _)| {
+                !matches!(
+                    c.slots[k].state,
+                    SlotState::Pending { .. } | SlotState::Starting { .. }
+                )
+            })
+        })?;
+        let c = &mut self.core;
+        let mut replies = Vec::with_capacity(requests.len());
+        for &(k, generation) in &asked {
+            if c.slots[k].generation != generation || !matches!(c.slots[k].state, SlotState::Idle) {
+                // Restarted meanwhile: its envs were rebuilt and reset; that reset's block is
+                // dropped, so the caller must reset.
+                c.slots[k].state = SlotState::Idle;
+                c.ready_order.retain(|&w| w != k);
+                c.must_reset = true;
+                return Err(PoolError::State(format!(
+                    "worker {k} failed during a call and was restarted; call reset() and retry"
+                )));
+            }
+            let start = c.blocks[k].start;
+            let got =
+                calls::take(&calls::reply_path(&c.id, k, generation)).map_err(PoolError::Io)?;
+            replies.extend(got.into_iter().map(|(row, b)| (start + row as usize, b)));
+        }
+        // Back in request order.
+        let mut ordered = Vec::with_capacity(requests.len());
+        for (env, _) in requests {
+            let i = replies
+                .iter()
+                .position(|(e, _)| e == env)
+                .ok_or_else(|| PoolError::State(format!("no reply from env {env} to its call")))?;
+            ordered.push(replies.swap_remove(i));
+        }
+        Ok(ordered)
+    }
+}
