@@ -13,7 +13,7 @@ from typing import Any, Mapping, Optional
 
 import numpy as np
 
-from . import _native
+from . import _native, _sigterm
 from ._config import resolve_config, to_json
 from ._records import (
     FLAG_FINAL_OBS,
@@ -147,6 +147,7 @@ class PoolCore:
             self.base_seed = int(seed)
             self._settings["seeds"]["base"] = self.base_seed
         self._stop()
+        _sigterm.install()
         pool = _native.Pool(json.dumps(self._settings), self._cmd)
         self._pool = pool
         self._finalizer = weakref.finalize(self, _native.Pool.close, pool)

@@ -38,6 +38,12 @@ pub(crate) struct PyPoolSettings {
     max_borrowed: Option<usize>,
     #[serde(default)]
     base_dir: Option<String>,
+    /// The supervisor's yield-poll budget before it blocks, µs.
+    #[serde(default)]
+    poll_us: Option<u64>,
+    /// The workers' yield-poll budget before they block, µs.
+    #[serde(default)]
+    worker_poll_us: Option<u64>,
 }
 
 fn duration(what: &str, secs: f64) -> PyResult<Duration> {
@@ -83,6 +89,12 @@ pub(crate) fn pool_config(
     }
     if let Some(d) = s.base_dir {
         cfg.base_dir = d.into();
+    }
+    if let Some(us) = s.poll_us {
+        cfg.wait.poll_budget = Duration::from_micros(us);
+    }
+    if let Some(us) = s.worker_poll_us {
+        cfg.worker_wait.poll_budget = Duration::from_micros(us);
     }
     Ok(cfg)
 }

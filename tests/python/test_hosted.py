@@ -7,7 +7,10 @@ from __future__ import annotations
 import functools
 import gc
 import os
+import select
 import signal
+import subprocess
+import sys
 from collections.abc import Iterator
 from typing import Any, Callable
 
@@ -307,4 +310,34 @@ def test_garbage_collection_closes_the_pool() -> None:
     del env
     gc.collect()
     assert wait_until(lambda: not any(pid_alive(p) for p in pids))
+    assert pool_files(name) == []
+
+
+SIGTERM_SCRIPT = """
+import gymnasium as gym, numpy as np, rogue_gym
+envs = rogue_gym.PoolVectorEnv([lambda: gym.make("CartPole-v1")] * 4, num_workers=2)
+envs.reset(seed=0)
+print(envs.pool_name, *envs.worker_pids, flush=True)
+while True:
+    envs.step(np.zeros(4, np.int64))
+"""
+
+
+def test_sigterm_stops_the_workers_and_removes_every_file() -> None:
+    proc = subprocess.Popen(
+        [sys.executable, "-c", SIGTERM_SCRIPT], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        ready, _, _ = select.select([proc.stdout], [], [], 120)
+        assert ready, "the child did not start its pool within 120 s"
+        assert proc.stdout is not None
+        name, *pids = proc.stdout.readline().split()
+        assert pool_files(name)
+        os.kill(proc.pid, signal.SIGTERM)
+        assert proc.wait(timeout=60) == 128 + signal.SIGTERM
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert wait_until(lambda: not any(pid_alive(int(p)) for p in pids))
     assert pool_files(name) == []

@@ -1,0 +1,347 @@
+#!/usr/bin/env python3
+"""Throughput of vector envs hosting Python gymnasium envs, side by side.
+
+Envs:
+
+============  ==============================================================================
+``cartpole``  ``gymnasium.make("CartPole-v1")`` (a fast pure-Python env)
+``rogue-py``  Rogue-Gym's single ``RogueEnv`` (paper config, ``symbol_index``) as a Python env
+``slow``      an env that waits 1 ms per step (an env bound by I/O or a simulator)
+============  ==============================================================================
+
+Backends: ``pool`` (``rogue_gym.PoolVectorEnv``), ``gym-sync`` (``SyncVectorEnv``, one
+process), ``gym-async-shm`` (``AsyncVectorEnv(shared_memory=True)``), ``sb3-subproc``
+(``SubprocVecEnv``, forkserver), ``puffer-mp`` (PufferLib 3 ``Multiprocessing``, synchronous,
+batch = all envs; needs ``--puffer-path`` to a ``pip install --no-deps --target DIR
+pufferlib-core psutil rich``), and for ``rogue-py`` also ``native-pool`` (the pool's own
+Rust game, ``rogue_gym.make_vec``).
+
+Protocol: every cell (env x backend x num_envs x workers x repetition) runs in a fresh child
+process; start-up is excluded; after a warm-up, ``step`` is called with pre-generated random
+actions for a fixed wall-clock window. The order of cells is shuffled per repetition and the
+median over repetitions is reported. ``OMP_NUM_THREADS=1``.
+
+Usage::
+
+    python benchmarks/hosted_throughput.py                      # the headline set (~10 min)
+    python benchmarks/hosted_throughput.py --num-envs 8 64 256  # a sweep
+    python benchmarks/hosted_throughput.py --puffer-path /tmp/puffer
+
+Writes ``hosted_throughput.md`` and ``hosted_throughput.json`` under ``--out`` (default
+``benchmarks/results``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import platform
+import random
+import signal
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+ENVS = ["cartpole", "rogue-py", "slow"]
+BACKENDS = ["pool", "gym-sync", "gym-async-shm", "sb3-subproc", "puffer-mp", "native-pool"]
+SLOW_STEP_S = 0.001
+
+
+def _slow_env() -> Any:
+    import gymnasium as gym
+    import numpy as np
+    from gymnasium import spaces
+
+    class SlowEnv(gym.Env):
+        """Waits ``SLOW_STEP_S`` per step (the CPU is free meanwhile)."""
+
+        observation_space = spaces.Box(-1.0, 1.0, (8,), np.float32)
+        action_space = spaces.Discrete(4)
+
+        def reset(self, *, seed: Any = None, options: Any = None) -> Any:
+            super().reset(seed=seed)
+            self.t = 0
+            return np.zeros(8, np.float32), {}
+
+        def step(self, action: Any) -> Any:
+            time.sleep(SLOW_STEP_S)
+            self.t += 1
+            return np.full(8, self.t / 1000, np.float32), 0.0, False, self.t >= 200, {}
+
+    return SlowEnv()
+
+
+def env_fn(env: str) -> Callable[[], Any]:
+    if env == "cartpole":
+        import gymnasium as gym
+
+        return lambda: gym.make("CartPole-v1")
+    if env == "rogue-py":
+        from rogue_gym.envs import RogueEnv
+        from rogue_gym.suites import PAPER_CONFIG
+
+        config = dict(PAPER_CONFIG)
+        return lambda: RogueEnv(config_dict=config, max_steps=500, obs="symbol_index")
+    if env == "slow":
+        return _slow_env
+    raise ValueError(f"unknown env {env}")
+
+
+def num_actions(env: str) -> int:
+    return {"cartpole": 2, "rogue-py": 11, "slow": 4}[env]
+
+
+def build(backend: str, env: str, n: int, workers: int) -> tuple[Any, Callable[[Any], Any]]:
+    """The vector env and its step function."""
+    fn = env_fn(env)
+    if backend == "pool":
+        import rogue_gym
+
+        v: Any = rogue_gym.PoolVectorEnv([fn] * n, num_workers=workers)
+        v.reset(seed=0)
+        return v, v.step
+    if backend == "native-pool":
+        import rogue_gym
+
+        v = rogue_gym.make_vec(n, config="paper", num_workers=workers, obs="symbol_index", seed=0)
+        v.reset(seed=0)
+        return v, v.step
+    if backend in ("gym-sync", "gym-async-shm"):
+        import gymnasium as gym
+
+        if backend == "gym-sync":
+            v = gym.vector.SyncVectorEnv([fn] * n)
+        else:
+            v = gym.vector.AsyncVectorEnv([fn] * n, shared_memory=True)
+        v.reset(seed=0)
+        return v, v.step
+    if backend == "sb3-subproc":
+        import multiprocessing as mp
+
+        from stable_baselines3.common.vec_env import SubprocVecEnv
+
+        # Import the heavy modules once in the forkserver, not in each of the n processes
+        # (start-up only, excluded from the timed window either way).
+        mp.set_forkserver_preload(["stable_baselines3.common.vec_env.subproc_vec_env", "gymnasium"])
+        v = SubprocVecEnv([fn] * n, start_method="forkserver")
+        v.seed(0)
+        v.reset()
+        return v, v.step
+    if backend == "puffer-mp":
+        import pufferlib.emulation as emulation
+        import pufferlib.vector as pvector
+
+        def creator(*args: Any, **kwargs: Any) -> Any:
+            return emulation.GymnasiumPufferEnv(env_creator=fn)
+
+        v = pvector.make(
+            creator, backend=pvector.Multiprocessing, num_envs=n, num_workers=workers, batch_size=n
+        )
+        v.reset(seed=0)
+        return v, v.step
+    raise ValueError(f"unknown backend {backend}")
+
+
+def run_cell(cell: dict[str, Any]) -> dict[str, Any]:
+    import numpy as np
+
+    n, env = int(cell["num_envs"]), cell["env"]
+    v, step = build(cell["backend"], env, n, int(cell["workers"]))
+    rng = np.random.default_rng(12345)
+    acts = [rng.integers(0, num_actions(env), size=n) for _ in range(64)]
+    try:
+        for i in range(int(cell["warmup"])):
+            step(acts[i % 64])
+        i, start = 0, time.perf_counter()
+        deadline = start + float(cell["seconds"])
+        while time.perf_counter() < deadline or i < 3:
+            step(acts[i % 64])
+            i += 1
+        wall = time.perf_counter() - start
+    finally:
+        v.close()
+    return {**cell, "steps_per_s": i * n / wall, "batches": i}
+
+
+def cells(args: argparse.Namespace) -> list[dict[str, Any]]:
+    out = []
+    base = {"seconds": args.seconds, "warmup": args.warmup}
+    for env in args.envs:
+        for n in args.num_envs:
+            for backend in args.backends:
+                if backend == "native-pool" and env != "rogue-py":
+                    continue
+                if backend == "puffer-mp" and not args.puffer_path:
+                    continue
+                single = backend == "gym-sync"
+                for workers in [1] if single else args.workers:
+                    if workers > n or (backend == "puffer-mp" and n % workers):
+                        continue
+                    out.append(
+                        {**base, "env": env, "backend": backend, "num_envs": n, "workers": workers}
+                    )
+        if env == "slow" and "pool" in args.backends:
+            for workers in (2, 8):
+                for n in args.num_envs:
+                    extra = {
+                        **base,
+                        "env": env,
+                        "backend": "pool",
+                        "num_envs": n,
+                        "workers": workers,
+                    }
+                    if extra not in out and workers <= n:
+                        out.append(extra)
+    return out
+
+
+def run_isolated(cmd: list[str], timeout: float, env: dict[str, str]) -> tuple[Any, str, str]:
+    """Run a cell in its own session; on timeout kill the whole session (workers, forkservers
+    and all), so nothing it started loads the next cells. Returns (exit code or None, stdout,
+    stderr)."""
+    proc = subprocess.Popen(
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        start_new_session=True,
+    )
+    try:
+        out, err = proc.communicate(timeout=timeout)
+        code: Any = proc.returncode
+    except subprocess.TimeoutExpired:
+        code = None
+        out, err = "", ""
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    return code, out, err
+
+
+def key(c: dict[str, Any]) -> tuple[str, str, int, int]:
+    return (c["env"], c["backend"], int(c["num_envs"]), int(c["workers"]))
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--envs", nargs="+", default=ENVS, choices=ENVS)
+    p.add_argument("--backends", nargs="+", default=BACKENDS, choices=BACKENDS)
+    p.add_argument("--num-envs", nargs="+", type=int, default=[64])
+    p.add_argument("--workers", nargs="+", type=int, default=[2])
+    p.add_argument("--reps", type=int, default=3)
+    p.add_argument("--seconds", type=float, default=3.0)
+    p.add_argument("--warmup", type=int, default=20)
+    p.add_argument(
+        "--timeout", type=float, default=180.0, help="seconds per cell, start-up included"
+    )
+    p.add_argument("--puffer-path", default="", help="a --target dir holding pufferlib-core")
+    p.add_argument("--out", default=str(Path(__file__).parent / "results"))
+    p.add_argument("--cell", help=argparse.SUPPRESS)
+    args = p.parse_args()
+    if args.cell:
+        print(json.dumps(run_cell(json.loads(args.cell))))
+        return
+
+    todo = cells(args)
+    env = dict(os.environ)
+    if args.puffer_path:
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [args.puffer_path, env.get("PYTHONPATH")]))
+    results: dict[tuple[str, str, int, int], list[float]] = {}
+    failed: dict[tuple[str, str, int, int], str] = {}
+    total = len(todo) * args.reps
+    done = 0
+    for rep in range(args.reps):
+        random.Random(rep).shuffle(todo)
+        for cell in todo:
+            done += 1
+            k = key(cell)
+            if k in failed:
+                continue
+            code, stdout, stderr = run_isolated(
+                [sys.executable, __file__, "--cell", json.dumps(cell)], args.timeout, env
+            )
+            if code is None:
+                failed[k] = f"timed out after {args.timeout:.0f} s"
+            elif code != 0:
+                failed[k] = (
+                    stderr.strip().splitlines()[-1] if stderr.strip() else f"exit code {code}"
+                )
+            else:
+                results.setdefault(k, []).append(
+                    json.loads(stdout.strip().splitlines()[-1])["steps_per_s"]
+                )
+            got = results.get(k, [])
+            shown = (
+                f"{got[-1]:>12,.0f} steps/s"
+                if got and k not in failed
+                else f"skipped: {failed.get(k, '')}"
+            )
+            print(
+                f"[{done}/{total}] {k[0]:9s} {k[1]:13s} n={k[2]:<4d} w={k[3]:<2d} {shown}",
+                flush=True,
+            )
+
+    write(args, results, failed)
+
+
+def write(args: argparse.Namespace, results: dict, failed: dict) -> None:
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    med = {k: statistics.median(v) for k, v in results.items()}
+    lines = [
+        "# Hosted gymnasium envs: steps/s by backend",
+        "",
+        f"Machine: {platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}. "
+        f"Median of {args.reps} runs of {args.seconds:.0f} s each, random actions, one fresh process per run.",
+        "",
+        "| env | num_envs | backend | workers | steps/s (median) | min-max | vs gym-sync |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for k in sorted(set(results) | set(failed)):
+        env, backend, n, w = k
+        sync = med.get((env, "gym-sync", n, 1))
+        if k in failed:
+            lines.append(f"| {env} | {n} | {backend} | {w} | skipped: {failed[k]} | | |")
+            continue
+        v = results[k]
+        ratio = f"{med[k] / sync:.2f}x" if sync else ""
+        lines.append(
+            f"| {env} | {n} | {backend} | {w} | {med[k]:,.0f} | {min(v):,.0f}-{max(v):,.0f} | {ratio} |"
+        )
+    lines += ["", "## Against the targets", ""]
+    for n in args.num_envs:
+        pool = med.get(("cartpole", "pool", n, 2))
+        if pool:
+            for other in ("gym-sync", "gym-async-shm", "sb3-subproc", "puffer-mp"):
+                ref = med.get(("cartpole", other, n, 1 if other == "gym-sync" else 2))
+                if ref:
+                    lines.append(
+                        f"- CartPole, {n} envs, 2 workers: pool / {other} = **{pool / ref:.2f}x**"
+                    )
+        two, eight = med.get(("slow", "pool", n, 2)), med.get(("slow", "pool", n, 8))
+        if two and eight:
+            lines.append(
+                f"- slow env, {n} envs: 8 workers / 2 workers = **{eight / two:.2f}x** "
+                f"({eight / two / 4:.0%} of the ideal 4x)"
+            )
+    (out / "hosted_throughput.md").write_text("\n".join(lines) + "\n")
+    raw = {
+        "args": vars(args),
+        "runs": [{"cell": list(k), "steps_per_s": v} for k, v in results.items()],
+        "failed": [{"cell": list(k), "reason": r} for k, r in failed.items()],
+    }
+    (out / "hosted_throughput.json").write_text(json.dumps(raw, indent=1) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
