@@ -334,6 +334,7 @@ def write(args: argparse.Namespace, results: dict, failed: dict) -> None:
                 f"({eight / two / 4:.0%} of the ideal 4x)"
             )
     (out / "hosted_throughput.md").write_text("\n".join(lines) + "\n")
+    plot(med, out / "hosted_throughput.png")
     raw = {
         "args": vars(args),
         "runs": [{"cell": list(k), "steps_per_s": v} for k, v in results.items()],
@@ -341,6 +342,31 @@ def write(args: argparse.Namespace, results: dict, failed: dict) -> None:
     }
     (out / "hosted_throughput.json").write_text(json.dumps(raw, indent=1) + "\n")
     print("\n".join(lines))
+
+
+def plot(med: dict[tuple[str, str, int, int], float], path: Path) -> None:
+    """Bars of steps/s per backend, one panel per env (log scale); skipped without matplotlib."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("matplotlib is not installed: no plot")
+        return
+    envs = sorted({k[0] for k in med})
+    fig, axes = plt.subplots(1, len(envs), figsize=(5 * len(envs), 4), squeeze=False)
+    for ax, env in zip(axes[0], envs):
+        cells = sorted((k, v) for k, v in med.items() if k[0] == env)
+        labels = [f"{k[1]}\n{k[2]} envs, {k[3]}w" for k, _ in cells]
+        colors = ["tab:red" if k[1] in ("pool", "native-pool") else "tab:gray" for k, _ in cells]
+        ax.barh(labels, [v for _, v in cells], color=colors)
+        ax.set_xscale("log")
+        ax.set_title(env)
+        ax.set_xlabel("env steps/s (median)")
+        ax.tick_params(axis="y", labelsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
 
 
 if __name__ == "__main__":

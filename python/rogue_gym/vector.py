@@ -286,7 +286,7 @@ class RogueVectorEnv(gym.vector.VectorEnv, PoolFacade):
         core = self._core
         blocks = core.native.recv()
         obs_parts, recs_parts, ids = [], [], []
-        for start, raw, rec_bytes in blocks:
+        for start, raw, rec_bytes, _extras in blocks:
             recs = np.frombuffer(rec_bytes, RECORD_DTYPE)
             n = recs.shape[0]
             obs_parts.append(raw.view(core.obs_dtype).reshape((n, *core.obs_shape)))

@@ -468,10 +468,11 @@ impl PyPool {
         self.with_pool(py, move |p, _| p.send(&acts, &env_ids))
     }
 
-    /// Async: wait for the next batch; returns a list of `(env_start, obs_bytes_view, records)`
-    /// per worker block, in arrival order. `obs_bytes_view` is a read-only zero-copy uint8 view
-    /// of the block's observations in shared memory (its base owns the sample); `records` are
-    /// the block's records as bytes.
+    /// Async: wait for the next batch; returns a list of `(env_start, obs_bytes_view, records,
+    /// extras)` per worker block, in arrival order. `obs_bytes_view` is a read-only zero-copy
+    /// uint8 view of the block's observations in shared memory (its base owns the sample);
+    /// `records` are the block's records as bytes; `extras` the `(env id, bytes)` of the envs
+    /// that wrote extra info (see `take_extras`).
     fn recv<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let batch: Batch = self.with_pool(py, |p, _| p.recv())?;
         let list = PyList::empty(py);
@@ -490,6 +491,15 @@ impl PyPool {
                 };
                 recs[j * RECORD_BYTES..(j + 1) * RECORD_BYTES].copy_from_slice(src);
             }
+            let extras = PyList::empty(py);
+            if !block.restarted() {
+                for j in 0..n {
+                    let e = block.extra(j);
+                    if !e.is_empty() {
+                        extras.append((start + j, PyBytes::new(py, e)))?;
+                    }
+                }
+            }
             let (ptr, len) = {
                 let o = block.obs();
                 (o.as_ptr(), o.len())
@@ -505,7 +515,7 @@ impl PyPool {
             let view = unsafe { ArrayView1::from_shape_ptr(len, ptr) };
             let arr = unsafe { PyArray1::<u8>::borrow_from_array(&view, holder.into_any()) };
             drop(arr.try_readwrite()?.make_nonwriteable());
-            list.append((start, arr, PyBytes::new(py, &recs)))?;
+            list.append((start, arr, PyBytes::new(py, &recs), extras))?;
         }
         Ok(list)
     }

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 import rogue_gym
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
+from gymnasium.vector.utils import concatenate, create_empty_array
 from rogue_gym import EnvFailedError, PoolVectorEnv, WorkerCrashedError
 from rogue_gym.hosted import UnsupportedSpaceError
 
@@ -159,6 +160,47 @@ def test_seeding_follows_gymnasium(pool) -> None:
     single = NestedEnv()
     o, _ = single.reset(seed=6)
     assert np.array_equal(o["grid"], a["grid"][1])
+
+
+def test_async_send_recv_plays_the_same_games_as_step(pool) -> None:
+    """EnvPool-style async with half-size batches (one worker block each), dict actions."""
+    n, steps = 4, 12
+    space = NestedEnv.action_space
+
+    def action(env: int, t: int) -> Any:
+        space.seed(1000 * env + t)
+        return space.sample()
+
+    def batch(envs: list[int], ts: list[int]) -> Any:
+        out = create_empty_array(space, len(envs))
+        return concatenate(space, [action(e, t) for e, t in zip(envs, ts)], out)
+
+    sync = pool([NestedEnv] * n, num_workers=2)
+    obs, _ = sync.reset(seed=3)
+    want: list[list[Any]] = [[obs["grid"][i].copy()] for i in range(n)]
+    for t in range(steps):
+        obs, rew, *_ = sync.step(batch(list(range(n)), [t] * n))
+        for i in range(n):
+            want[i] += [obs["grid"][i].copy(), rew[i]]
+
+    env = pool([NestedEnv] * n, num_workers=2, batch_size=2)
+    env.async_reset(seed=3)
+    got: list[list[Any]] = [[] for _ in range(n)]
+    done = [0] * n  # results received per env
+    while min(done) < steps + 1:
+        obs, rew, _, _, infos = env.recv()
+        ids = infos["env_id"].tolist()
+        assert len(ids) == 2, "one worker block per batch"
+        assert "t" in infos or "start" in infos, "the envs' infos come along"
+        for r, e in enumerate(ids):
+            if done[e] < steps + 1:
+                got[e] += [obs["grid"][r].copy()] + ([rew[r]] if done[e] else [])
+            done[e] += 1
+        env.send(batch(ids, [done[e] - 1 for e in ids]))
+    for i in range(n):
+        assert len(got[i]) == len(want[i])
+        for x, y in zip(got[i], want[i]):
+            assert np.array_equal(x, y)
 
 
 def test_call_get_attr_set_attr_render_and_reset_options(pool) -> None:

@@ -81,6 +81,8 @@ class PoolVectorEnv(VectorEnv):
         step_timeout: seconds after which a worker that has not answered is treated as hung.
         max_restarts: worker restarts allowed over the pool's life.
         info_bytes: room per env and step for the env's pickled info dicts.
+        batch_size: envs per async :meth:`recv` (default all; otherwise a multiple of the envs
+            per worker, which needs ``num_workers`` to divide ``num_envs``).
         worker_command: program and leading args of a worker (default:
             ``[sys.executable, "-m", "rogue_gym.worker"]``).
         poll_us, worker_poll_us: how long this process and the workers poll (yielding the
@@ -108,6 +110,7 @@ class PoolVectorEnv(VectorEnv):
         max_restarts: Optional[int] = PoolSettings.max_restarts,
         info_bytes: int = DEFAULT_INFO_BYTES,
         worker_command: Optional[Sequence[str]] = None,
+        batch_size: Optional[int] = None,
         poll_us: Optional[int] = None,
         worker_poll_us: Optional[int] = HOSTED_WORKER_POLL_US,
         shared_memory: bool = True,
@@ -186,6 +189,7 @@ class PoolVectorEnv(VectorEnv):
             "on_worker_failure": on_worker_failure,
             "step_timeout": step_timeout,
             "max_restarts": max_restarts,
+            "batch_size": batch_size,
             "poll_us": poll_us,
             "worker_poll_us": worker_poll_us,
         }
@@ -268,12 +272,12 @@ class PoolVectorEnv(VectorEnv):
                 raise ValueError("reset(seed=...) cannot be combined with a reset_mask")
             if not self._started:
                 raise ValueError("a reset_mask needs a full reset() first")
-            slot = self._call(lambda: self._pool.reset_envs_shared(mask, recs))
+            slot = int(self._call(lambda: self._pool.reset_envs_shared(mask, recs)))
             self._done &= ~mask
         else:
             if seed is not None or not self._started:
                 self._pool.set_seeds(json.dumps(self._seeds(seed)))
-            slot = self._call(lambda: self._pool.reset_shared(recs))
+            slot = int(self._call(lambda: self._pool.reset_shared(recs)))
             self._done[:] = False
             self._started = True
         return self._observations(slot), self._infos(recs)
@@ -296,12 +300,12 @@ class PoolVectorEnv(VectorEnv):
                     f"expected integer actions of shape ({self.num_envs},), got {a.dtype} {a.shape}"
                 )
             acts = a.astype(np.int64) - self._discrete_start
-            slot = self._call(lambda: self._pool.step_shared(acts, recs, self._final))
+            slot = int(self._call(lambda: self._pool.step_shared(acts, recs, self._final)))
         else:
             self._act_layout.write_batch(actions, self._act_rows)
             self._act_layout.check_batch(self._act_rows)
             flat = self._act_rows.reshape(-1)
-            slot = self._call(lambda: self._pool.step_bytes_shared(flat, recs, self._final))
+            slot = int(self._call(lambda: self._pool.step_bytes_shared(flat, recs, self._final)))
         flags = recs["flags"]
         terminated = (flags & FLAG_TERMINATED) != 0
         truncated = (flags & FLAG_TRUNCATED) != 0
@@ -312,6 +316,80 @@ class PoolVectorEnv(VectorEnv):
     def close_extras(self, **kwargs: Any) -> None:
         """Stop the workers and remove the pool's shared-memory files (idempotent)."""
         self._finalizer()
+
+    # -- EnvPool-style async API -------------------------------------------------------------
+
+    def async_reset(self, seed: Union[int, Sequence[Optional[int]], None] = None) -> None:
+        """Start resetting every env (seeded as by :meth:`reset`); collect the first
+        observations with :meth:`recv`. The async API needs ``NEXT_STEP`` autoreset."""
+        self._check_open()
+        if self.autoreset_mode != AutoresetMode.NEXT_STEP:
+            raise ValueError("the async API (async_reset/send/recv) needs autoreset_mode NEXT_STEP")
+        if seed is not None or not self._started:
+            self._pool.set_seeds(json.dumps(self._seeds(seed)))
+        self._pool.async_reset()
+        self._started = True
+        self._async_ids: Optional[np.ndarray] = None
+
+    def send(self, actions: Any, env_id: Optional[Any] = None) -> None:
+        """Send ``actions`` (a batch of the action space, one row per env id) to the envs
+        ``env_id`` (default: those of the last :meth:`recv`); they must form whole worker
+        blocks, as :meth:`recv` returns them."""
+        self._check_open()
+        ids = getattr(self, "_async_ids", None) if env_id is None else np.asarray(env_id, np.int64)
+        if ids is None:
+            raise RuntimeError("send() needs env_id, or a previous recv() whose envs it answers")
+        env_ids = [int(i) for i in ids]
+        if self._discrete_start is not None:
+            a = np.asarray(actions)
+            if a.shape != (len(env_ids),) or a.dtype.kind not in "iu":
+                raise ValueError(
+                    f"expected integer actions of shape ({len(env_ids)},), got {a.dtype} {a.shape}"
+                )
+            acts = a.astype(np.int64) - self._discrete_start
+            self._call(lambda: self._pool.send(acts, env_ids))
+        else:
+            rows = np.zeros((len(env_ids), self._act_layout.nbytes), np.uint8)
+            self._act_layout.write_batch(actions, rows)
+            self._act_layout.check_batch(rows)
+            flat = rows.reshape(-1)
+            self._call(lambda: self._pool.send_bytes(flat, env_ids))
+
+    def recv(self) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """Wait for the next ``batch_size`` envs: ``(obs, rewards, terminations, truncations,
+        infos)`` with ``infos["env_id"]`` naming the envs of the rows. Observations are copies
+        (``copy=True``) or, for a batch of one worker block, read-only views of the worker's
+        shared-memory sample that stay valid for as long as they live."""
+        self._check_open()
+        blocks = self._call(self._pool.recv)
+        stride = self._obs_layout.stride
+        rows = [np.asarray(raw).reshape(-1, stride) for _, raw, _, _ in blocks]
+        recs = np.concatenate([np.frombuffer(r, RECORD_DTYPE) for _, _, r, _ in blocks])
+        env_id = np.concatenate(
+            [np.arange(start, start + len(r)) for (start, *_), r in zip(blocks, rows)]
+        )
+        obs_rows = rows[0] if len(rows) == 1 else np.concatenate(rows)
+        obs = self._obs_layout.batch_views(obs_rows)
+        if self.copy:
+            obs = _copy_tree(obs)
+        self._async_ids = env_id
+        flags = recs["flags"]
+        terminated = (flags & FLAG_TERMINATED) != 0
+        truncated = (flags & FLAG_TRUNCATED) != 0
+        restarted = (flags & FLAG_RESTARTED) != 0
+        infos: dict[str, Any] = {}
+        if restarted.any():
+            infos["worker_restarted"] = restarted.copy()
+            infos["_worker_restarted"] = restarted.copy()
+        row_of = {int(e): r for r, e in enumerate(env_id)}
+        per_row = [
+            (row_of[env], self._env_info(env, _loads(data), False))
+            for *_, extras in blocks
+            for env, data in extras
+        ]
+        infos = _merge_infos(infos, per_row, len(env_id))
+        infos["env_id"] = env_id
+        return obs, recs["reward"].astype(np.float64), terminated, truncated, infos
 
     def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
         """``getattr(env, name)(*args, **kwargs)`` in every env (or the attribute itself if it
@@ -387,10 +465,10 @@ class PoolVectorEnv(VectorEnv):
         if self.closed:
             raise RuntimeError("the vector env is closed")
 
-    def _call(self, fn: Callable[[], int]) -> int:
+    def _call(self, fn: Callable[[], Any]) -> Any:
         """Run a native call; an env's own exception is re-raised as itself."""
         try:
-            return int(fn())
+            return fn()
         except EnvFailedError as err:
             _reraise(err)
 
@@ -412,53 +490,8 @@ class PoolVectorEnv(VectorEnv):
             else set()
         )
         envs = sorted(set(extras) | final)
-        return self._merge_infos(
-            infos, [(e, self._env_info(e, extras.get(e, []), e in final)) for e in envs]
-        )
-
-    def _merge_infos(
-        self, infos: dict[str, Any], per_env: list[tuple[int, dict[str, Any]]]
-    ) -> dict[str, Any]:
-        """gymnasium's ``_add_info`` for every env at once: scalar and array values are
-        gathered per key into one array (same dtypes and masks as ``_add_info`` gives), the
-        rest (nested dicts, ``final_obs``, objects) go through ``_add_info`` env by env."""
-        columns: dict[str, tuple[list[int], list[Any]]] = {}
-        for env, info in per_env:
-            rest = {}
-            for key, value in info.items():
-                if key != "final_obs" and (
-                    type(value) in (int, float, bool)
-                    or isinstance(value, (np.number, np.bool_, np.ndarray))
-                ):
-                    ids, values = columns.setdefault(key, ([], []))
-                    ids.append(env)
-                    values.append(value)
-                else:
-                    rest[key] = value
-            if rest:
-                infos = self._add_info(infos, rest, env)
-        for key, (ids, values) in columns.items():
-            first = values[0]
-            if isinstance(first, np.ndarray):
-                if any(not isinstance(v, np.ndarray) or v.shape != first.shape for v in values):
-                    for env, v in zip(ids, values):
-                        infos = self._add_info(infos, {key: v}, env)
-                    continue
-                array = infos.get(key)
-                if array is None:
-                    array = np.zeros((self.num_envs, *first.shape), first.dtype)
-                array[ids] = np.stack(values)
-            else:
-                array = infos.get(key)
-                if array is None:
-                    array = np.zeros(self.num_envs, dtype=type(first))
-                array[ids] = values
-            mask = infos.get(f"_{key}")
-            if mask is None:
-                mask = np.zeros(self.num_envs, np.bool_)
-            mask[ids] = True
-            infos[key], infos[f"_{key}"] = array, mask
-        return infos
+        per_env = [(e, self._env_info(e, extras.get(e, []), e in final)) for e in envs]
+        return _merge_infos(infos, per_env, self.num_envs)
 
     def _env_info(
         self, env: int, entries: list[tuple[str, dict[str, Any]]], final: bool
@@ -478,6 +511,79 @@ class PoolVectorEnv(VectorEnv):
             info["final_obs"] = _copy_tree(_first(self._obs_layout.batch_views(row)))
             info["final_info"] = final_info
         return info
+
+
+def _merge_infos(
+    infos: dict[str, Any], per_row: list[tuple[int, dict[str, Any]]], n: int
+) -> dict[str, Any]:
+    """gymnasium's vector infos from per-row infos (``(row, info)``, rows of a batch of
+    ``n``): what ``VectorEnv._add_info`` builds env by env, with the scalar and array values of
+    a key gathered in one array (same dtypes and masks), and the rest (nested dicts,
+    ``final_obs``, other objects) added row by row by :func:`_add_row_info`."""
+    columns: dict[str, tuple[list[int], list[Any]]] = {}
+    for env, info in per_row:
+        rest: dict[str, Any] = {}
+        for key, value in info.items():
+            if key != "final_obs" and (
+                type(value) in (int, float, bool)
+                or isinstance(value, (np.number, np.bool_, np.ndarray))
+            ):
+                ids, values = columns.setdefault(key, ([], []))
+                ids.append(env)
+                values.append(value)
+            else:
+                rest[key] = value
+        if rest:
+            infos = _add_row_info(infos, rest, env, n)
+    for key, (ids, values) in columns.items():
+        first = values[0]
+        if isinstance(first, np.ndarray):
+            if any(not isinstance(v, np.ndarray) or v.shape != first.shape for v in values):
+                for env, v in zip(ids, values):
+                    infos = _add_row_info(infos, {key: v}, env, n)
+                continue
+            array = infos.get(key)
+            if array is None:
+                array = np.zeros((n, *first.shape), first.dtype)
+            array[ids] = np.stack(values)
+        else:
+            array = infos.get(key)
+            if array is None:
+                array = np.zeros(n, dtype=type(first))
+            array[ids] = values
+        mask = infos.get(f"_{key}")
+        if mask is None:
+            mask = np.zeros(n, np.bool_)
+        mask[ids] = True
+        infos[key], infos[f"_{key}"] = array, mask
+    return infos
+
+
+def _add_row_info(infos: dict[str, Any], info: dict[str, Any], row: int, n: int) -> dict[str, Any]:
+    """Add one row's info to vector infos of ``n`` rows, as gymnasium's ``_add_info`` does
+    (``final_obs`` and other objects in object arrays, nested dicts recursively, a ``_key``
+    mask per key)."""
+    for key, value in info.items():
+        if isinstance(value, dict) and key != "final_obs":
+            array: Any = _add_row_info(infos.get(key, {}), value, row, n)
+        else:
+            array = infos.get(key)
+            if array is None:
+                if key != "final_obs" and (
+                    type(value) in (int, float, bool) or isinstance(value, np.number)
+                ):
+                    array = np.zeros(n, dtype=type(value))
+                elif key != "final_obs" and isinstance(value, np.ndarray):
+                    array = np.zeros((n, *value.shape), dtype=value.dtype)
+                else:
+                    array = np.full(n, None, dtype=object)
+            array[row] = value
+        mask = infos.get(f"_{key}")
+        if mask is None:
+            mask = np.zeros(n, np.bool_)
+        mask[row] = True
+        infos[key], infos[f"_{key}"] = array, mask
+    return infos
 
 
 def _reraise(err: EnvFailedError) -> NoReturn:
