@@ -246,9 +246,18 @@ def main() -> None:
     p.add_argument("--puffer-path", default="", help="a --target dir holding pufferlib-core")
     p.add_argument("--out", default=str(Path(__file__).parent / "results"))
     p.add_argument("--cell", help=argparse.SUPPRESS)
+    p.add_argument("--from-json", help="rewrite the table and plot from a results JSON")
     args = p.parse_args()
     if args.cell:
         print(json.dumps(run_cell(json.loads(args.cell))))
+        return
+    if args.from_json:
+        raw = json.loads(Path(args.from_json).read_text())
+        for name in ("reps", "seconds", "num_envs"):
+            setattr(args, name, raw["args"][name])
+        results = {tuple(r["cell"]): r["steps_per_s"] for r in raw["runs"]}
+        failed = {tuple(r["cell"]): r["reason"] for r in raw["failed"]}
+        write(args, results, failed)
         return
 
     todo = cells(args)
@@ -303,6 +312,9 @@ def write(args: argparse.Namespace, results: dict, failed: dict) -> None:
         f"Machine: {platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}. "
         f"Median of {args.reps} runs of {args.seconds:.0f} s each, random actions, one fresh process per run.",
         "",
+        "Workers: the pool's and PufferLib's worker processes; SyncVectorEnv steps in the caller,",
+        "AsyncVectorEnv and SubprocVecEnv start one process per env.",
+        "",
         "| env | num_envs | backend | workers | steps/s (median) | min-max | vs gym-sync |",
         "|---|---|---|---|---|---|---|",
     ]
@@ -314,8 +326,10 @@ def write(args: argparse.Namespace, results: dict, failed: dict) -> None:
             continue
         v = results[k]
         ratio = f"{med[k] / sync:.2f}x" if sync else ""
+        procs = {"gym-sync": "in-process", "gym-async-shm": f"{n} (one per env)"}
+        procs["sb3-subproc"] = procs["gym-async-shm"]
         lines.append(
-            f"| {env} | {n} | {backend} | {w} | {med[k]:,.0f} | {min(v):,.0f}-{max(v):,.0f} | {ratio} |"
+            f"| {env} | {n} | {backend} | {procs.get(backend, w)} | {med[k]:,.0f} | {min(v):,.0f}-{max(v):,.0f} | {ratio} |"
         )
     lines += ["", "## Against the targets", ""]
     for n in args.num_envs:
@@ -358,7 +372,11 @@ def plot(med: dict[tuple[str, str, int, int], float], path: Path) -> None:
     fig, axes = plt.subplots(1, len(envs), figsize=(5 * len(envs), 4), squeeze=False)
     for ax, env in zip(axes[0], envs):
         cells = sorted((k, v) for k, v in med.items() if k[0] == env)
-        labels = [f"{k[1]}\n{k[2]} envs, {k[3]}w" for k, _ in cells]
+        labels = [
+            f"{k[1]}\n{k[2]} envs, "
+            + (f"{k[3]} workers" if k[1] in ("pool", "native-pool", "puffer-mp") else "")
+            for k, _ in cells
+        ]
         colors = ["tab:red" if k[1] in ("pool", "native-pool") else "tab:gray" for k, _ in cells]
         ax.barh(labels, [v for _, v in cells], color=colors)
         ax.set_xscale("log")
