@@ -78,13 +78,17 @@ pub(crate) fn make_hosted_env(v: &Value, index: u64) -> Result<Box<dyn Env>, Env
     })
 }
 
+/// The bytes an adapter method returned (`what` names it in the error).
+fn returned_bytes<'a>(b: &'a Bound<'_, PyAny>, what: &str) -> Result<&'a [u8], EnvError> {
+    b.cast::<PyBytes>()
+        .map(|b| b.as_bytes())
+        .map_err(|_| EnvError::new(format!("the adapter's {what} returned non-bytes")))
+}
+
 /// Copy an observation the adapter returned (bytes, at most the observation's room; the rest
 /// is padding and zeroed).
 fn write_obs(b: &Bound<'_, PyAny>, obs: &mut [u8]) -> Result<(), EnvError> {
-    let bytes = b
-        .cast::<PyBytes>()
-        .map_err(|_| EnvError::new("the adapter returned a non-bytes observation"))?
-        .as_bytes();
+    let bytes = returned_bytes(b, "observation")?;
     if bytes.len() > obs.len() {
         return Err(EnvError::new(format!(
             "the observation takes {} bytes; its space has room for {}",
@@ -179,10 +183,7 @@ impl Env for HostedEnv {
                 .bind(py)
                 .call_method0(intern!(py, "take_info"))
                 .map_err(|e| env_error(py, &self.encoded, e))?;
-            let bytes = b
-                .cast::<PyBytes>()
-                .map_err(|_| EnvError::new("the adapter's take_info returned non-bytes"))?
-                .as_bytes();
+            let bytes = returned_bytes(&b, "take_info")?;
             if bytes.len() > out.len() {
                 return Err(EnvError::new(format!(
                     "the env's info takes {} bytes pickled, more than the {} reserved per env and step; pass a larger info_bytes to the vector env",
@@ -202,10 +203,7 @@ impl Env for HostedEnv {
                 .bind(py)
                 .call_method1(intern!(py, "call"), (PyBytes::new(py, request),))
                 .map_err(|e| env_error(py, &self.encoded, e))?;
-            let bytes = b
-                .cast::<PyBytes>()
-                .map_err(|_| EnvError::new("the adapter's call returned non-bytes"))?;
-            Ok(bytes.as_bytes().to_vec())
+            Ok(returned_bytes(&b, "call")?.to_vec())
         })
     }
 

@@ -149,29 +149,47 @@ impl PyPool {
     }
 }
 
-/// Raw action bytes (hosted envs with `action_bytes` per env): a 1-D uint8 array.
-fn action_bytes_vec(actions: &Bound<'_, PyAny>, expected: usize) -> PyResult<Vec<u8>> {
-    let arr: PyReadonlyArray1<'_, u8> = actions
-        .extract()
-        .map_err(|_| PyTypeError::new_err("raw actions must be a 1-D uint8 numpy array"))?;
-    let v = arr.as_array().to_vec();
-    if v.len() != expected {
-        return Err(PyValueError::new_err(format!(
-            "raw actions have {} bytes, expected {expected}",
-            v.len()
-        )));
-    }
-    Ok(v)
+/// Actions as the caller passed them, owned so that the pool can use them without the GIL.
+enum OwnedActions {
+    /// One index per env (int64).
+    Indices(Vec<i64>),
+    /// `action_bytes` raw bytes per env (hosted envs).
+    Bytes(Vec<u8>),
 }
 
-fn actions_vec(actions: &Bound<'_, PyAny>) -> PyResult<Vec<i64>> {
-    let arr: PyReadonlyArray1<'_, i64> = actions.extract().map_err(|_| {
-        PyTypeError::new_err("actions must be a 1-D int64 numpy array (one action per env)")
-    })?;
-    Ok(arr
-        .as_slice()
-        .map(<[i64]>::to_vec)
-        .unwrap_or_else(|_| arr.as_array().to_vec()))
+impl OwnedActions {
+    fn as_actions(&self) -> Actions<'_> {
+        match self {
+            OwnedActions::Indices(a) => Actions::Indices(a),
+            OwnedActions::Bytes(b) => Actions::Bytes(b),
+        }
+    }
+}
+
+impl PyPool {
+    /// Read `rows` actions: a 1-D int64 array (one index per env), or for hosted envs whose
+    /// actions are `action_bytes` raw bytes, a 1-D uint8 array of `rows x action_bytes`.
+    fn owned_actions(&self, actions: &Bound<'_, PyAny>, rows: usize) -> PyResult<OwnedActions> {
+        if self.action_bytes == 0 {
+            let arr: PyReadonlyArray1<'_, i64> = actions.extract().map_err(|_| {
+                PyTypeError::new_err("actions must be a 1-D int64 numpy array (one action per env)")
+            })?;
+            return Ok(OwnedActions::Indices(arr.as_array().to_vec()));
+        }
+        let arr: PyReadonlyArray1<'_, u8> = actions.extract().map_err(|_| {
+            PyTypeError::new_err("this env's actions travel as raw bytes: pass a 1-D uint8 array")
+        })?;
+        let v = arr.as_array().to_vec();
+        if v.len() != rows * self.action_bytes {
+            return Err(PyValueError::new_err(format!(
+                "raw actions have {} bytes, expected {} ({rows} actions of {} bytes)",
+                v.len(),
+                rows * self.action_bytes,
+                self.action_bytes
+            )));
+        }
+        Ok(OwnedActions::Bytes(v))
+    }
 }
 
 #[pymethods]
@@ -231,14 +249,16 @@ impl PyPool {
         recs_out: &Bound<'_, PyUntypedArray>,
         final_out: Option<&Bound<'_, PyUntypedArray>>,
     ) -> PyResult<()> {
-        let acts = actions_vec(actions)?;
+        let acts = self.owned_actions(actions, self.num_envs)?;
         let obs = raw_bytes(
             obs_out,
             "observation buffer",
             self.num_envs * self.obs_bytes,
         )?;
         // SAFETY: as in `reset`.
-        self.with_pool(py, move |p, out| p.step(&acts, unsafe { obs.slice() }, out))?;
+        self.with_pool(py, move |p, out| {
+            p.step_actions(acts.as_actions(), unsafe { obs.slice() }, out)
+        })?;
         self.fill_outputs(py, recs_out, final_out)
     }
 
@@ -255,8 +275,8 @@ impl PyPool {
     }
 
     /// Sync step straight into the next shared batch slot (no copy): `actions` (int64, one per
-    /// env); records into `recs_out`, (SAME_STEP) final observations into `final_out`. Returns
-    /// the slot index. Slots alternate: slot `s` stays unchanged until the second following
+    /// env, or raw uint8 bytes for hosted envs whose actions travel so); records into
+    /// `recs_out`, (SAME_STEP) final observations into `final_out`. Returns the slot index. Slots alternate: slot `s` stays unchanged until the second following
     /// `*_shared` call.
     #[pyo3(signature = (actions, recs_out, final_out = None))]
     fn step_shared(
@@ -266,25 +286,9 @@ impl PyPool {
         recs_out: &Bound<'_, PyUntypedArray>,
         final_out: Option<&Bound<'_, PyUntypedArray>>,
     ) -> PyResult<usize> {
-        let acts = actions_vec(actions)?;
-        let slot = self.with_pool(py, move |p, out| p.step_shared(&acts, out))?;
-        self.fill_outputs(py, recs_out, final_out)?;
-        Ok(slot)
-    }
-
-    /// [`step_shared`] for hosted envs whose actions travel as raw bytes: `actions` is a uint8
-    /// array of `num_envs x action_bytes` bytes. Returns the slot index.
-    #[pyo3(signature = (actions, recs_out, final_out = None))]
-    fn step_bytes_shared(
-        &self,
-        py: Python<'_>,
-        actions: &Bound<'_, PyAny>,
-        recs_out: &Bound<'_, PyUntypedArray>,
-        final_out: Option<&Bound<'_, PyUntypedArray>>,
-    ) -> PyResult<usize> {
-        let acts = action_bytes_vec(actions, self.num_envs * self.action_bytes)?;
+        let acts = self.owned_actions(actions, self.num_envs)?;
         let slot = self.with_pool(py, move |p, out| {
-            p.step_shared_actions(Actions::Bytes(&acts), out)
+            p.step_shared_actions(acts.as_actions(), out)
         })?;
         self.fill_outputs(py, recs_out, final_out)?;
         Ok(slot)
@@ -374,8 +378,10 @@ impl PyPool {
         recs_out: &Bound<'_, PyUntypedArray>,
         final_out: Option<&Bound<'_, PyUntypedArray>>,
     ) -> PyResult<usize> {
-        let acts = actions_vec(actions)?;
-        let slot = self.with_pool(py, move |p, out| p.step_shared(&acts, out))?;
+        let acts = self.owned_actions(actions, self.num_envs)?;
+        let slot = self.with_pool(py, move |p, out| {
+            p.step_shared_actions(acts.as_actions(), out)
+        })?;
         self.fill_outputs(py, recs_out, final_out)?;
         let cols = self
             .columns
@@ -444,28 +450,16 @@ impl PyPool {
         self.with_pool(py, |p, _| p.async_reset())
     }
 
-    /// Async [`send`] of raw action bytes (`len(env_ids) x action_bytes` uint8).
-    fn send_bytes(
-        &self,
-        py: Python<'_>,
-        actions: &Bound<'_, PyAny>,
-        env_ids: Vec<usize>,
-    ) -> PyResult<()> {
-        let acts = action_bytes_vec(actions, env_ids.len() * self.action_bytes)?;
-        self.with_pool(py, move |p, _| {
-            p.send_actions(Actions::Bytes(&acts), &env_ids)
-        })
-    }
-
-    /// Async: send `actions` (int64) to `env_ids` (whole worker blocks, each in order).
+    /// Async: send `actions` (int64 indices, or raw uint8 bytes for hosted envs whose actions
+    /// travel so) to `env_ids` (whole worker blocks, each in order).
     fn send(
         &self,
         py: Python<'_>,
         actions: &Bound<'_, PyAny>,
         env_ids: Vec<usize>,
     ) -> PyResult<()> {
-        let acts = actions_vec(actions)?;
-        self.with_pool(py, move |p, _| p.send(&acts, &env_ids))
+        let acts = self.owned_actions(actions, env_ids.len())?;
+        self.with_pool(py, move |p, _| p.send_actions(acts.as_actions(), &env_ids))
     }
 
     /// Async: wait for the next batch; returns a list of `(env_start, obs_bytes_view, records,

@@ -305,7 +305,7 @@ class PoolVectorEnv(VectorEnv):
             self._act_layout.write_batch(actions, self._act_rows)
             self._act_layout.check_batch(self._act_rows)
             flat = self._act_rows.reshape(-1)
-            slot = int(self._call(lambda: self._pool.step_bytes_shared(flat, recs, self._final)))
+            slot = int(self._call(lambda: self._pool.step_shared(flat, recs, self._final)))
         flags = recs["flags"]
         terminated = (flags & FLAG_TERMINATED) != 0
         truncated = (flags & FLAG_TRUNCATED) != 0
@@ -353,7 +353,7 @@ class PoolVectorEnv(VectorEnv):
             self._act_layout.write_batch(actions, rows)
             self._act_layout.check_batch(rows)
             flat = rows.reshape(-1)
-            self._call(lambda: self._pool.send_bytes(flat, env_ids))
+            self._call(lambda: self._pool.send(flat, env_ids))
 
     def recv(self) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Wait for the next ``batch_size`` envs: ``(obs, rewards, terminations, truncations,
@@ -551,11 +551,8 @@ def _merge_infos(
             if array is None:
                 array = np.zeros(n, dtype=type(first))
             array[ids] = values
-        mask = infos.get(f"_{key}")
-        if mask is None:
-            mask = np.zeros(n, np.bool_)
-        mask[ids] = True
-        infos[key], infos[f"_{key}"] = array, mask
+        infos[key] = array
+        _mark(infos, key, ids, n)
     return infos
 
 
@@ -578,12 +575,17 @@ def _add_row_info(infos: dict[str, Any], info: dict[str, Any], row: int, n: int)
                 else:
                     array = np.full(n, None, dtype=object)
             array[row] = value
-        mask = infos.get(f"_{key}")
-        if mask is None:
-            mask = np.zeros(n, np.bool_)
-        mask[row] = True
-        infos[key], infos[f"_{key}"] = array, mask
+        infos[key] = array
+        _mark(infos, key, row, n)
     return infos
+
+
+def _mark(infos: dict[str, Any], key: str, rows: Any, n: int) -> None:
+    """Set the ``_key`` mask of vector infos of ``n`` rows at ``rows``."""
+    mask = infos.get(f"_{key}")
+    if mask is None:
+        mask = infos[f"_{key}"] = np.zeros(n, np.bool_)
+    mask[rows] = True
 
 
 def _reraise(err: EnvFailedError) -> NoReturn:
