@@ -181,6 +181,28 @@ fn env_failure_is_raised_with_its_env_and_message_and_reset_recovers() {
 }
 
 #[test]
+fn a_worker_that_keeps_dying_is_restarted_with_growing_delays() {
+    let mut p = pool(config(EXE, test_env(), 2, 1));
+    let _guard = PidGuard(p.worker_pids());
+    let mut obs = vec![0u8; 2 * p.obs_bytes()];
+    let mut out = BatchOutput::default();
+    p.reset(&mut obs, &mut out).unwrap();
+    let mut took = Vec::new();
+    for _ in 0..3 {
+        let victim = p.worker_pids()[0];
+        signal(victim, Signal::SIGKILL);
+        let t0 = Instant::now();
+        p.step(&[0, 0], &mut obs, &mut out).unwrap();
+        took.push(t0.elapsed());
+        assert!(out.restarted.iter().all(|&r| r), "both envs were cut");
+    }
+    assert_eq!(p.restarts(), 3);
+    // The 2nd and 3rd restarts in a row wait 50 ms and 100 ms before respawning.
+    assert!(took[1] >= Duration::from_millis(50), "{took:?}");
+    assert!(took[2] >= Duration::from_millis(100), "{took:?}");
+}
+
+#[test]
 fn restart_budget_is_enforced() {
     let mut c = config(EXE, test_env(), 2, 1);
     c.max_restarts = 0;

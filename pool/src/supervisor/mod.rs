@@ -228,6 +228,8 @@ impl Pool {
                 seq: 0,
                 state: SlotState::Idle,
                 restarted: false,
+                last_restart: None,
+                restart_streak: 0,
                 stderr_path: PathBuf::new(),
                 target: 0,
             });

@@ -7,7 +7,7 @@ use std::ops::Range;
 use std::os::unix::process::ExitStatusExt;
 use std::path::PathBuf;
 use std::process::{Child, Command, ExitStatus, Stdio};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use rogue_gym_ipc::{BlockSample, SupervisorPorts};
 
@@ -43,6 +43,27 @@ pub(super) struct WorkerSlot {
     pub(super) stderr_path: PathBuf,
     /// Observation target of the last command (see `TARGET_SHIFT`).
     pub(super) target: u32,
+    /// When this worker was last restarted, and how many restarts in a row came within
+    /// [`RESTART_QUIET`] of the one before (see [`restart_backoff`]).
+    pub(super) last_restart: Option<Instant>,
+    pub(super) restart_streak: u32,
+}
+
+/// A worker that has run this long since its last restart starts a fresh streak.
+pub(super) const RESTART_QUIET: Duration = Duration::from_secs(10);
+/// The longest wait before a restart.
+const MAX_BACKOFF: Duration = Duration::from_secs(2);
+
+/// How long to wait before the `streak`-th restart in a row of one worker: nothing for the
+/// first, then 50 ms, doubling up to [`MAX_BACKOFF`], so a worker that keeps crashing (a bad
+/// env, a full disk) cannot spin the machine before the restart budget ends it.
+pub(super) fn restart_backoff(streak: u32) -> Duration {
+    match streak {
+        0 => Duration::ZERO,
+        n => Duration::from_millis(50)
+            .saturating_mul(1 << (n - 1).min(16))
+            .min(MAX_BACKOFF),
+    }
 }
 
 fn stderr_tail(path: &PathBuf) -> String {
@@ -380,9 +401,30 @@ impl Core {
                         last: Box::new(failure),
                     });
                 }
-                self.slots[k].restarted = true;
+                let s = &mut self.slots[k];
+                let now = Instant::now();
+                let quick = s
+                    .last_restart
+                    .is_some_and(|t| now.duration_since(t) < RESTART_QUIET);
+                s.restart_streak = if quick { s.restart_streak + 1 } else { 0 };
+                s.last_restart = Some(now);
+                s.restarted = true;
+                std::thread::sleep(restart_backoff(s.restart_streak));
                 self.spawn(k, true)
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn restart_backoff_doubles_from_nothing_up_to_its_cap() {
+        let ms = |n| restart_backoff(n).as_millis();
+        assert_eq!([ms(0), ms(1), ms(2), ms(3), ms(6)], [0, 50, 100, 200, 1600]);
+        assert_eq!(restart_backoff(7), MAX_BACKOFF);
+        assert_eq!(restart_backoff(u32::MAX), MAX_BACKOFF);
     }
 }
