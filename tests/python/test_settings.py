@@ -24,9 +24,12 @@ def test_a_misspelt_option_is_a_type_error_listing_the_valid_ones() -> None:
 def test_the_facades_take_their_defaults_from_pool_settings() -> None:
     from rogue_gym.sb3 import RogueVecEnv
 
+    # make_vec's first argument is the env count for the native game (make_vec(8)), or an id.
+    assert inspect.signature(rogue_gym.make_vec).parameters["env"].default == PoolSettings.num_envs
     for fn in (rogue_gym.make_vec, rogue_gym.RogueVectorEnv.__init__, RogueVecEnv.__init__):
         params = inspect.signature(fn).parameters
-        assert params["num_envs"].default == PoolSettings.num_envs, fn
+        if fn is not rogue_gym.make_vec:
+            assert params["num_envs"].default == PoolSettings.num_envs, fn
         assert params["config"].default == PoolSettings.config, fn
         # Every other pool option goes through PoolSettings, not a copied keyword list.
         assert not {f.name for f in dataclasses.fields(PoolSettings)} - {
