@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Runs every test of Rogue-Gym: the Rust workspace (unit, integration, doc tests), then the
-# Python package (set-up, type checks, stub check, pytest, ruff).
+# Runs every test of Rogue-Gym: the Rust workspace (unit, integration, doc tests), the Python
+# package (set-up, type checks, stub check, pytest, ruff), then the Ray tests in their own
+# environment (.venv-ray: Ray pins an older gymnasium).
 # Usage: bash scripts/test.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -13,5 +14,10 @@ bash scripts/setup-python.sh
 (cd python && ../.venv/bin/python -m mypy && ../.venv/bin/python -m mypy.stubtest rogue_gym._native)
 # Every test runs under a time limit (tests/python/conftest.py), so no test can hang the run.
 .venv/bin/python -m pytest tests/python -q
-.venv/bin/ruff check python tests/python benchmarks
-.venv/bin/ruff format --check python tests/python benchmarks
+.venv/bin/ruff check python tests/python tests/ray benchmarks
+.venv/bin/ruff format --check python tests/python tests/ray benchmarks
+
+echo "== Ray (RLlib through pools, actor-backed vector env) on a local 2-CPU cluster"
+bash scripts/setup-ray.sh
+# Each test has a time limit (pytest-timeout); the whole run has one too.
+timeout 1200 .venv-ray/bin/python -m pytest tests/ray -q -p no:cacheprovider

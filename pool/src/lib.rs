@@ -49,7 +49,7 @@ pub use error::{FailureCause, PoolError, WorkerFailure};
 pub use kinds::test_env::TestEnv;
 pub use registry::{EnvCtor, EnvRegistry};
 pub use rogue_gym_ipc::WaitPolicy;
-pub use seeds::{SeedPolicy, SeedSchedule, SeedSet};
+pub use seeds::{SeedPolicy, SeedSchedule, SeedSet, Shard};
 pub use supervisor::{Actions, InterruptCheck, Pool, validate_actions};
 pub use wire::layout::{
     EnvRecord, FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED,

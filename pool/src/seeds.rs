@@ -1,7 +1,9 @@
 //! The per-env episode-seed schedule.
 //!
 //! The seed of env `i`'s `e`-th episode is a pure function of (schedule, `i`, `e`, number of
-//! envs): never of worker count, batch composition or timing.
+//! envs): never of worker count, batch composition or timing. A pool can also be one shard of
+//! a larger set of envs (one pool per machine under Ray): [`Shard`] says which global env
+//! indices its envs are, so the shards together play exactly what one big pool would.
 
 /// A splitmix64-style mixer: a bijection on `u64` with good avalanche.
 pub fn splitmix(mut z: u64) -> u64 {
@@ -73,6 +75,18 @@ pub struct SeedSchedule {
     /// How episodes draw from `set`.
     #[serde(default)]
     pub policy: SeedPolicy,
+    /// Where this pool's envs sit in a larger set (`None`: the pool is the whole set).
+    #[serde(default)]
+    pub shard: Option<Shard>,
+}
+
+/// A pool's envs as a contiguous slice of a larger set of envs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Shard {
+    /// Global index of the pool's env 0.
+    pub first_env: u64,
+    /// Envs in the whole set.
+    pub total_envs: u64,
 }
 
 impl SeedSchedule {
@@ -82,17 +96,36 @@ impl SeedSchedule {
             base,
             set: None,
             policy: SeedPolicy::Sample,
+            shard: None,
         }
     }
-    /// Check the schedule (a set must not be empty).
-    pub fn validate(&self) -> Result<(), String> {
+    /// Check the schedule (a set must not be empty) against a pool of `num_envs` envs (a shard
+    /// must hold them).
+    pub fn validate(&self, num_envs: u64) -> Result<(), String> {
+        if let Some(Shard {
+            first_env,
+            total_envs,
+        }) = self.shard
+            && first_env
+                .checked_add(num_envs)
+                .is_none_or(|end| end > total_envs)
+        {
+            return Err(format!(
+                "the shard's envs [{first_env}, {first_env} + {num_envs}) do not fit in its {total_envs} total envs"
+            ));
+        }
         match &self.set {
             Some(s) if s.is_empty() => Err("the seed set is empty: give at least one seed".into()),
             _ => Ok(()),
         }
     }
-    /// Seed of episode `episode` of env `env` in a pool of `num_envs` envs.
+    /// Seed of episode `episode` of the pool's env `env` in a pool of `num_envs` envs (with a
+    /// shard: of global env `first_env + env` among `total_envs`).
     pub fn seed(&self, env: u64, episode: u64, num_envs: u64) -> u64 {
+        let (env, num_envs) = match self.shard {
+            Some(s) => (s.first_env.wrapping_add(env), s.total_envs),
+            None => (env, num_envs),
+        };
         match &self.set {
             None => mix(self.base, env, episode),
             Some(set) => {
@@ -137,6 +170,7 @@ mod tests {
                 end: 1010,
             }),
             policy: SeedPolicy::Sequential,
+            shard: None,
         };
         let num_envs = 4;
         let mut counts = [0u32; 10];
@@ -156,6 +190,7 @@ mod tests {
             base: 7,
             set: Some(SeedSet::List(vec![3, 5, 9])),
             policy: SeedPolicy::Sample,
+            shard: None,
         };
         let mut seen = std::collections::BTreeSet::new();
         for i in 0..16 {
@@ -171,8 +206,47 @@ mod tests {
                 set: Some(SeedSet::List(vec![])),
                 ..s
             }
-            .validate()
+            .validate(16)
             .is_err()
+        );
+    }
+
+    #[test]
+    fn shards_together_play_the_whole_pools_seeds() {
+        for policy in [SeedPolicy::Sample, SeedPolicy::Sequential] {
+            let whole = SeedSchedule {
+                base: 11,
+                set: Some(SeedSet::Range { start: 0, end: 7 }),
+                policy,
+                shard: None,
+            };
+            let shard = |first_env| SeedSchedule {
+                shard: Some(Shard {
+                    first_env,
+                    total_envs: 10,
+                }),
+                ..whole.clone()
+            };
+            for e in 0..5 {
+                let joined: Vec<u64> = (0..4)
+                    .map(|i| shard(0).seed(i, e, 4))
+                    .chain((0..6).map(|i| shard(4).seed(i, e, 6)))
+                    .collect();
+                let expected: Vec<u64> = (0..10).map(|i| whole.seed(i, e, 10)).collect();
+                assert_eq!(joined, expected, "{policy:?} episode {e}");
+            }
+        }
+        assert!(
+            SeedSchedule {
+                shard: Some(Shard {
+                    first_env: 8,
+                    total_envs: 10
+                }),
+                ..SeedSchedule::default()
+            }
+            .validate(3)
+            .unwrap_err()
+            .contains("do not fit")
         );
     }
 }

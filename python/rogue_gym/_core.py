@@ -109,6 +109,9 @@ class PoolCore:
                 "base": self.base_seed,
                 "set": _seed_set(st.seeds, self.config),
                 "policy": st.seed_policy,
+                "shard": None
+                if st.shard is None
+                else {"first_env": st.shard[0], "total_envs": st.shard[1]},
             },
             "autoreset": "same_step" if self.same_step else "next_step",
             "on_worker_failure": st.on_worker_failure,

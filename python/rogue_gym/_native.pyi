@@ -21,6 +21,7 @@ __all__ = [
     "SharedBatchHolder",
     "__version__",
     "action_from_key",
+    "block_range",
     "floor_summary",
     "normalize_obs_spec",
     "worker_main",
@@ -38,6 +39,7 @@ FLAG_FINAL_OBS: int
 PAPER_CONFIG_JSON: str
 
 def normalize_obs_spec(spec: Any) -> dict[str, Any]: ...
+def block_range(num_envs: int, parts: int, k: int) -> tuple[int, int]: ...
 
 @final
 class Game:

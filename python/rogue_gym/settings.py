@@ -55,6 +55,10 @@ class PoolSettings:
         max_restarts: worker restarts allowed over the pool's life.
         worker_command: program and leading args of a worker (default:
             ``[sys.executable, "-m", "rogue_gym.worker"]``).
+        shard: ``(first_env, total_envs)``: this pool's envs are envs ``first_env ..
+            first_env + num_envs - 1`` of a larger set of ``total_envs`` (one pool per machine,
+            as :mod:`rogue_gym.ray` runs them), and their episode seeds are those envs' seeds in
+            one pool of ``total_envs``. Default: the pool is the whole set.
         batch_size: envs per async ``recv`` (default all; otherwise a multiple of the envs per
             worker, which needs ``num_workers`` to divide ``num_envs``).
     """
@@ -76,6 +80,7 @@ class PoolSettings:
     step_timeout: Optional[float] = 60.0
     max_restarts: Optional[int] = 100
     worker_command: Optional[Sequence[str]] = None
+    shard: Optional[tuple[int, int]] = None
     batch_size: Optional[int] = None
 
     @classmethod
@@ -112,6 +117,15 @@ class PoolSettings:
             raise ValueError(f"max_steps must be positive, got {self.max_steps}")
         if self.step_timeout is not None and not float(self.step_timeout) > 0:
             raise ValueError(f"step_timeout must be positive or None, got {self.step_timeout}")
+        shard = self.shard
+        if shard is not None:
+            first, total = (int(x) for x in shard)
+            if first < 0 or first + num_envs > total:
+                raise ValueError(
+                    f"shard=(first_env, total_envs) must hold the pool's {num_envs} envs: "
+                    f"0 <= first_env and first_env + num_envs <= total_envs, got {tuple(shard)}"
+                )
+            shard = (first, total)
         seed = self.seed
         if seed is None:
             seed = int.from_bytes(os.urandom(8), "little") >> 1
@@ -122,6 +136,7 @@ class PoolSettings:
             self,
             num_envs=num_envs,
             num_workers=int(num_workers),
+            shard=shard,
             seed=int(seed),
             max_steps=int(self.max_steps),
             stair_reward=float(self.stair_reward),

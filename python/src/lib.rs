@@ -25,6 +25,20 @@ fn worker_main(py: Python<'_>, argv: Vec<String>) -> i32 {
     py.detach(|| rogue_gym_pool::worker_main(&argv, &registry()))
 }
 
+/// The envs `[start, end)` that part `k` of `parts` holds when `num_envs` envs are split into
+/// contiguous blocks differing by at most one env: the pool's split of envs among workers, and
+/// `rogue_gym.ray`'s among actors.
+#[pyfunction]
+fn block_range(num_envs: usize, parts: usize, k: usize) -> PyResult<(usize, usize)> {
+    if parts == 0 || parts > num_envs || k >= parts {
+        return Err(pyo3::exceptions::PyValueError::new_err(format!(
+            "block_range needs 1 <= parts <= num_envs and k < parts, got num_envs={num_envs}, parts={parts}, k={k}"
+        )));
+    }
+    let r = rogue_gym_pool::wire::block_range(num_envs, parts, k);
+    Ok((r.start, r.end))
+}
+
 /// The env kinds of this extension's pools: the pool crate's own, plus `"python"` (hosted
 /// gymnasium envs, see [`hosted`]).
 pub(crate) fn registry() -> rogue_gym_pool::EnvRegistry {
@@ -43,6 +57,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RECORD_BYTES", columns::RECORD_BYTES)?;
     m.add_function(wrap_pyfunction!(game::action_from_key, m)?)?;
     m.add_function(wrap_pyfunction!(worker_main, m)?)?;
+    m.add_function(wrap_pyfunction!(block_range, m)?)?;
     m.add_function(wrap_pyfunction!(summary::floor_summary, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("ACTION_KEYS", rogue_gym_engine::ACTION_KEYS)?;

@@ -161,6 +161,25 @@ def test_seed_list_and_sequential_policy(make_vec) -> None:
     assert sorted(infos["seed"].tolist()) == [1000, 1001, 1002, 1003]
 
 
+@pytest.mark.parametrize("policy", ["sample", "sequential"])
+def test_shards_together_play_what_the_whole_pool_plays(make_vec, policy: str) -> None:
+    # One pool per machine (rogue_gym.ray): pools holding envs [0, 2) and [2, 7) of 7.
+    kw = {"seeds": range(100, 105), "seed_policy": policy, "max_steps": 20, "seed": 9}
+    whole = make_vec(7, num_workers=2, **kw)
+    parts = [make_vec(2, num_workers=1, shard=(0, 7), **kw), make_vec(5, shard=(2, 7), **kw)]
+    got = [p.reset(seed=3) for p in parts]
+    want = whole.reset(seed=3)
+    assert np.array_equal(np.concatenate([g[0] for g in got]), want[0])
+    for act in _actions(7, 60):
+        x = whole.step(act)
+        ys = [parts[0].step(act[:2]), parts[1].step(act[2:])]
+        for k in range(4):
+            assert np.array_equal(np.concatenate([y[k] for y in ys]), x[k])
+        assert np.array_equal(np.concatenate([y[4]["seed"] for y in ys]), x[4]["seed"])
+    with pytest.raises(ValueError, match="shard"):
+        make_vec(4, shard=(5, 7))
+
+
 def test_double_buffer_keeps_previous_observation(make_vec) -> None:
     env = make_vec(4, max_steps=50)
     prev, _ = env.reset(seed=0)

@@ -132,7 +132,9 @@ impl Pool {
                 "max_borrowed must be at least 2 (one sample being received, one held)".into(),
             ));
         }
-        cfg.seeds.validate().map_err(PoolError::Config)?;
+        cfg.seeds
+            .validate(cfg.num_envs as u64)
+            .map_err(PoolError::Config)?;
         let spec = match &cfg.spec {
             Some(s) => s.clone(),
             None => registry.make(&cfg.env, 0)?.spec(),
@@ -252,7 +254,9 @@ impl Pool {
     /// async results are discarded.
     pub fn set_seeds(&mut self, seeds: SeedSchedule) -> Result<(), PoolError> {
         self.check_usable()?;
-        seeds.validate().map_err(PoolError::Config)?;
+        seeds
+            .validate(self.core.cfg.num_envs as u64)
+            .map_err(PoolError::Config)?;
         self.drain()?;
         let c = &mut self.core;
         let mut wcfg = c

@@ -34,6 +34,7 @@ from torch import nn
 from torch.nn.grad import conv2d_weight
 
 __all__ = [
+    "RELU_GAIN",
     "VARIANTS",
     "ImpalaNet",
     "OneHotConv2d",
@@ -42,6 +43,7 @@ __all__ = [
     "SmallNet",
     "VaeNet",
     "build_network",
+    "orthogonal_init",
 ]
 
 #: The network variants, as ``--variant`` names them.
@@ -63,7 +65,7 @@ class PolicyOutput:
     """A scalar loss to add to PPO's (the VAE's), when asked for and the network has one."""
 
 
-def _orthogonal(module: nn.Module, gain: float) -> nn.Module:
+def orthogonal_init(module: nn.Module, gain: float) -> nn.Module:
     """Orthogonal weights with ``gain`` and zero biases (the paper's initializer)."""
     weight = getattr(module, "weight", None)
     if isinstance(weight, torch.Tensor):
@@ -74,6 +76,7 @@ def _orthogonal(module: nn.Module, gain: float) -> nn.Module:
     return module
 
 
+#: The orthogonal initializer's gain before a ReLU.
 RELU_GAIN = math.sqrt(2.0)
 
 
@@ -173,8 +176,8 @@ class PolicyNet(nn.Module):
 
     def __init__(self, features: int, num_actions: int) -> None:
         super().__init__()
-        self.policy_head = _orthogonal(nn.Linear(features, num_actions), 0.01)
-        self.value_head = _orthogonal(nn.Linear(features, 1), 1.0)
+        self.policy_head = orthogonal_init(nn.Linear(features, num_actions), 0.01)
+        self.value_head = orthogonal_init(nn.Linear(features, 1), 1.0)
 
     def body(self, x: torch.Tensor) -> torch.Tensor:
         """Features of a batch of symbol-index screens."""
@@ -191,13 +194,13 @@ class SmallNet(PolicyNet):
 
     def __init__(self, symbols: int, height: int, width: int, num_actions: int) -> None:
         super().__init__(256, num_actions)
-        self.conv1 = OneHotConv2d(symbols, 32, 8)
+        self.conv1: nn.Module = OneHotConv2d(symbols, 32, 8)
         self.conv2 = nn.Conv2d(32, 64, 4)
         self.conv3 = nn.Conv2d(64, 32, 3)
         flat = 32 * (height - 12) * (width - 12)
         self.fc = nn.Linear(flat, 256)
         for m in (self.conv1, self.conv2, self.conv3, self.fc):
-            _orthogonal(m, RELU_GAIN)
+            orthogonal_init(m, RELU_GAIN)
 
     def body(self, x: torch.Tensor) -> torch.Tensor:
         """Three ReLU convolutions and a ReLU FC layer."""
@@ -265,7 +268,7 @@ class ImpalaNet(PolicyNet):
         self.fc = nn.Linear(in_c * h * w, 256)
         for m in self.stages.modules():
             if isinstance(m, (nn.Conv2d, OneHotConv2d)):
-                _orthogonal(m, RELU_GAIN)
+                orthogonal_init(m, RELU_GAIN)
 
     def body(self, x: torch.Tensor) -> torch.Tensor:
         """The ResNet, a ReLU, and a ReLU FC layer."""
@@ -303,7 +306,7 @@ class VaeNet(PolicyNet):
         self.deconv2 = nn.ConvTranspose2d(64, 32, 4, padding=1)
         self.deconv1 = nn.ConvTranspose2d(32, symbols, 8, padding=1)
         for m in (self.conv1, self.conv2, self.conv3, self.fc):
-            _orthogonal(m, RELU_GAIN)
+            orthogonal_init(m, RELU_GAIN)
 
     def encode(self, x: torch.Tensor) -> Tuple[torch.Tensor, torch.Tensor]:
         """``(mu, logvar)`` of a batch of screens."""
