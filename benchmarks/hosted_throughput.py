@@ -24,6 +24,7 @@ median over repetitions is reported. ``OMP_NUM_THREADS=1``.
 Usage::
 
     python benchmarks/hosted_throughput.py                      # the headline set (~10 min)
+    python benchmarks/vecenv_throughput.py hosted ...           # the same
     python benchmarks/hosted_throughput.py --num-envs 8 64 256  # a sweep
     python benchmarks/hosted_throughput.py --puffer-path /tmp/puffer
 
@@ -45,7 +46,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Optional
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
@@ -231,7 +232,7 @@ def key(c: dict[str, Any]) -> tuple[str, str, int, int]:
     return (c["env"], c["backend"], int(c["num_envs"]), int(c["workers"]))
 
 
-def main() -> None:
+def main(argv: Optional[list[str]] = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--envs", nargs="+", default=ENVS, choices=ENVS)
     p.add_argument("--backends", nargs="+", default=BACKENDS, choices=BACKENDS)
@@ -247,7 +248,7 @@ def main() -> None:
     p.add_argument("--out", default=str(Path(__file__).parent / "results"))
     p.add_argument("--cell", help=argparse.SUPPRESS)
     p.add_argument("--from-json", help="rewrite the table and plot from a results JSON")
-    args = p.parse_args()
+    args = p.parse_args(argv)
     if args.cell:
         print(json.dumps(run_cell(json.loads(args.cell))))
         return
@@ -359,7 +360,8 @@ def write(args: argparse.Namespace, results: dict, failed: dict) -> None:
 
 
 def plot(med: dict[tuple[str, str, int, int], float], path: Path) -> None:
-    """Bars of steps/s per backend, one panel per env (log scale); skipped without matplotlib."""
+    """Steps/s per backend, one panel per env (log scale): bars for one ``num_envs``, lines
+    against ``num_envs`` for a sweep; skipped without matplotlib."""
     try:
         import matplotlib
 
@@ -369,20 +371,42 @@ def plot(med: dict[tuple[str, str, int, int], float], path: Path) -> None:
         print("matplotlib is not installed: no plot")
         return
     envs = sorted({k[0] for k in med})
+    sweep = len({k[2] for k in med}) > 1
     fig, axes = plt.subplots(1, len(envs), figsize=(5 * len(envs), 4), squeeze=False)
     for ax, env in zip(axes[0], envs):
         cells = sorted((k, v) for k, v in med.items() if k[0] == env)
-        labels = [
-            f"{k[1]}\n{k[2]} envs, "
-            + (f"{k[3]} workers" if k[1] in ("pool", "native-pool", "puffer-mp") else "")
-            for k, _ in cells
-        ]
-        colors = ["tab:red" if k[1] in ("pool", "native-pool") else "tab:gray" for k, _ in cells]
-        ax.barh(labels, [v for _, v in cells], color=colors)
-        ax.set_xscale("log")
+        if sweep:
+            for backend, workers in sorted({(k[1], k[3]) for k, _ in cells}):
+                pts = sorted((k[2], v) for k, v in cells if (k[1], k[3]) == (backend, workers))
+                ours = backend in ("pool", "native-pool")
+                ax.plot(
+                    [n for n, _ in pts],
+                    [v for _, v in pts],
+                    marker="o",
+                    linewidth=2.5 if ours else 1.2,
+                    label=f"{backend} ({workers} w)" if backend != "gym-sync" else backend,
+                )
+            ax.set_xscale("log", base=2)
+            ax.set_xlabel("num_envs")
+            ax.set_ylabel("env steps/s (median)")
+            ax.legend(fontsize=7)
+        else:
+            labels = [
+                f"{k[1]}\n{k[2]} envs, "
+                + (f"{k[3]} workers" if k[1] in ("pool", "native-pool", "puffer-mp") else "")
+                for k, _ in cells
+            ]
+            colors = [
+                "tab:red" if k[1] in ("pool", "native-pool") else "tab:gray" for k, _ in cells
+            ]
+            ax.barh(labels, [v for _, v in cells], color=colors)
+            ax.set_xlabel("env steps/s (median)")
+            ax.tick_params(axis="y", labelsize=7)
+        if sweep:
+            ax.set_yscale("log")
+        else:
+            ax.set_xscale("log")
         ax.set_title(env)
-        ax.set_xlabel("env steps/s (median)")
-        ax.tick_params(axis="y", labelsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 

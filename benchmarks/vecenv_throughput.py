@@ -32,6 +32,11 @@ Usage::
     python benchmarks/vecenv_throughput.py --short --num-envs 8 --obs symbol_index --reps 1 \\
         --out /tmp/bench
 
+Python envs hosted in the pool (CartPole, ``RogueEnv`` as a Python env, a 1 ms env) against
+SyncVectorEnv, AsyncVectorEnv, SubprocVecEnv and PufferLib: ``python
+benchmarks/vecenv_throughput.py hosted [options]``, which runs ``hosted_throughput.py`` (its
+options and outputs are documented there).
+
 Outputs under ``--out`` (default ``benchmarks/results``): ``throughput.md`` (headline table at
 64 envs with the pool / AsyncVectorEnv ratio, then every cell), ``throughput.png`` (steps/s vs
 num_envs per encoding) and ``throughput.json`` (every repetition's raw numbers and the machine).
@@ -643,7 +648,15 @@ def _git_commit() -> str:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """Run the sweep and write ``throughput.{md,png,json}``."""
+    """Run the sweep and write ``throughput.{md,png,json}`` (``hosted ...``: the hosted-env
+    benchmark)."""
+    args_in = list(sys.argv[1:] if argv is None else argv)
+    if args_in[:1] == ["hosted"]:
+        sys.path.insert(0, str(Path(__file__).parent))
+        import hosted_throughput
+
+        hosted_throughput.main(args_in[1:])
+        return 0
     p = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     p.add_argument("--short", action="store_true", help="CI mode: 1 rep, 1 s windows, 2 sizes")
     p.add_argument("--backends", type=_csv_list, default=BACKENDS)

@@ -71,6 +71,7 @@ def test_rllib_ppo_trains_through_pools(cluster: None) -> None:
     )
     config = configure_rllib(config, num_env_runners=1, num_envs_per_env_runner=4, **POOL)
     assert config.num_cpus_per_env_runner == 2 and config.env_config["copy"] is True
+    assert config.rl_module_spec.module_class.__name__ == "RogueRLModule"
     algo = config.build_algo()
     try:
         for _ in range(2):
@@ -79,6 +80,23 @@ def test_rllib_ppo_trains_through_pools(cluster: None) -> None:
         assert runners["num_env_steps_sampled_lifetime"] >= 400
         assert runners["num_episodes_lifetime"] > 0
         assert np.isfinite(runners["episode_return_mean"])
+    finally:
+        algo.stop()
+
+
+def test_rllib_trains_a_hosted_gymnasium_env_through_pools(cluster: None) -> None:
+    from ray.rllib.algorithms.ppo import PPOConfig
+
+    config = PPOConfig().training(train_batch_size_per_learner=200, minibatch_size=50, num_epochs=1)
+    config = configure_rllib(
+        config, "CartPole-v1", num_env_runners=1, num_envs_per_env_runner=4, num_workers=1
+    )
+    assert config.rl_module_spec.module_class.__name__ == "DefaultPPOTorchRLModule"
+    algo = config.build_algo()
+    try:
+        runners = algo.train()["env_runners"]
+        assert runners["num_env_steps_sampled_lifetime"] >= 200
+        assert runners["num_episodes_lifetime"] > 0  # CartPole's random episodes are short
     finally:
         algo.stop()
 
