@@ -14,6 +14,8 @@ import os
 import sys
 from typing import Any, Mapping, Optional, Sequence, Union
 
+from gymnasium.vector import AutoresetMode
+
 from ._config import ConfigLike
 
 __all__ = ["FAILURE_POLICIES", "SEED_POLICIES", "PoolSettings", "SeedsLike"]
@@ -144,3 +146,16 @@ class PoolSettings:
             max_restarts=None if self.max_restarts is None else int(self.max_restarts),
             worker_command=list(command),
         )
+
+
+def parse_autoreset_mode(
+    mode: Union[str, AutoresetMode], allowed: Sequence[AutoresetMode] = tuple(AutoresetMode)
+) -> AutoresetMode:
+    """An ``AutoresetMode`` from itself, its value (``"NextStep"``) or its name in any case
+    (``"NEXT_STEP"``, ``"next-step"``); ``ValueError`` names the ``allowed`` ones."""
+    key = str(getattr(mode, "value", mode)).replace("_", "").replace("-", "").lower()
+    found = next((m for m in AutoresetMode if m.value.lower() == key), None)
+    if found is None or found not in allowed:
+        names = ", ".join(m.name for m in allowed)
+        raise ValueError(f"autoreset_mode must be one of {names}, got {mode!r}")
+    return found

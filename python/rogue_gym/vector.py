@@ -16,20 +16,9 @@ from ._core import SUMMARY_FINAL, SUMMARY_RESTARTED, ActionHistory, PoolCore, Po
 from ._records import RECORD_DTYPE
 from .envs.rogue_env import ACTIONS
 from .registration import ENV_ID
-from .settings import PoolSettings
+from .settings import PoolSettings, parse_autoreset_mode
 
 __all__ = ["RogueVectorEnv", "make_vec"]
-
-
-def _autoreset_mode(mode: Union[str, AutoresetMode]) -> AutoresetMode:
-    if isinstance(mode, AutoresetMode):
-        m = mode
-    else:
-        key = str(mode).replace("_", "").replace("-", "").lower()
-        m = {"nextstep": AutoresetMode.NEXT_STEP, "samestep": AutoresetMode.SAME_STEP}.get(key)  # type: ignore[assignment]
-    if m not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
-        raise ValueError(f"autoreset_mode must be NEXT_STEP or SAME_STEP, got {mode!r}")
-    return m
 
 
 class RogueVectorEnv(gym.vector.VectorEnv, PoolFacade):
@@ -93,7 +82,9 @@ class RogueVectorEnv(gym.vector.VectorEnv, PoolFacade):
         render_mode: Optional[str] = None,
         **options: Any,
     ) -> None:
-        mode = _autoreset_mode(autoreset_mode)
+        mode = parse_autoreset_mode(
+            autoreset_mode, (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
+        )
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}"

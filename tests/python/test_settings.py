@@ -50,6 +50,19 @@ def test_checked_settings_resolve_defaults_and_name_bad_values() -> None:
         PoolSettings(step_timeout=0).checked()
 
 
+def test_autoreset_modes_are_read_by_name_or_value_in_any_case() -> None:
+    from gymnasium.vector import AutoresetMode
+    from rogue_gym.settings import parse_autoreset_mode
+
+    for spelling in ("NEXT_STEP", "next-step", "NextStep", AutoresetMode.NEXT_STEP):
+        assert parse_autoreset_mode(spelling) is AutoresetMode.NEXT_STEP
+    assert parse_autoreset_mode("disabled") is AutoresetMode.DISABLED
+    with pytest.raises(ValueError, match="NEXT_STEP, SAME_STEP"):
+        parse_autoreset_mode("DISABLED", (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP))
+    with pytest.raises(ValueError, match="autoreset_mode"):
+        rogue_gym.PoolVectorEnv([lambda: None], autoreset_mode="sometimes")
+
+
 def test_the_paper_config_is_the_engines() -> None:
     # The Python dict (original style) and the engine's GameConfig::paper() are the same game.
     normalised = _native.Game(json.dumps(rogue_gym.PAPER_CONFIG), 500, 50.0).config_json()

@@ -28,7 +28,7 @@ from gymnasium.vector.utils import batch_space
 from .. import _native, _sigterm
 from .._records import FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED, RECORD_DTYPE
 from ..errors import EnvFailedError
-from ..settings import FAILURE_POLICIES, PoolSettings
+from ..settings import FAILURE_POLICIES, PoolSettings, parse_autoreset_mode
 from .adapter import NO_SEED, decode_exception
 from .layout import SpaceLayout
 
@@ -130,7 +130,7 @@ class PoolVectorEnv(VectorEnv):
             raise ValueError(
                 f"on_worker_failure must be one of {FAILURE_POLICIES}, got {on_worker_failure!r}"
             )
-        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        self.autoreset_mode = parse_autoreset_mode(autoreset_mode)
         self.num_envs = len(env_fns)
         self.copy = bool(copy)
         workers = (

@@ -23,6 +23,7 @@ from ray.exceptions import GetTimeoutError, RayActorError
 
 from .. import _native
 from ..registration import ENV_ID
+from ..settings import parse_autoreset_mode
 from .actor import EnvLike, PoolActor, is_native
 
 __all__ = ["RayVectorEnv"]
@@ -124,11 +125,8 @@ class RayVectorEnv(VectorEnv):
             raise ValueError(f"num_actors must be in [1, num_envs={num_envs}], got {num_actors}")
         if not ray.is_initialized():
             raise RuntimeError("RayVectorEnv needs a Ray cluster: call ray.init() first")
-        if str(pool_options.get("autoreset_mode", "NEXT_STEP")).upper().replace("_", "") not in (
-            "NEXTSTEP",
-            "AUTORESETMODE.NEXTSTEP",
-        ):
-            raise ValueError("RayVectorEnv autoresets in NEXT_STEP mode only")
+        mode = pool_options.get("autoreset_mode", AutoresetMode.NEXT_STEP)
+        parse_autoreset_mode(mode, (AutoresetMode.NEXT_STEP,))  # the actors' mode
         self.env = env
         self.num_envs = int(num_envs)
         if seed is None:
