@@ -359,6 +359,18 @@ def write(args: argparse.Namespace, results: dict, failed: dict) -> None:
     print("\n".join(lines))
 
 
+#: One colour per (backend, workers) in every panel; ours in red.
+PLOT_COLORS = {
+    ("pool", 2): "tab:red",
+    ("pool", 8): "darkred",
+    ("native-pool", 2): "tab:orange",
+    ("gym-sync", 1): "tab:blue",
+    ("gym-async-shm", 2): "tab:green",
+    ("sb3-subproc", 2): "tab:purple",
+    ("puffer-mp", 2): "tab:gray",
+}
+
+
 def plot(med: dict[tuple[str, str, int, int], float], path: Path) -> None:
     """Steps/s per backend, one panel per env (log scale): bars for one ``num_envs``, lines
     against ``num_envs`` for a sweep; skipped without matplotlib."""
@@ -379,12 +391,15 @@ def plot(med: dict[tuple[str, str, int, int], float], path: Path) -> None:
             for backend, workers in sorted({(k[1], k[3]) for k, _ in cells}):
                 pts = sorted((k[2], v) for k, v in cells if (k[1], k[3]) == (backend, workers))
                 ours = backend in ("pool", "native-pool")
+                procs = {"gym-sync": "", "gym-async-shm": " (1 proc/env)"}
+                procs["sb3-subproc"] = procs["gym-async-shm"]
                 ax.plot(
                     [n for n, _ in pts],
                     [v for _, v in pts],
                     marker="o",
+                    color=PLOT_COLORS.get((backend, workers), "black"),
                     linewidth=2.5 if ours else 1.2,
-                    label=f"{backend} ({workers} w)" if backend != "gym-sync" else backend,
+                    label=backend + procs.get(backend, f" ({workers} workers)"),
                 )
             ax.set_xscale("log", base=2)
             ax.set_xlabel("num_envs")
