@@ -4,7 +4,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::action::{Action, Command};
 use crate::actors::{Enemy, Player};
-use crate::config::{ConfigError, EnemyKind, GameConfig, InitItem};
+use crate::config::{ConfigError, EnemyKind, GameConfig, InitItem, Seeding};
+use crate::dungeon::original::{self, OriginalStreams};
 use crate::dungeon::{Floor, Generator, Surface, flag};
 use crate::obs::{self, ObsBufMut, ObsError, ObsSource, ObsSpec, Status};
 use crate::rng::{GameRng, Stream};
@@ -79,6 +80,8 @@ pub struct Game {
     pub(crate) enemy_at: Vec<u16>,
     /// The play stream (search, combat, monster moves, healing).
     pub(crate) rng: GameRng,
+    /// The original's dungeon and item streams under `"seeding": "original"`.
+    pub(crate) original: Option<OriginalStreams>,
     pub(crate) seed: u64,
     pub(crate) level: u32,
     pub(crate) max_floor: u32,
@@ -124,6 +127,7 @@ impl Game {
             enemies: Vec::new(),
             enemy_at: vec![0; n],
             rng: GameRng::new(0, Stream::Play, 0),
+            original: None,
             seed: 0,
             level: 0,
             max_floor: 0,
@@ -168,7 +172,11 @@ impl Game {
         self.reward = 0.0;
         self.message.clear();
         self.player = self.initial_player();
+        self.original = (self.cfg.seeding == Seeding::Original).then(|| OriginalStreams::new(seed));
         self.new_level();
+        if let Some(streams) = &mut self.original {
+            streams.draw_starting_kit(&self.cfg);
+        }
         self.max_floor = 1;
     }
 
@@ -211,15 +219,21 @@ impl Game {
     /// Builds the next floor, places monsters and the player, and redraws the screen.
     pub(crate) fn new_level(&mut self) {
         self.level += 1;
+        if let Some(streams) = &mut self.original {
+            let slots = self.generator.slots();
+            let start = original::generate(&mut self.floor, slots, &self.cfg, self.level, streams);
+            self.clear_enemies();
+            self.place_enemies(Some(start));
+            self.player.pos = start;
+            self.player_in(start, true);
+            self.render_all();
+            return;
+        }
         let mut drng = self
             .generator
             .generate(&mut self.floor, &self.cfg, self.seed, self.level);
-        for e in &self.enemies {
-            self.enemy_at[e.pos] = 0;
-        }
-        self.enemies.clear();
-        self.enemy_at.fill(0);
-        self.place_enemies();
+        self.clear_enemies();
+        self.place_enemies(None);
         let enemy_at = &self.enemy_at;
         let pos = self
             .generator
@@ -232,6 +246,11 @@ impl Game {
         self.player.pos = pos;
         self.player_in(pos, true);
         self.render_all();
+    }
+
+    fn clear_enemies(&mut self) {
+        self.enemies.clear();
+        self.enemy_at.fill(0);
     }
 
     /// Plays one action. After the episode ended, input is ignored and the result repeats

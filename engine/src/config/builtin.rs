@@ -185,6 +185,21 @@ pub(crate) const WEAPONS: [(&str, (u32, u32)); 9] = [
     ("spear", (2, 3)),
 ];
 
+/// The original's `init_num` of each builtin weapon, half-open, in [`WEAPONS`] order: how
+/// many a generated stack holds. Only its width matters here: the original draws it once per
+/// starting weapon from the item stream (`"seeding": "original"`).
+pub(crate) const WEAPON_COUNTS: [(u32, u32); 9] = [
+    (1, 2),
+    (1, 2),
+    (1, 2),
+    (8, 17),
+    (2, 7),
+    (1, 2),
+    (8, 17),
+    (8, 17),
+    (8, 17),
+];
+
 /// Whether two item names match: case-insensitive, with spaces, `-` and `_` ignored, and
 /// `bow` standing for `short bow` (the original's default inventory says `bow`).
 pub(crate) fn same_item_name(a: &str, b: &str) -> bool {

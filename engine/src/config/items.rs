@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::builtin::{ARMORS, WEAPONS, same_item_name};
+use super::builtin::{ARMORS, WEAPON_COUNTS, WEAPONS, same_item_name};
 
 /// Item parameters (docs/rules.md §1). Each sub-object defaults when omitted (the original
 /// required all three; we are lenient).
@@ -108,6 +108,19 @@ impl WeaponConfig {
             WeaponPreset::Custom(c) => {
                 same_item_name(&c.name, name).then_some((c.dice.times, c.dice.max))
             }
+        })
+    }
+
+    /// The stack size range `[lo, hi)` of the weapon called `name` in this table: the
+    /// original's `init_num` for a builtin, `(1, 2)` for a custom weapon (ours have no
+    /// count); `None` when the table has no such weapon.
+    pub fn count_range_of(&self, name: &str) -> Option<(u32, u32)> {
+        self.weapons.iter().find_map(|preset| match preset {
+            WeaponPreset::Builtin(i) => WEAPONS
+                .get(*i)
+                .filter(|(n, _)| same_item_name(n, name))
+                .and_then(|_| WEAPON_COUNTS.get(*i).copied()),
+            WeaponPreset::Custom(c) => same_item_name(&c.name, name).then_some((1, 2)),
         })
     }
 }

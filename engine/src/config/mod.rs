@@ -43,6 +43,8 @@ pub struct GameConfig {
     pub seed: Option<u64>,
     /// `[lo, hi)`: used by [`GameConfig::seed_for_episode`] when `seed` is null.
     pub seed_range: Option<[u64; 2]>,
+    /// How a seed becomes random streams (default [`Seeding::Mixed`]).
+    pub seeding: Seeding,
     /// `false` shows the whole floor when it is created (hidden passages and secret doors
     /// still hidden). Default `true`.
     pub hide_dungeon: bool,
@@ -66,6 +68,7 @@ impl Default for GameConfig {
             height: 24,
             seed: None,
             seed_range: None,
+            seeding: Seeding::default(),
             hide_dungeon: true,
             dungeon: DungeonConfig::default(),
             item: ItemConfig::default(),
@@ -74,6 +77,21 @@ impl Default for GameConfig {
             keymap: None,
         }
     }
+}
+
+/// How a seed becomes the game's random streams.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Seeding {
+    /// Ours: independent ChaCha8 streams per (seed, subsystem, floor), mixed by splitmix64.
+    /// Floor k depends only on (config, seed, k), whatever happened on the floors before.
+    #[default]
+    Mixed,
+    /// The original's (v0.0.2): raw-seeded XorShift128 streams for the dungeon and the items,
+    /// continued from floor to floor, so the paper's seeds give the paper's dungeons exactly.
+    /// Floor k then depends on play: each search next to a hidden cell draws from the dungeon
+    /// stream (engine/README.md, "Original seeding").
+    Original,
 }
 
 /// Dungeon generation parameters (style `"rogue"`, docs/rules.md §1).

@@ -2,6 +2,7 @@
 //! features, gold, stairs and the amulet. A floor depends only on (config, seed, level).
 
 pub mod floor;
+pub mod original;
 mod passages;
 mod rooms;
 
@@ -31,6 +32,11 @@ impl Generator {
         }
     }
 
+    /// The room slots, in id order.
+    pub fn slots(&self) -> &[Rect] {
+        &self.slots
+    }
+
     /// Generates floor `level` of `seed` into `floor`. Returns the dungeon stream, left where
     /// generation stopped, for the caller's placements (player).
     pub fn generate(
@@ -56,16 +62,9 @@ impl Generator {
                 self.gone[id],
                 &mut self.stack,
             );
-            for y in slot.y0..slot.y1 {
-                for x in slot.x0..slot.x1 {
-                    let i = floor.idx(x, y);
-                    floor.slot_of[i] = id as u8;
-                    let inside = room.kind != RoomKind::Gone && room.rect.contains(x, y);
-                    floor.zone[i] = (id * 2) as u16 + u16::from(inside);
-                }
-            }
             floor.rooms.push(room);
         }
+        mark_slots(floor);
         passages::choose_edges(&mut rng, cfg, &mut self.edges, &mut self.order);
         for k in 0..self.order.len() {
             let (a, b) = self.order[k];
@@ -174,6 +173,22 @@ impl Generator {
                 if floor.is_empty_cell(i) {
                     self.cells.push(i as u32);
                 }
+            }
+        }
+    }
+}
+
+/// Fills the per-cell slot ids and zones (slot * 2, + 1 inside the room) from the rooms.
+pub(crate) fn mark_slots(floor: &mut Floor) {
+    for id in 0..floor.rooms.len() {
+        let room = floor.rooms[id];
+        let slot = room.slot;
+        for y in slot.y0..slot.y1 {
+            for x in slot.x0..slot.x1 {
+                let i = floor.idx(x, y);
+                floor.slot_of[i] = id as u8;
+                let inside = room.kind != RoomKind::Gone && room.rect.contains(x, y);
+                floor.zone[i] = (id * 2) as u16 + u16::from(inside);
             }
         }
     }

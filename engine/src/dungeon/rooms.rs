@@ -67,28 +67,11 @@ pub fn build_room(
     if gone {
         let x = slot.x0 + rng.range(1, slot.w() - 1);
         let y = slot.y0 + rng.range(1, slot.h() - 1);
-        return Room {
-            kind: RoomKind::Gone,
-            slot,
-            rect: Rect {
-                x0: x,
-                y0: y,
-                x1: x + 1,
-                y1: y + 1,
-            },
-            dark: true,
-            visited: false,
-            has_gold: false,
-        };
+        return gone_room(slot, x, y);
     }
     let dark = rng.below(d.dark_level) < level;
     if dark && rng.one_in(d.maze_rate_inv) {
-        let rect = Rect {
-            x0: slot.x0,
-            y0: slot.y0,
-            x1: slot.x1 - 1,
-            y1: slot.y1 - 1,
-        };
+        let rect = maze_rect(slot);
         carve_maze(floor, rng, cfg, level, rect, maze_stack);
         return Room {
             kind: RoomKind::Maze,
@@ -109,6 +92,47 @@ pub fn build_room(
         x1: slot.x0 + ox + sx,
         y1: slot.y0 + oy + sy,
     };
+    draw_normal_room(floor, rect, dark);
+    Room {
+        kind: RoomKind::Normal,
+        slot,
+        rect,
+        dark,
+        visited: false,
+        has_gold: false,
+    }
+}
+
+/// A gone room of `slot`: a single junction cell at `(x, y)`, dark.
+pub(super) fn gone_room(slot: Rect, x: i32, y: i32) -> Room {
+    Room {
+        kind: RoomKind::Gone,
+        slot,
+        rect: Rect {
+            x0: x,
+            y0: y,
+            x1: x + 1,
+            y1: y + 1,
+        },
+        dark: true,
+        visited: false,
+        has_gold: false,
+    }
+}
+
+/// The rectangle a maze fills in `slot`: all of it but the last column and row.
+pub(super) fn maze_rect(slot: Rect) -> Rect {
+    Rect {
+        x0: slot.x0,
+        y0: slot.y0,
+        x1: slot.x1 - 1,
+        y1: slot.y1 - 1,
+    }
+}
+
+/// Draws a normal room: `-` on the top and bottom rows (corners included), `|` on the side
+/// columns, floor inside (flagged dark in a dark room).
+pub(super) fn draw_normal_room(floor: &mut Floor, rect: Rect, dark: bool) {
     for y in rect.y0..rect.y1 {
         for x in rect.x0..rect.x1 {
             let i = floor.idx(x, y);
@@ -123,14 +147,6 @@ pub fn build_room(
                 }
             }
         }
-    }
-    Room {
-        kind: RoomKind::Normal,
-        slot,
-        rect,
-        dark,
-        visited: false,
-        has_gold: false,
     }
 }
 

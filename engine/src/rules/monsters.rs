@@ -11,8 +11,9 @@ use crate::geometry::Dir;
 use crate::rng::{GameRng, Stream};
 
 impl Game {
-    /// Places monsters on the new floor: one roll per real room (monster stream of the floor).
-    pub(crate) fn place_enemies(&mut self) {
+    /// Places monsters on the new floor: one roll per real room (monster stream of the floor),
+    /// never on `avoid` (the player's start when it is already chosen).
+    pub(crate) fn place_enemies(&mut self, avoid: Option<usize>) {
         if self.kinds.is_empty() {
             return;
         }
@@ -27,6 +28,9 @@ impl Game {
             let Some(cell) = self.generator.random_empty_cell(&self.floor, &mut rng, r) else {
                 continue;
             };
+            if avoid == Some(cell) {
+                continue;
+            }
             let rate = if room.has_gold {
                 self.cfg.enemies.appear_rate_gold
             } else {

@@ -32,7 +32,12 @@ impl Game {
 
     /// The player tries to move: attack a monster there, or move and pick up.
     pub(crate) fn player_move(&mut self, dir: Dir) {
-        let Some(t) = self.can_move(self.player.pos, dir) else {
+        // A hidden cell stops the player even where it shows (a maze cell rolled hidden, a
+        // passage re-rolled hidden under `"seeding": "original"`), as in the original.
+        let target = self
+            .can_move(self.player.pos, dir)
+            .filter(|&t| self.floor.flags[t] & (flag::HIDDEN | flag::LOCKED) == 0);
+        let Some(t) = target else {
             self.set_message("You can't move there");
             return;
         };
@@ -86,19 +91,28 @@ impl Game {
             let i = self.floor.idx(nx, ny);
             let f = self.floor.flags[i];
             if f & flag::HIDDEN != 0 {
-                if self.rng.one_in(self.cfg.dungeon.passage_unlock_rate_inv) {
+                if self.search_roll(self.cfg.dungeon.passage_unlock_rate_inv) {
                     self.floor.flags[i] &= !flag::HIDDEN;
                     self.floor.surface[i] = Surface::Passage;
                     self.reveal(i);
                 }
             } else if f & flag::LOCKED != 0
-                && self.rng.one_in(self.cfg.dungeon.door_unlock_rate_inv)
+                && self.search_roll(self.cfg.dungeon.door_unlock_rate_inv)
             {
                 self.floor.flags[i] &= !flag::LOCKED;
                 self.floor.surface[i] = Surface::Door;
                 self.reveal(i);
                 self.set_message("You found a secret door");
             }
+        }
+    }
+
+    /// A search's `one_in(inv)`: from the play stream, or under `"seeding": "original"` from
+    /// the original's dungeon stream (so searching shifts the floors below, as there).
+    fn search_roll(&mut self, inv: u32) -> bool {
+        match &mut self.original {
+            Some(streams) => streams.dungeon.one_in(inv),
+            None => self.rng.one_in(inv),
         }
     }
 }

@@ -3,5 +3,4 @@
 
 mod builder;
 mod generation;
-mod random_agent;
 mod rules;
