@@ -3,9 +3,16 @@
 from __future__ import annotations
 
 import json
+import os
+from pathlib import Path
 
 import pytest
 from rogue_gym.suites import PAPER_CONFIG, SUITES, get_suite, suite_names
+
+ORACLE = (
+    Path(__file__).resolve().parents[3]
+    / "shared/reference/original-dungeons/paper-seeds-v0.0.2.jsonl"
+)
 
 # sha256 of each suite's canonical JSON (config + max_steps + stair_reward + seed lists +
 # episodes per seed). DO NOT UPDATE these to make a test pass: a suite whose definition
@@ -15,6 +22,9 @@ FROZEN_DIGESTS = {
     "paper-10": "4e2db96dbf9beba6b878cf8a370bfd59265975de04841025f71b9069ddd6c372",
     "paper-20": "db9d5d2076a323751b4a6c83f67517df13eda59753ca13bbf43c36ab0a55c3b9",
     "paper-40": "0ec825986afa9aaf6866c100bc90a6cc5edad07a00eaccd9e109b2862a250608",
+    "paper-10-original": "4dbf37eba7892745dd84f4724dbc0b7c5bb414ddaf03e7786c0e9c775a73cbe8",
+    "paper-20-original": "f77614390f4fb257a591b5c698d0fed3a0e5395ab4bf4233d84f1d9ded087b4c",
+    "paper-40-original": "3319f4b233612a8048e23c676524cf73e23bfc877ae9240a5a6b6f300abbd57c",
     "rogue-80x24-enemies": "a58d8f3554ca509a20bb2571b89f6b8bdb9faae08d30c51bfb6b4a09ca2f69a1",
 }
 
@@ -36,6 +46,37 @@ def test_paper_suites_follow_the_paper(n: int) -> None:
     assert s.train_seed_list() == list(range(n))
     assert s.test_seed_list() == list(range(1000, 2000))
     assert s.episodes_per_seed == 10
+
+
+@pytest.mark.parametrize("n", [10, 20, 40])
+def test_original_suites_are_the_paper_suites_with_the_originals_seeding(n: int) -> None:
+    paper, original = get_suite(f"paper-{n}"), get_suite(f"paper-{n}-original")
+    assert original.config == {**paper.config, "seeding": "original"}
+    assert original.canonical() == {
+        **paper.canonical(),
+        "name": original.name,
+        "config": original.config,
+    }
+
+
+def test_original_suites_start_in_the_originals_dungeons() -> None:
+    """Through the Python env: the player starts where the original put it, on the test seeds."""
+    if not ORACLE.exists():
+        assert os.environ.get("CI") != "true", f"CI needs ../shared beside the repository: {ORACLE}"
+        pytest.skip(f"{ORACLE} is missing")
+    from rogue_gym.envs import RogueEnv
+
+    starts = {}
+    for line in ORACLE.read_text().splitlines():
+        rec = json.loads(line)
+        if rec["floor"] == 1 and 1000 <= rec["seed"] < 1020:
+            starts[rec["seed"]] = tuple(rec["player_start"])
+    assert len(starts) == 20
+    env = RogueEnv(config_dict=get_suite("paper-10-original").config)
+    for seed, (x, y) in starts.items():
+        env.reset(seed=seed)
+        assert env.get_dungeon()[y][x] == "@", seed
+    env.close()
 
 
 def test_train_and_test_seeds_are_disjoint() -> None:
