@@ -229,3 +229,61 @@ fn dump_writes_one_record_per_seed_and_floor_in_the_oracles_format() {
         .unwrap();
     assert_eq!(text(&again).0, out);
 }
+
+/// `dump --config` with the oracle's config under the original's seeding writes the oracle,
+/// record for record: the paper's seeds 0..40 and 1000..1500, floors 1-3 (1620 records).
+#[test]
+fn dump_with_original_seeding_writes_the_originals_oracle() {
+    let oracle = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/reference/original-dungeons/paper-seeds-v0.0.2.jsonl");
+    let Ok(want) = std::fs::read_to_string(&oracle) else {
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "CI must run with ../shared beside the repository: {} is missing",
+            oracle.display()
+        );
+        return;
+    };
+    let want: Vec<serde_json::Value> = want
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    // The config the oracle was dumped with (its README), plus our seeding switch.
+    let config = tmp("original-seeding.json");
+    std::fs::write(
+        &config,
+        r#"{"width":32,"height":16,"hide_dungeon":true,"seeding":"original",
+            "dungeon":{"style":"rogue","room_num_x":2,"room_num_y":2},"enemies":{"enemies":[]}}"#,
+    )
+    .unwrap();
+    let mut got = Vec::new();
+    for seeds in ["0..40", "1000..1500"] {
+        let o = bin()
+            .args(["dump", "--config"])
+            .arg(&config)
+            .args(["--seed", seeds, "--floors", "3"])
+            .output()
+            .unwrap();
+        let (out, err) = text(&o);
+        assert!(o.status.success(), "{err}");
+        got.extend(
+            out.lines()
+                .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()),
+        );
+    }
+    std::fs::remove_file(&config).unwrap();
+    assert_eq!(got.len(), 1620);
+    assert_eq!(got.len(), want.len());
+    let differing: Vec<_> = got
+        .iter()
+        .zip(&want)
+        .filter(|(g, w)| g != w)
+        .map(|(g, _)| (g["seed"].clone(), g["floor"].clone()))
+        .collect();
+    assert!(
+        differing.is_empty(),
+        "{} of 1620 records differ from the oracle, first (seed, floor): {:?}",
+        differing.len(),
+        differing.first()
+    );
+}
