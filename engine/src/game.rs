@@ -265,35 +265,40 @@ impl Game {
         self.end_step()
     }
 
-    /// Plays a terminal command. A run repeats its move (each repetition is a step) until it is
-    /// blocked, attacks, picks something up, reaches a door or stairs, or the episode ends.
+    /// Plays a terminal command. A run (the original's `MoveUntil`) is one step: it repeats
+    /// its move until the move fails, attacks, picks something up, lands on anything but floor
+    /// or passage (a door, the stairs) or the episode ends; every repetition but that last one
+    /// passes a turn, so a run blocked at once costs no turn.
     pub fn step_command(&mut self, command: Command) -> StepResult {
-        match command {
-            Command::Act(a) => self.step(a),
-            Command::Run(a) => {
-                let mut total = 0.0;
-                let mut res = self.result(0.0);
-                for _ in 0..(self.cfg.width + self.cfg.height) {
-                    if self.is_over() {
-                        break;
-                    }
-                    let before = self.player.pos;
-                    res = self.step(a);
-                    total += res.reward;
-                    let here = self.floor.surface[self.player.pos];
-                    if self.player.pos == before
-                        || res.reward != 0.0
-                        || !matches!(here, Surface::Floor | Surface::Passage)
-                    {
-                        break;
-                    }
-                }
-                StepResult {
-                    reward: total,
-                    ..res
-                }
+        let dir = match command {
+            Command::Act(a) => return self.step(a),
+            Command::Run(a) => match a.dir() {
+                Some(dir) => dir,
+                None => return self.step(a),
+            },
+        };
+        if self.is_over() {
+            return self.result(0.0);
+        }
+        self.reward = 0.0;
+        self.message.clear();
+        for _ in 0..(self.cfg.width + self.cfg.height) {
+            let (before, reward) = (self.player.pos, self.reward);
+            self.player_move(dir);
+            let here = self.floor.surface[self.player.pos];
+            if self.player.pos == before
+                || self.reward != reward
+                || self.terminated
+                || !matches!(here, Surface::Floor | Surface::Passage)
+            {
+                break;
+            }
+            self.after_turn();
+            if self.terminated {
+                break;
             }
         }
+        self.end_step()
     }
 
     fn end_step(&mut self) -> StepResult {

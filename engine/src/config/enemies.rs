@@ -15,6 +15,24 @@ pub struct EnemiesConfig {
     pub appear_rate_gold: u32,
     /// Percent chance of a monster in a room without gold (default 25, <= 100).
     pub appear_rate_nogold: u32,
+    /// How a chasing monster steps (default [`Chase::Closer`]; ours, not the original's key).
+    pub chase: Chase,
+    /// May a monster start on gold or the stairs, as in the original? Default `false` (ours,
+    /// not the original's key): a monster there hides the object under it.
+    pub spawn_on_objects: bool,
+}
+
+/// How a chasing monster picks its step, along BFS distances from the player.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Chase {
+    /// Ours: only to a strictly closer cell, and the step obeys the diagonal rule, so a
+    /// monster blocked by another waits.
+    #[default]
+    Closer,
+    /// The original's: to the free neighbour nearest the player even when it is no closer
+    /// (a side-step around a blocker), the step itself unchecked against corners. Harder.
+    Original,
 }
 
 impl Default for EnemiesConfig {
@@ -23,6 +41,8 @@ impl Default for EnemiesConfig {
             enemies: (0..26).map(EnemyPreset::Builtin).collect(),
             appear_rate_gold: 80,
             appear_rate_nogold: 25,
+            chase: Chase::default(),
+            spawn_on_objects: false,
         }
     }
 }

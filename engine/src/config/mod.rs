@@ -15,7 +15,7 @@ mod validate;
 
 pub use builtin::{CONFUSED, MEAN, RANDOM};
 pub(crate) use enemies::EnemyKind;
-pub use enemies::{CustomEnemy, EnemiesConfig, EnemyPreset};
+pub use enemies::{Chase, CustomEnemy, EnemiesConfig, EnemyPreset};
 pub use error::ConfigError;
 pub use items::{
     ArmorConfig, ArmorPreset, CustomArmor, CustomWeapon, Dice, GoldConfig, ItemConfig,

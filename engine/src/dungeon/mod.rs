@@ -120,7 +120,18 @@ impl Generator {
         rng: &mut GameRng,
         id: usize,
     ) -> Option<usize> {
-        self.collect_empty(floor, id);
+        self.random_cell_where(floor, rng, id, |f, i| f.is_empty_cell(i))
+    }
+
+    /// A uniformly chosen cell of room `id` (its rectangle) that passes `ok`, if any.
+    pub fn random_cell_where(
+        &mut self,
+        floor: &Floor,
+        rng: &mut GameRng,
+        id: usize,
+        ok: impl Fn(&Floor, usize) -> bool,
+    ) -> Option<usize> {
+        self.collect_where(floor, id, ok);
         if self.cells.is_empty() {
             return None;
         }
@@ -164,13 +175,16 @@ impl Generator {
     }
 
     fn collect_empty(&mut self, floor: &Floor, id: usize) {
+        self.collect_where(floor, id, |f, i| f.is_empty_cell(i));
+    }
+
+    fn collect_where(&mut self, floor: &Floor, id: usize, ok: impl Fn(&Floor, usize) -> bool) {
         self.cells.clear();
-        let room = floor.rooms[id];
-        let r = room.rect;
+        let r = floor.rooms[id].rect;
         for y in r.y0..r.y1 {
             for x in r.x0..r.x1 {
                 let i = floor.idx(x, y);
-                if floor.is_empty_cell(i) {
+                if ok(floor, i) {
                     self.cells.push(i as u32);
                 }
             }

@@ -4,11 +4,21 @@
 //! lost on collision (a monster never moves onto another).
 
 use crate::actors::Enemy;
-use crate::config::{CONFUSED, RANDOM};
-use crate::dungeon::RoomKind;
+use crate::config::{CONFUSED, Chase, RANDOM};
+use crate::dungeon::{RoomKind, Surface};
 use crate::game::Game;
 use crate::geometry::Dir;
 use crate::rng::{GameRng, Stream};
+
+/// What a chasing monster does this turn.
+enum ChaseStep {
+    /// Attack the player.
+    Attack,
+    /// Step onto this cell.
+    Move(usize),
+    /// Stay.
+    Wait,
+}
 
 impl Game {
     /// Places monsters on the new floor: one roll per real room (monster stream of the floor),
@@ -25,7 +35,20 @@ impl Game {
             if room.kind == RoomKind::Gone {
                 continue;
             }
-            let Some(cell) = self.generator.random_empty_cell(&self.floor, &mut rng, r) else {
+            // Ours: an empty cell; with `spawn_on_objects`, the original's rule (gold and the
+            // stairs allowed).
+            let cell = if self.cfg.enemies.spawn_on_objects {
+                self.generator
+                    .random_cell_where(&self.floor, &mut rng, r, |f, i| {
+                        matches!(
+                            f.surface[i],
+                            Surface::Floor | Surface::Passage | Surface::Stair
+                        )
+                    })
+            } else {
+                self.generator.random_empty_cell(&self.floor, &mut rng, r)
+            };
+            let Some(cell) = cell else {
                 continue;
             };
             if avoid == Some(cell) {
@@ -98,31 +121,66 @@ impl Game {
                 self.chase_map();
                 have_map = true;
             }
-            let here = self.dist[e.pos];
-            let mut best: Option<(u16, usize)> = None;
-            let mut attack = false;
-            for dir in Dir::ALL {
-                let Some(t) = self.can_move(e.pos, dir) else {
-                    continue;
-                };
-                if t == self.player.pos {
-                    attack = true;
-                    break;
-                }
-                if self.enemy_at[t] != 0 {
-                    continue;
-                }
-                let d = self.dist[t];
-                if d < here && best.is_none_or(|(bd, _)| d < bd) {
-                    best = Some((d, t));
-                }
-            }
-            if attack {
-                self.enemy_attack(k);
-            } else if let Some((_, t)) = best {
-                self.move_enemy(k, t);
+            let step = match self.cfg.enemies.chase {
+                Chase::Closer => self.chase_closer(e.pos),
+                Chase::Original => self.chase_original(e.pos),
+            };
+            match step {
+                ChaseStep::Attack => self.enemy_attack(k),
+                ChaseStep::Move(t) => self.move_enemy(k, t),
+                ChaseStep::Wait => {}
             }
         }
+    }
+
+    /// [`Chase::Closer`]: the nearest strictly closer legal step (first in direction order on
+    /// ties), or an attack when the player is a legal step away.
+    fn chase_closer(&self, from: usize) -> ChaseStep {
+        let here = self.dist[from];
+        let mut best: Option<(u16, usize)> = None;
+        for dir in Dir::ALL {
+            let Some(t) = self.can_move(from, dir) else {
+                continue;
+            };
+            if t == self.player.pos {
+                return ChaseStep::Attack;
+            }
+            if self.enemy_at[t] != 0 {
+                continue;
+            }
+            let d = self.dist[t];
+            if d < here && best.is_none_or(|(bd, _)| d < bd) {
+                best = Some((d, t));
+            }
+        }
+        best.map_or(ChaseStep::Wait, |(_, t)| ChaseStep::Move(t))
+    }
+
+    /// [`Chase::Original`]: the free neighbour with the least distance (first in direction
+    /// order on ties), even when no closer; the player next door is attacked only across a
+    /// legal step, but a move is not checked against corners.
+    fn chase_original(&self, from: usize) -> ChaseStep {
+        let (x, y) = self.floor.xy(from);
+        let mut best: Option<(u16, usize)> = None;
+        for dir in Dir::ALL {
+            let (dx, dy) = dir.delta();
+            if !self.floor.in_area(x + dx, y + dy) {
+                continue;
+            }
+            let t = self.floor.idx(x + dx, y + dy);
+            if self.enemy_at[t] != 0 {
+                continue;
+            }
+            let d = self.dist[t];
+            if d == 0 {
+                if self.can_move(from, dir).is_some() {
+                    return ChaseStep::Attack;
+                }
+            } else if d != u16::MAX && best.is_none_or(|(bd, _)| d < bd) {
+                best = Some((d, t));
+            }
+        }
+        best.map_or(ChaseStep::Wait, |(_, t)| ChaseStep::Move(t))
     }
 
     fn move_enemy(&mut self, k: usize, t: usize) {

@@ -1,6 +1,6 @@
 //! Rule tests on hand-made floors.
 
-use crate::config::{CustomEnemy, Dice, EnemiesConfig, EnemyPreset};
+use crate::config::{Chase, CustomEnemy, Dice, EnemiesConfig, EnemyPreset};
 use crate::dungeon::{Surface, flag};
 use crate::*;
 
@@ -309,6 +309,76 @@ fn monster_chases_player() {
 }
 
 #[test]
+fn chase_switch_original_side_steps_around_a_blocker() {
+    // A 1-high room: the front brute sleeps in the way, the rear one is awake.
+    let rows = ["----------", "|@....ZZ.|", "----------"];
+    let rear_after_a_turn = |chase: Chase| {
+        let mut cfg = tough_config();
+        cfg.enemies.chase = chase;
+        let mut g = Game::from_layout(&cfg, EpisodeConfig::default(), &rows, false);
+        g.enemies[0].awake = false;
+        g.step(Action::NoOp);
+        g.floor.xy(g.enemies[1].pos)
+    };
+    // Ours waits: no free cell is closer.
+    assert_eq!(rear_after_a_turn(Chase::Closer), (7, 2));
+    // The original steps to the free neighbour nearest the player, here away from it.
+    assert_eq!(rear_after_a_turn(Chase::Original), (8, 2));
+}
+
+#[test]
+fn chase_switch_original_still_chases_and_attacks() {
+    let rows = [
+        "-----------",
+        "|.........|",
+        "|@.......Z|",
+        "|.........|",
+        "-----------",
+    ];
+    let mut cfg = tough_config();
+    cfg.enemies.chase = Chase::Original;
+    let mut g = Game::from_layout(&cfg, EpisodeConfig::default(), &rows, false);
+    for _ in 0..7 {
+        g.step(Action::NoOp);
+    }
+    assert_eq!(g.floor.xy(g.enemies[0].pos), (2, 3));
+    let hp = g.player.hp;
+    for _ in 0..20 {
+        g.step(Action::NoOp);
+    }
+    assert!(g.player.hp < hp, "the brute next to the player attacks");
+}
+
+#[test]
+fn spawn_on_objects_lets_monsters_start_on_gold_or_stairs() {
+    let on_objects = |allowed: bool| {
+        let mut cfg = GameConfig {
+            enemies: EnemiesConfig {
+                appear_rate_gold: 100,
+                appear_rate_nogold: 100,
+                spawn_on_objects: allowed,
+                ..Default::default()
+            },
+            ..GameConfig::paper()
+        };
+        cfg.dungeon.room_num_x = 2;
+        let mut g = Game::new(&cfg, EpisodeConfig::default()).unwrap();
+        let mut count = 0;
+        for seed in 0..300 {
+            g.reset(seed);
+            count += g
+                .enemies
+                .iter()
+                .filter(|e| g.floor.gold[e.pos] > 0 || e.pos == g.floor.stairs)
+                .count();
+        }
+        count
+    };
+    assert_eq!(on_objects(false), 0);
+    assert!(on_objects(true) > 0);
+}
+
+#[test]
 fn every_symbol_channel_is_live() {
     let rows = ["-------", "|.....|", "|..@Z,", "|.....|", "-------"];
     let g = Game::from_layout(
@@ -410,9 +480,33 @@ fn corridors_are_revealed_orthogonally() {
 fn run_stops_at_a_door() {
     let rows = ["--------", "|......|", "|@.....+##", "|......|", "--------"];
     let mut g = Game::from_layout(&quiet(), EpisodeConfig::default(), &rows, false);
+    let food = g.player.food;
     g.step_command(Command::Run(Action::Right));
     assert_eq!(g.player_position(), (7, 3), "the run stops on the door");
-    assert_eq!(g.info().steps, 6);
+    // As the original's MoveUntil: one step, a turn for every move but the last.
+    assert_eq!(g.info().steps, 1);
+    assert_eq!(food - g.player.food, 5);
+    // Blocked at once: no turn passes.
+    let rows = ["-----", "|..@|", "-----"];
+    let mut g = Game::from_layout(&quiet(), EpisodeConfig::default(), &rows, false);
+    let food = g.player.food;
+    g.step_command(Command::Run(Action::Right));
+    assert_eq!((g.info().steps, g.player.food), (1, food));
+}
+
+#[test]
+fn run_stops_after_picking_up_gold_without_a_turn() {
+    let rows = ["--------", "|@.*...|", "--------"];
+    let mut g = Game::from_layout(&quiet(), EpisodeConfig::default(), &rows, false);
+    let food = g.player.food;
+    let r = g.step_command(Command::Run(Action::Right));
+    assert_eq!(g.player_position(), (3, 2));
+    assert!(r.reward > 0.0);
+    assert_eq!(
+        food - g.player.food,
+        1,
+        "the move onto the gold passes no turn"
+    );
 }
 
 #[test]
