@@ -1,5 +1,6 @@
 //! Config parsing, round trip and error messages.
 
+use rogue_gym_engine::config::{Chase, EnemiesConfig, Seeding};
 use rogue_gym_engine::{ConfigError, EpisodeConfig, Game, GameConfig};
 
 fn err(json: &str) -> String {
@@ -19,10 +20,32 @@ fn empty_is_default() {
 
 #[test]
 fn round_trip() {
-    for cfg in [GameConfig::default(), GameConfig::paper()] {
+    let original_seeding = GameConfig {
+        seeding: Seeding::Original,
+        enemies: EnemiesConfig {
+            chase: Chase::Original,
+            spawn_on_objects: true,
+            ..Default::default()
+        },
+        ..GameConfig::paper()
+    };
+    for cfg in [GameConfig::default(), GameConfig::paper(), original_seeding] {
         let json = cfg.to_json();
         assert_eq!(GameConfig::from_json(&json).unwrap(), cfg, "{json}");
+        // The original rejects `"keymap": null`: an unset keymap is left out.
+        assert!(!json.contains("keymap"), "{json}");
     }
+    let json =
+        GameConfig::from_json(r#"{"seeding": "original", "enemies": {"chase": "original"}}"#)
+            .unwrap()
+            .to_json();
+    assert!(json.contains(r#""seeding":"original""#) && json.contains(r#""chase":"original""#));
+    assert!(
+        GameConfig::from_json(r#"{"seeding": "raw"}"#)
+            .unwrap_err()
+            .to_string()
+            .contains("seeding")
+    );
 }
 
 #[test]

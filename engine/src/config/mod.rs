@@ -57,7 +57,9 @@ pub struct GameConfig {
     /// Monster list and appearance rates.
     pub enemies: EnemiesConfig,
     /// Key bindings for terminal play. `None` = the default keymap. A given keymap replaces
-    /// the default one completely. The RL action space never depends on it.
+    /// the default one completely. The RL action space never depends on it. Not written when
+    /// `None`: the original rejects `"keymap": null`.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub keymap: Option<BTreeMap<String, InputCode>>,
 }
 
