@@ -61,13 +61,11 @@ class PoolActor:
         local_seed: Any = seed
         if seed is not None and not self.native:
             local_seed = [int(seed) + self.first_env + i for i in range(self.num_envs)]
-        obs, infos = self.envs.reset(seed=local_seed, options=options)
-        return np.asarray(obs), infos
+        return self.envs.reset(seed=local_seed, options=options)
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         """One step of every env of the actor."""
-        obs, rewards, terminations, truncations, infos = self.envs.step(actions)
-        return np.asarray(obs), rewards, terminations, truncations, infos
+        return self.envs.step(actions)
 
     def call(self, name: str, args: tuple, kwargs: dict) -> tuple:
         """``call(name, *args, **kwargs)`` on every env of the actor."""

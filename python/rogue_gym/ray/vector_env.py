@@ -36,6 +36,8 @@ _RemoteActor = ray.remote(PoolActor)
 
 def merge_infos(parts: Sequence[dict[str, Any]], sizes: Sequence[int]) -> dict[str, Any]:
     """Join per-actor vector infos (dicts of arrays with ``_key`` masks) into one, in order."""
+    if len(parts) == 1:
+        return parts[0]
     total = int(sum(sizes))
     starts = np.cumsum([0, *sizes])
     out: dict[str, Any] = {}
@@ -192,7 +194,8 @@ class RayVectorEnv(VectorEnv):
         return ray.get(ref, timeout=self.step_timeout)
 
     def _restart(self, k: int, cause: BaseException) -> tuple[np.ndarray, dict[str, Any]]:
-        """Replace lost actor ``k`` and reset its envs (from a seed of its own)."""
+        """Replace lost actor ``k`` and reset its envs (from a seed of its own); the infos
+        carry ``actor_restarted`` for each of them."""
         if self.actor_restarts >= self.max_actor_restarts:
             raise RuntimeError(
                 f"actor {k} (envs {self.blocks[k][0]}..{self.blocks[k][1] - 1}) was lost and "
@@ -207,7 +210,8 @@ class RayVectorEnv(VectorEnv):
         self._finalizer = weakref.finalize(self, _close_actors, list(self._actors))
         seed = int(np.random.SeedSequence([self.seed, k, self.actor_restarts]).generate_state(1)[0])
         obs, infos = self._get(self._actors[k].reset.remote(seed, None))
-        return obs, infos
+        flag = np.ones(len(obs), bool)
+        return obs, {**infos, "actor_restarted": flag, "_actor_restarted": flag.copy()}
 
     def _gather(self, refs: dict[int, Any]) -> dict[int, tuple]:
         """Each actor's result; a lost actor's envs come back reset and truncated."""
@@ -220,9 +224,6 @@ class RayVectorEnv(VectorEnv):
             except (RayActorError, GetTimeoutError) as e:
                 obs, infos = self._restart(k, e)
                 n = len(obs)
-                infos = dict(infos)
-                infos["actor_restarted"] = np.ones(n, bool)
-                infos["_actor_restarted"] = np.ones(n, bool)
                 out[k] = (obs, np.zeros(n), np.zeros(n, bool), np.ones(n, bool), infos)
         return out
 
@@ -263,8 +264,7 @@ class RayVectorEnv(VectorEnv):
             try:
                 got[k] = self._get(ref)
             except (RayActorError, GetTimeoutError) as e:
-                obs, infos = self._restart(k, e)
-                got[k] = (obs, {**infos, "actor_restarted": np.ones(len(obs), bool)})
+                got[k] = self._restart(k, e)
         parts_obs, parts_info, sizes = [], [], []
         for k, (a, b) in enumerate(self.blocks):
             if k in got:
