@@ -95,6 +95,18 @@ pub struct Room {
 }
 
 impl Room {
+    /// A room not yet visited and without gold.
+    pub fn new(kind: RoomKind, slot: Rect, rect: Rect, dark: bool) -> Self {
+        Room {
+            kind,
+            slot,
+            rect,
+            dark,
+            visited: false,
+            has_gold: false,
+        }
+    }
+
     /// Does a creature entering by a door light this room up?
     pub fn is_lit_normal(&self) -> bool {
         self.kind == RoomKind::Normal && !self.dark

@@ -73,14 +73,7 @@ pub fn build_room(
     if dark && rng.one_in(d.maze_rate_inv) {
         let rect = maze_rect(slot);
         carve_maze(floor, rng, cfg, level, rect, maze_stack);
-        return Room {
-            kind: RoomKind::Maze,
-            slot,
-            rect,
-            dark: true,
-            visited: false,
-            has_gold: false,
-        };
+        return Room::new(RoomKind::Maze, slot, rect, true);
     }
     let sx = rng.range(d.min_room_size.x, slot.w());
     let sy = rng.range(d.min_room_size.y, slot.h());
@@ -93,31 +86,18 @@ pub fn build_room(
         y1: slot.y0 + oy + sy,
     };
     draw_normal_room(floor, rect, dark);
-    Room {
-        kind: RoomKind::Normal,
-        slot,
-        rect,
-        dark,
-        visited: false,
-        has_gold: false,
-    }
+    Room::new(RoomKind::Normal, slot, rect, dark)
 }
 
 /// A gone room of `slot`: a single junction cell at `(x, y)`, dark.
 pub(super) fn gone_room(slot: Rect, x: i32, y: i32) -> Room {
-    Room {
-        kind: RoomKind::Gone,
-        slot,
-        rect: Rect {
-            x0: x,
-            y0: y,
-            x1: x + 1,
-            y1: y + 1,
-        },
-        dark: true,
-        visited: false,
-        has_gold: false,
-    }
+    let junction = Rect {
+        x0: x,
+        y0: y,
+        x1: x + 1,
+        y1: y + 1,
+    };
+    Room::new(RoomKind::Gone, slot, junction, true)
 }
 
 /// The rectangle a maze fills in `slot`: all of it but the last column and row.

@@ -123,14 +123,9 @@ impl Game {
                 floor.zone[i] = u16::from(rect.contains(x, y));
             }
         }
-        floor.rooms.push(Room {
-            kind: RoomKind::Normal,
-            slot,
-            rect,
-            dark,
-            visited: false,
-            has_gold: false,
-        });
+        floor
+            .rooms
+            .push(Room::new(RoomKind::Normal, slot, rect, dark));
         g.floor = floor;
         g.player.pos = player.expect("layout has a player");
         g.player_in(g.player.pos, true);

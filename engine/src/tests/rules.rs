@@ -290,16 +290,23 @@ fn monster_damages_player() {
     assert!(g.info().died && g.status().hp_current == 0);
 }
 
+/// A lit room: the player at its west wall, a monster at its east wall.
+const CHASE_ROOM: [&str; 5] = [
+    "-----------",
+    "|.........|",
+    "|@.......Z|",
+    "|.........|",
+    "-----------",
+];
+
 #[test]
 fn monster_chases_player() {
-    let rows = [
-        "-----------",
-        "|.........|",
-        "|@.......Z|",
-        "|.........|",
-        "-----------",
-    ];
-    let mut g = Game::from_layout(&tough_config(), EpisodeConfig::default(), &rows, false);
+    let mut g = Game::from_layout(
+        &tough_config(),
+        EpisodeConfig::default(),
+        &CHASE_ROOM,
+        false,
+    );
     g.step(Action::NoOp);
     assert_eq!(g.floor.xy(g.enemies[0].pos), (8, 3));
     for _ in 0..6 {
@@ -328,16 +335,9 @@ fn chase_switch_original_side_steps_around_a_blocker() {
 
 #[test]
 fn chase_switch_original_still_chases_and_attacks() {
-    let rows = [
-        "-----------",
-        "|.........|",
-        "|@.......Z|",
-        "|.........|",
-        "-----------",
-    ];
     let mut cfg = tough_config();
     cfg.enemies.chase = Chase::Original;
-    let mut g = Game::from_layout(&cfg, EpisodeConfig::default(), &rows, false);
+    let mut g = Game::from_layout(&cfg, EpisodeConfig::default(), &CHASE_ROOM, false);
     for _ in 0..7 {
         g.step(Action::NoOp);
     }

@@ -58,14 +58,7 @@ pub(super) fn plan_rooms(
             let rect = maze_rect(slot);
             let maze = dig_maze(floor, rect, rng);
             planned.push(Planned {
-                room: Room {
-                    kind: RoomKind::Maze,
-                    slot,
-                    rect,
-                    dark: true,
-                    visited: false,
-                    has_gold: false,
-                },
+                room: Room::new(RoomKind::Maze, slot, rect, true),
                 maze,
             });
             continue;
@@ -81,14 +74,7 @@ pub(super) fn plan_rooms(
             y1: y0 + h,
         };
         planned.push(Planned {
-            room: Room {
-                kind: RoomKind::Normal,
-                slot,
-                rect,
-                dark,
-                visited: false,
-                has_gold: false,
-            },
+            room: Room::new(RoomKind::Normal, slot, rect, dark),
             maze: Vec::new(),
         });
     }
