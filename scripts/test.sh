@@ -14,8 +14,8 @@ bash scripts/setup-python.sh
 (cd python && ../.venv/bin/python -m mypy && ../.venv/bin/python -m mypy.stubtest rogue_gym._native)
 # Every test runs under a time limit (tests/python/conftest.py), so no test can hang the run.
 .venv/bin/python -m pytest tests/python -q
-.venv/bin/ruff check python tests/python tests/ray benchmarks
-.venv/bin/ruff format --check python tests/python tests/ray benchmarks
+.venv/bin/ruff check python tests/python tests/ray benchmarks scripts
+.venv/bin/ruff format --check python tests/python tests/ray benchmarks scripts
 
 echo "== Ray (RLlib through pools, actor-backed vector env) on a local 2-CPU cluster"
 bash scripts/setup-ray.sh
