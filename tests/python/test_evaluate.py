@@ -196,9 +196,9 @@ def _pool_available() -> bool:
 needs_pool = pytest.mark.skipif(not _pool_available(), reason="the pool binding is not built")
 
 
-def _run(backend: str, num_workers=None, num_envs: int = 4, policy=None) -> np.ndarray:
+def _run(backend: str, num_workers=None, num_envs: int = 4, policy=None, suite=SUITE) -> np.ndarray:
     return ev.run_episodes(
-        SUITE,
+        suite,
         policy or ev.RandomPolicy(),
         SEEDS,
         2,
@@ -248,6 +248,15 @@ def test_few_episodes_keep_a_worker_multiple() -> None:
 @needs_pool
 def test_pool_matches_inprocess_engine() -> None:
     assert np.array_equal(_run("pool", num_workers=2), _run("inprocess"))
+
+
+@needs_pool
+def test_original_seeding_plays_alike_in_the_pool_and_in_process() -> None:
+    original = get_suite("paper-40-original")
+    here = _run("inprocess", suite=original)
+    assert np.array_equal(_run("pool", num_workers=1, suite=original), here)
+    assert np.array_equal(_run("pool", num_workers=2, suite=original), here)
+    assert not np.array_equal(here, _run("inprocess"))
 
 
 def test_seed_manifest_describes_each_seed() -> None:
