@@ -219,38 +219,36 @@ impl Game {
     /// Builds the next floor, places monsters and the player, and redraws the screen.
     pub(crate) fn new_level(&mut self) {
         self.level += 1;
-        if let Some(streams) = &mut self.original {
-            let slots = self.generator.slots();
-            let start = original::generate(&mut self.floor, slots, &self.cfg, self.level, streams);
-            self.clear_enemies();
-            self.place_enemies(Some(start));
-            self.player.pos = start;
-            self.player_in(start, true);
-            self.render_all();
-            return;
-        }
-        let mut drng = self
-            .generator
-            .generate(&mut self.floor, &self.cfg, self.seed, self.level);
-        self.clear_enemies();
-        self.place_enemies(None);
-        let enemy_at = &self.enemy_at;
-        let pos = self
-            .generator
-            .random_room_cell_where(&self.floor, &mut drng, |c| enemy_at[c] == 0)
-            .or_else(|| {
-                (0..self.floor.surface.len())
-                    .find(|&c| self.floor.surface[c].walkable() && enemy_at[c] == 0)
-            })
-            .unwrap_or(self.floor.stairs);
-        self.player.pos = pos;
-        self.player_in(pos, true);
-        self.render_all();
-    }
-
-    fn clear_enemies(&mut self) {
         self.enemies.clear();
         self.enemy_at.fill(0);
+        let start = match &mut self.original {
+            // The original picks the start with the layout; our monsters avoid it.
+            Some(streams) => {
+                let slots = self.generator.slots();
+                let start =
+                    original::generate(&mut self.floor, slots, &self.cfg, self.level, streams);
+                self.place_enemies(Some(start));
+                start
+            }
+            // Ours places the monsters first; the start avoids them.
+            None => {
+                let mut drng =
+                    self.generator
+                        .generate(&mut self.floor, &self.cfg, self.seed, self.level);
+                self.place_enemies(None);
+                let enemy_at = &self.enemy_at;
+                self.generator
+                    .random_room_cell_where(&self.floor, &mut drng, |c| enemy_at[c] == 0)
+                    .or_else(|| {
+                        (0..self.floor.surface.len())
+                            .find(|&c| self.floor.surface[c].walkable() && enemy_at[c] == 0)
+                    })
+                    .unwrap_or(self.floor.stairs)
+            }
+        };
+        self.player.pos = start;
+        self.player_in(start, true);
+        self.render_all();
     }
 
     /// Plays one action. After the episode ended, input is ignored and the result repeats

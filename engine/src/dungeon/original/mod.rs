@@ -49,8 +49,10 @@ impl OriginalStreams {
     /// `init_num` range (armour and the rest draw nothing).
     pub fn draw_starting_kit(&mut self, cfg: &GameConfig) {
         for item in &cfg.player.init_items {
-            if let InitItem::Weapon(w) = item {
-                let (lo, hi) = cfg.item.weapon.count_range_of(&w.name).unwrap_or((1, 2));
+            // Validation guarantees the weapon is in the table.
+            if let InitItem::Weapon(w) = item
+                && let Some((lo, hi)) = cfg.item.weapon.count_range_of(&w.name)
+            {
                 self.items.below_u32(hi.saturating_sub(lo));
             }
         }
