@@ -31,7 +31,6 @@ from typing import Any, Optional, Tuple
 import torch
 import torch.nn.functional as F
 from torch import nn
-from torch.nn.grad import conv2d_weight
 
 __all__ = [
     "RELU_GAIN",
@@ -110,28 +109,32 @@ class OneHotConv2d(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Convolve the one-hot encoding of ``x`` (``(B, H, W)`` integer symbols)."""
-        y = _OneHotConv.apply(x, self.weight, self.tap_offset, self.padding)
-        if self.bias is not None:
-            y = y + self.bias.view(1, -1, 1, 1)
-        return y
+        return _OneHotConv.apply(x, self.weight, self.bias, self.tap_offset, self.padding)
 
 
 class _OneHotConv(torch.autograd.Function):
-    """Forward by table lookup (``embedding_bag``); the weight gradient by a dense kernel over
-    the symbols that occur, all but the most frequent one.
+    """Forward by table lookup (``embedding_bag``); the weight gradient by lookups too.
 
-    ``embedding_bag``'s own backward sorts every index of the batch and is about 10x slower on
-    a CPU than the convolution's weight-gradient kernel applied to the one-hot input. That
-    kernel's cost grows with the number of channels, so the backward here gives it only the
-    symbols present in the batch (a few of the 17 in the paper's dungeons; an absent symbol's
-    gradient is zero), and leaves out the most frequent one (the blank, about 90% of cells):
-    the one-hot channels, padding included, sum to 1 in every cell, so that symbol's gradient
-    is the gradient's total minus the others'. Exact up to float summation order.
+    The weight gradient of table row (tap ``(dy, dx)``, symbol ``s``) is the sum of the output
+    gradient over the positions whose tap reads ``s``. ``embedding_bag``'s own backward gets
+    there by sorting all ``B * H' * W' * k * k`` indices, about 10x slower on a CPU than the
+    dense weight-gradient kernel over the one-hot input, which in turn does ``symbols`` times
+    the work. Here the gradient is gathered from the cells instead, leaving out the most
+    frequent symbol (the blank, about 90% of cells): each other cell, with each tap, names the
+    one output position it feeds; grouped by (tap, symbol), these positions are bags for
+    ``embedding_bag`` over the output gradient. The one-hot channels, padding included, sum to
+    1 in every cell, so the most frequent symbol's gradient is the gradient's total minus the
+    others'. Exact up to float summation order, and about 5x faster than the dense kernel.
     """
 
     @staticmethod
     def forward(
-        ctx: Any, x: torch.Tensor, weight: torch.Tensor, tap_offset: torch.Tensor, padding: int
+        ctx: Any,
+        x: torch.Tensor,
+        weight: torch.Tensor,
+        bias: Optional[torch.Tensor],
+        tap_offset: torch.Tensor,
+        padding: int,
     ) -> torch.Tensor:
         out_c, c, k, _ = weight.shape
         # int32 throughout: building the bags in int64 costs several times more on a CPU.
@@ -144,33 +147,52 @@ class _OneHotConv(torch.autograd.Function):
         bags += tap_offset
         bags = bags.view(b * ho * wo, k * k)
         table = F.pad(weight.permute(2, 3, 1, 0), (0, 0, 0, 1))  # (k, k, c + 1, out)
+        if bias is not None:
+            table[0, 0] += bias  # every position reads exactly one row of tap (0, 0)
         y = F.embedding_bag(bags, table.reshape(-1, out_c), mode="sum")
         ctx.save_for_backward(idx)
         ctx.weight_shape = weight.shape
+        ctx.has_bias = bias is not None
         return y.view(b, ho, wo, out_c).permute(0, 3, 1, 2)  # NCHW view of NHWC memory
 
     @staticmethod
     def backward(ctx: Any, grad_out: torch.Tensor) -> Any:
         (idx,) = ctx.saved_tensors
         out_c, c, k, _ = ctx.weight_shape
-        counts = torch.bincount(idx.flatten(), minlength=c + 1)  # symbol c: padding
+        b, h, w = idx.shape
+        ho, wo = h - k + 1, w - k + 1
+        grad = grad_out.permute(0, 2, 3, 1).reshape(b * ho * wo, out_c)  # a view if NHWC
+        flat = idx.flatten()
+        counts = torch.bincount(flat, minlength=c + 1)  # symbol c: padding
         major = int(torch.argmax(counts))
-        others = torch.nonzero(counts, as_tuple=True)[0]
-        others = others[others != major]
-        grad_w = grad_out.new_zeros(ctx.weight_shape)
-        total = grad_out.sum(dim=(0, 2, 3))  # the gradient if every cell held one symbol
-        if others.numel():
-            channels = (idx.unsqueeze(1) == others.view(1, -1, 1, 1)).to(grad_out.dtype)
-            shape = (out_c, int(others.numel()), k, k)
-            part = conv2d_weight(channels, shape, grad_out)
-            real = others < c
-            grad_w[:, others[real]] = part[:, real]
-            rest = total.view(-1, 1, 1) - part.sum(dim=1)
-        else:
-            rest = total.view(-1, 1, 1).expand(out_c, k, k)
-        if major < c:
-            grad_w[:, major] = rest
-        return None, grad_w, None, None
+        # The other cells, grouped by symbol, and their coordinates.
+        cells = torch.nonzero(flat != major).squeeze(1)
+        _, order = torch.sort(flat[cells], stable=True)
+        cells = cells[order]
+        cb = cells // (h * w)
+        cy = (cells // w) % h
+        cx = cells % w
+        # Tap (dy, dx) of the cell at (y, x) feeds output (y - dy, x - dx), if that exists.
+        taps = torch.arange(k, device=idx.device)
+        oy = cy.view(1, 1, -1) - taps.view(k, 1, 1)
+        ox = cx.view(1, 1, -1) - taps.view(1, k, 1)
+        feeds = (oy >= 0) & (oy < ho) & (ox >= 0) & (ox < wo)  # (k, k, cells)
+        pos = torch.where(feeds, (cb.view(1, 1, -1) * ho + oy) * wo + ox, 0)
+        # Bags in (tap, symbol) order: each tap's row lists the cells sorted by symbol.
+        counts[major] = 0
+        starts = torch.cumsum(counts, 0) - counts
+        offsets = (taps.new_tensor(range(k * k)).view(-1, 1) * cells.numel() + starts).flatten()
+        part = F.embedding_bag(
+            pos.flatten(),
+            grad,
+            offsets,
+            mode="sum",
+            per_sample_weights=feeds.flatten().to(grad.dtype),
+        ).view(k, k, c + 1, out_c)
+        total = grad.sum(0)  # the bias's gradient
+        part[:, :, major] = total - part.sum(2)
+        grad_w = part[:, :, :c].permute(3, 2, 0, 1).contiguous()
+        return None, grad_w, total if ctx.has_bias else None, None, None
 
 
 class PolicyNet(nn.Module):
