@@ -121,6 +121,39 @@ def test_network_sizes_follow_the_paper() -> None:
     assert betas == {"vae": 0.0, "betavae": 4.0}
 
 
+_FAULTS_SCRIPT = """
+import resource, sys
+import numpy as np
+if sys.argv[1] == "keep":
+    from rogue_gym.train.allocator import keep_freed_memory
+    assert keep_freed_memory()
+def rounds(n):
+    for _ in range(n):  # six 10 MB blocks, then all freed: a minibatch's activations
+        blocks = [np.ones(10 << 18, dtype=np.float32) for _ in range(6)]
+        del blocks
+rounds(3)
+before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+rounds(20)
+print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before)
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's allocator")
+def test_keeping_freed_memory_stops_the_page_faults_of_reallocation() -> None:
+    def faults(mode: str) -> int:
+        run = subprocess.run(
+            [sys.executable, "-c", _FAULTS_SCRIPT, mode],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=True,
+        )
+        return int(run.stdout.strip())
+
+    plain, kept = faults("plain"), faults("keep")
+    assert kept <= plain // 10, (plain, kept)
+
+
 def test_gae_matches_a_hand_computed_example_and_stops_at_episode_ends() -> None:
     gamma, lam = 0.5, 0.5
     rewards = torch.tensor([[1.0], [0.0], [2.0]])

@@ -11,6 +11,7 @@ each, in the order a run uses them:
 * :mod:`.evaluation`: the generalization score on the suite's test seeds;
 * :mod:`.progress`: ``progress.csv`` and the progress bar;
 * :mod:`.checkpoint`: resumable checkpoints;
+* :mod:`.allocator`: keeping freed memory, so the update loop does not page-fault;
 * :mod:`.trainer`: the loop tying them together; :mod:`.cli`: the command line;
 * :mod:`.plot`: the paper's figures from ``progress.csv`` files.
 

@@ -14,6 +14,7 @@ import torch
 from gymnasium.vector import AutoresetMode
 
 from ..suites import get_suite
+from .allocator import keep_freed_memory
 from .checkpoint import CHECKPOINT, load, save
 from .config import TrainConfig
 from .evaluation import generalization, random_baseline
@@ -57,6 +58,7 @@ def train(cfg: TrainConfig) -> Dict[str, Any]:
     out.mkdir(parents=True, exist_ok=True)
     if cfg.threads:
         torch.set_num_threads(cfg.threads)
+    keep_freed_memory()  # the update loop reuses its blocks instead of faulting them in
     device = torch.device(cfg.device)
     suite = get_suite(cfg.suite)
     torch.manual_seed(cfg.seed)
