@@ -46,6 +46,16 @@ def _make_pool(cfg: TrainConfig, seed: int) -> Any:
     )
 
 
+def _adam(net: torch.nn.Module, cfg: TrainConfig) -> torch.optim.Adam:
+    """The paper's Adam; the fused kernel (one pass per tensor) where this torch has it."""
+    params = list(net.parameters())
+    kw: Dict[str, Any] = dict(lr=cfg.lr, eps=cfg.adam_eps, weight_decay=cfg.weight_decay or 0.0)
+    try:
+        return torch.optim.Adam(params, fused=True, **kw)
+    except (RuntimeError, TypeError):  # an older torch, or a device without the fused kernel
+        return torch.optim.Adam(params, **kw)
+
+
 def _due(before: int, after: int, every: int) -> bool:
     """Whether a multiple of ``every`` lies in ``(before, after]``."""
     return every > 0 and after // every > before // every
@@ -107,9 +117,7 @@ def train(cfg: TrainConfig) -> Dict[str, Any]:
         net = build_network(
             cfg.variant, symbols, obs_shape[0], obs_shape[1], int(env.single_action_space.n)
         ).to(device)
-        optimizer = torch.optim.Adam(
-            net.parameters(), lr=cfg.lr, eps=cfg.adam_eps, weight_decay=cfg.weight_decay or 0.0
-        )
+        optimizer = _adam(net, cfg)
         collector = Collector(env, cfg.num_steps, device, seed=cfg.seed)
         update_gen = torch.Generator(device="cpu")
         update_gen.manual_seed(cfg.seed + 1)
