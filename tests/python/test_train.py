@@ -17,7 +17,7 @@ torch = pytest.importorskip("torch")
 
 import torch.nn.functional as F  # noqa: E402
 from rogue_gym.train import VARIANTS, TrainConfig, train  # noqa: E402
-from rogue_gym.train.networks import OneHotConv2d, build_network  # noqa: E402
+from rogue_gym.train.networks import MapLinear, OneHotConv2d, build_network  # noqa: E402
 from rogue_gym.train.plot import plot_runs  # noqa: E402
 from rogue_gym.train.ppo import compute_gae  # noqa: E402
 from rogue_gym.train.progress import COLUMNS, TIMING_COLUMNS, read_progress  # noqa: E402
@@ -84,6 +84,26 @@ def test_one_hot_conv_equals_a_convolution_of_the_one_hot_screen(
     torch.testing.assert_close(y, ref)
     torch.testing.assert_close(ours[0], conv.weight.grad)
     torch.testing.assert_close(ours[1], conv.bias.grad)
+
+
+@pytest.mark.parametrize("channels_last", [False, True])
+def test_map_linear_equals_a_linear_layer_on_the_flattened_map(channels_last: bool) -> None:
+    torch.manual_seed(0)
+    fc = MapLinear(6 * 3 * 5, 7).double()
+    h = torch.randn(4, 6, 3, 5, dtype=torch.float64)
+    if channels_last:  # what a convolution hands over on a CPU
+        h = h.contiguous(memory_format=torch.channels_last)
+    h.requires_grad_()
+    y = fc(h)
+    grad = torch.randn_like(y)
+    (y * grad).sum().backward()
+    ours = (h.grad.clone(), fc.weight.grad.clone(), fc.bias.grad.clone())
+    h.grad = fc.weight.grad = fc.bias.grad = None
+    ref = F.linear(h.flatten(1), fc.weight, fc.bias)
+    (ref * grad).sum().backward()
+    torch.testing.assert_close(y, ref)
+    for got, want in zip(ours, (h.grad, fc.weight.grad, fc.bias.grad)):
+        torch.testing.assert_close(got, want)
 
 
 @pytest.mark.parametrize("variant", VARIANTS)

@@ -36,6 +36,7 @@ __all__ = [
     "RELU_GAIN",
     "VARIANTS",
     "ImpalaNet",
+    "MapLinear",
     "OneHotConv2d",
     "PolicyNet",
     "PolicyOutput",
@@ -195,6 +196,41 @@ class _OneHotConv(torch.autograd.Function):
         return None, grad_w, total if ctx.has_bias else None, None, None
 
 
+class MapLinear(nn.Linear):
+    """``nn.Linear`` over a flattened feature map, called with the map itself.
+
+    Its parameters and result are ``linear(h.flatten(1), weight, bias)``'s (up to float
+    summation order), so the paper's shapes and the checkpoints are unchanged. On a CPU the
+    forward and the input gradient run as convolutions (one kernel covering the map; a 1-wide
+    kernel over the flattened features), which oneDNN computes in about 60% of the BLAS
+    matmul's time on the machines measured, reading a channels-last map without a copy. The
+    weight gradient stays a matmul.
+    """
+
+    def forward(self, h: torch.Tensor) -> torch.Tensor:
+        """``(B, C, H, W)`` -> ``(B, out_features)``."""
+        if h.device.type != "cpu":
+            return F.linear(h.flatten(1), self.weight, self.bias)
+        return _MapLinear.apply(h, self.weight, self.bias)
+
+
+class _MapLinear(torch.autograd.Function):
+    """:class:`MapLinear` on a CPU: convolutions for the forward and the input gradient."""
+
+    @staticmethod
+    def forward(ctx: Any, h: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor) -> Any:
+        ctx.save_for_backward(h, weight)
+        return F.conv2d(h, weight.view(weight.shape[0], *h.shape[1:]), bias).flatten(1)
+
+    @staticmethod
+    def backward(ctx: Any, grad: torch.Tensor) -> Any:
+        h, weight = ctx.saved_tensors
+        (b, out), n = grad.shape, weight.shape[1]
+        # grad @ weight: the weight as a 1 x n "image" of ``out`` channels, the grad as kernels.
+        grad_h = F.conv1d(weight.view(1, out, n), grad.reshape(b, out, 1)).view(h.shape)
+        return grad_h, grad.t() @ h.flatten(1), grad.sum(0)
+
+
 class PolicyNet(nn.Module):
     """A body producing features, plus the policy and value heads."""
 
@@ -222,7 +258,7 @@ class SmallNet(PolicyNet):
         self.conv2 = nn.Conv2d(32, 64, 4)
         self.conv3 = nn.Conv2d(64, 32, 3)
         flat = 32 * (height - 12) * (width - 12)
-        self.fc = nn.Linear(flat, 256)
+        self.fc = MapLinear(flat, 256)
         for m in (self.conv1, self.conv2, self.conv3, self.fc):
             orthogonal_init(m, RELU_GAIN)
 
@@ -231,7 +267,7 @@ class SmallNet(PolicyNet):
         h = F.relu(self.conv1(x))
         h = F.relu(self.conv2(h))
         h = F.relu(self.conv3(h))
-        return F.relu(self.fc(h.flatten(1)))
+        return F.relu(self.fc(h))
 
 
 class _Residual(nn.Module):
@@ -289,7 +325,7 @@ class ImpalaNet(PolicyNet):
             in_c = out_c
         self.stages = nn.Sequential(*stages)
         h, w = (height + 1) // 2, (width + 1) // 2
-        self.fc = nn.Linear(in_c * h * w, 256)
+        self.fc = MapLinear(in_c * h * w, 256)
         for m in self.stages.modules():
             if isinstance(m, (nn.Conv2d, OneHotConv2d)):
                 orthogonal_init(m, RELU_GAIN)
@@ -297,7 +333,7 @@ class ImpalaNet(PolicyNet):
     def body(self, x: torch.Tensor) -> torch.Tensor:
         """The ResNet, a ReLU, and a ReLU FC layer."""
         h = F.relu(self.stages(x))
-        return F.relu(self.fc(h.flatten(1)))
+        return F.relu(self.fc(h))
 
 
 class VaeNet(PolicyNet):
@@ -321,7 +357,7 @@ class VaeNet(PolicyNet):
         # k8 p1 shrinks by 5, k4 p1 by 1, k3 p1 keeps the size: 16x32 -> 10x26.
         self.conv_shape = (32, height - 6, width - 6)
         flat = self.conv_shape[0] * self.conv_shape[1] * self.conv_shape[2]
-        self.fc = nn.Linear(flat, 256)
+        self.fc = MapLinear(flat, 256)
         self.mu = nn.Linear(256, z_dim)
         self.logvar = nn.Linear(256, z_dim)
         self.dec_fc1 = nn.Linear(z_dim, 256)
@@ -337,7 +373,7 @@ class VaeNet(PolicyNet):
         h = F.relu(self.conv1(x))
         h = F.relu(self.conv2(h))
         h = F.relu(self.conv3(h))
-        h = F.relu(self.fc(h.flatten(1)))
+        h = F.relu(self.fc(h))
         return self.mu(h), self.logvar(h)
 
     def decode(self, z: torch.Tensor) -> torch.Tensor:
