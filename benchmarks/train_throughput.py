@@ -3,11 +3,14 @@
 
 Cells (each in a fresh child process, run one after another on this machine):
 
-===================  =====================================================================
-``ours``             ``python -m rogue_gym.train`` (symbol indices on the wire, two halves)
-``sb3-subproc``      SB3 ``PPO`` on ``SubprocVecEnv`` over ``RogueEnv`` (one-hot float32)
-``sb3-pool``         SB3 ``PPO`` on ``rogue_gym.sb3.RogueVecEnv`` (one-hot float32)
-===================  =====================================================================
+=====================  ===================================================================
+``ours``               ``python -m rogue_gym.train`` (symbol indices on the wire, two halves)
+``sb3-subproc``        SB3 ``PPO`` on ``SubprocVecEnv`` over ``RogueEnv`` (one-hot float32)
+``sb3-pool``           SB3 ``PPO`` on ``rogue_gym.sb3.RogueVecEnv`` (one-hot float32)
+``sb3-subproc-kept``   ``sb3-subproc`` with our trainer's allocator setting
+                       (:func:`rogue_gym.train.allocator.keep_freed_memory`) in SB3's process:
+                       how much of the gap is that setting, which SB3 users could also make
+=====================  ===================================================================
 
 All use the paper's PPO Small network (convs 8/4/3 with 32/64/32 channels, FC 256) and its
 hyperparameters: 32 envs x 125 steps, 10 epochs, minibatch 200, clip 0.1, value clip, lr
@@ -35,7 +38,7 @@ import time
 from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence
 
-CELLS = ("ours", "sb3-subproc", "sb3-pool")
+CELLS = ("ours", "sb3-subproc", "sb3-pool", "sb3-subproc-kept")
 NUM_ENVS, NUM_STEPS = 32, 125
 
 
@@ -92,7 +95,11 @@ def _sb3_model(env: Any) -> Any:
 def _sb3_cell(cell: str, updates: int) -> Dict[str, Any]:
     from stable_baselines3.common.callbacks import BaseCallback
 
-    if cell == "sb3-subproc":
+    if cell == "sb3-subproc-kept":
+        from rogue_gym.train.allocator import keep_freed_memory
+
+        keep_freed_memory()
+    if cell.startswith("sb3-subproc"):
         from rogue_gym.envs import RogueEnv
         from rogue_gym.suites import PAPER_CONFIG
         from stable_baselines3.common.vec_env import SubprocVecEnv
@@ -242,6 +249,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     for cell, med, lo, hi, n in rows:
         ratio = med / base["sb3-subproc"] if "sb3-subproc" in base else float("nan")
         lines.append(f"| {cell} | {med:.0f} | {lo:.0f}-{hi:.0f} | {n} | {ratio:.2f}x |")
+    if "ours" in base and "sb3-subproc-kept" in base:
+        lines += [
+            "",
+            "ours against SB3 given the same allocator setting (sb3-subproc-kept): "
+            f"{base['ours'] / base['sb3-subproc-kept']:.2f}x",
+        ]
     if "ours" in results:
         sp = results["ours"][-1]["split"]
         lines += [
