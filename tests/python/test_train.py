@@ -89,6 +89,9 @@ def test_one_hot_conv_equals_a_convolution_of_the_one_hot_screen(
 @pytest.mark.parametrize("channels_last", [False, True])
 def test_map_linear_equals_a_linear_layer_on_the_flattened_map(channels_last: bool) -> None:
     torch.manual_seed(0)
+    no_bias = MapLinear(6 * 3 * 5, 7, bias=False)
+    no_bias(torch.ones(2, 6, 3, 5)).sum().backward()  # no bias, no gradient asked for it
+    torch.testing.assert_close(no_bias.weight.grad, torch.full((7, 90), 2.0))
     fc = MapLinear(6 * 3 * 5, 7).double()
     h = torch.randn(4, 6, 3, 5, dtype=torch.float64)
     if channels_last:  # what a convolution hands over on a CPU

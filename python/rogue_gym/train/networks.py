@@ -153,7 +153,6 @@ class _OneHotConv(torch.autograd.Function):
         y = F.embedding_bag(bags, table.reshape(-1, out_c), mode="sum")
         ctx.save_for_backward(idx)
         ctx.weight_shape = weight.shape
-        ctx.has_bias = bias is not None
         return y.view(b, ho, wo, out_c).permute(0, 3, 1, 2)  # NCHW view of NHWC memory
 
     @staticmethod
@@ -193,7 +192,7 @@ class _OneHotConv(torch.autograd.Function):
         total = grad.sum(0)  # the bias's gradient
         part[:, :, major] = total - part.sum(2)
         grad_w = part[:, :, :c].permute(3, 2, 0, 1).contiguous()
-        return None, grad_w, total if ctx.has_bias else None, None, None
+        return None, grad_w, total if ctx.needs_input_grad[2] else None, None, None
 
 
 class MapLinear(nn.Linear):
@@ -218,17 +217,25 @@ class _MapLinear(torch.autograd.Function):
     """:class:`MapLinear` on a CPU: convolutions for the forward and the input gradient."""
 
     @staticmethod
-    def forward(ctx: Any, h: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor) -> Any:
+    def forward(
+        ctx: Any, h: torch.Tensor, weight: torch.Tensor, bias: Optional[torch.Tensor]
+    ) -> Any:
         ctx.save_for_backward(h, weight)
         return F.conv2d(h, weight.view(weight.shape[0], *h.shape[1:]), bias).flatten(1)
 
     @staticmethod
     def backward(ctx: Any, grad: torch.Tensor) -> Any:
         h, weight = ctx.saved_tensors
+        need_h, need_w, need_b = ctx.needs_input_grad
         (b, out), n = grad.shape, weight.shape[1]
         # grad @ weight: the weight as a 1 x n "image" of ``out`` channels, the grad as kernels.
-        grad_h = F.conv1d(weight.view(1, out, n), grad.reshape(b, out, 1)).view(h.shape)
-        return grad_h, grad.t() @ h.flatten(1), grad.sum(0)
+        grad_h = (
+            F.conv1d(weight.view(1, out, n), grad.reshape(b, out, 1)).view(h.shape)
+            if need_h
+            else None
+        )
+        grad_w = grad.t() @ h.flatten(1) if need_w else None
+        return grad_h, grad_w, grad.sum(0) if need_b else None
 
 
 class PolicyNet(nn.Module):
