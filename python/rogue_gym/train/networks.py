@@ -181,7 +181,8 @@ class _OneHotConv(torch.autograd.Function):
         # Bags in (tap, symbol) order: each tap's row lists the cells sorted by symbol.
         counts[major] = 0
         starts = torch.cumsum(counts, 0) - counts
-        offsets = (taps.new_tensor(range(k * k)).view(-1, 1) * cells.numel() + starts).flatten()
+        tap_index = torch.arange(k * k, device=idx.device).view(-1, 1)
+        offsets = (tap_index * cells.numel() + starts).flatten()
         part = F.embedding_bag(
             pos.flatten(),
             grad,
