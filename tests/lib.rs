@@ -14,9 +14,12 @@ use rogue_gym_pool::{
     seeds::splitmix,
 };
 
-/// Base directory of the pools created by the tests (short: unix socket paths < 108 bytes).
+/// Runtime directory of the pools created by the tests (short: unix socket paths < 108
+/// bytes), created private (0700) if missing.
 pub fn test_base() -> PathBuf {
-    PathBuf::from("/tmp/rge2e")
+    let dir = PathBuf::from("/tmp/rge2e");
+    rogue_gym_ipc::private::ensure_private_dir(&dir).expect("a private test runtime directory");
+    dir
 }
 
 /// The worker command of the e2e binary (`<exe> worker ...`).
@@ -30,7 +33,7 @@ pub fn worker_cmd(exe: &str) -> WorkerCommand {
 /// A pool config for the e2e tests.
 pub fn config(exe: &str, env: serde_json::Value, num_envs: usize, workers: usize) -> PoolConfig {
     let mut c = PoolConfig::new(env, num_envs, workers, worker_cmd(exe));
-    c.base_dir = test_base();
+    c.runtime_dir = Some(test_base());
     c.seeds.base = 1234;
     c
 }

@@ -104,7 +104,7 @@ fn bad_input_is_an_error_value() {
     let e = p.step(&[0, 0, 7, 0], &mut obs, &mut out).unwrap_err();
     assert_eq!(
         e.to_string(),
-        "env 2: action 7 is out of range; valid actions are 0..5"
+        "env 2: action 7 is out of range; valid actions are 0 to 4 (range(5))"
     );
     let e = p.step(&[0; 4], &mut obs[1..], &mut out).unwrap_err();
     assert!(matches!(e, PoolError::BadBuffer { .. }));

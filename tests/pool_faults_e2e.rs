@@ -294,3 +294,150 @@ fn async_mode_reports_a_restarted_block() {
     assert_eq!(restarted, ids0);
     assert_eq!(p.restarts(), 1);
 }
+
+/// Wait until worker `k` has a pid other than `old` (its replacement was spawned).
+fn replacement(p: &rogue_gym_pool::Pool, k: usize, old: u32) -> u32 {
+    let t0 = Instant::now();
+    loop {
+        let pid = p.worker_pids()[k];
+        if pid != old && pid != 0 {
+            return pid;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(5), "no replacement");
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+#[test]
+fn a_replacement_killed_while_it_starts_is_replaced_again_and_steps_go_on() {
+    let mut c = config(EXE, test_env(), 4, 2);
+    c.step_timeout = Some(Duration::from_secs(2));
+    c.start_timeout = Duration::from_secs(5);
+    let mut p = pool(c);
+    let mut obs = vec![0u8; 4 * p.obs_bytes()];
+    let mut out = BatchOutput::default();
+    p.reset(&mut obs, &mut out).unwrap();
+    let first = p.worker_pids()[0];
+    let mut guard = PidGuard(p.worker_pids());
+    signal(first, Signal::SIGKILL);
+    // This step sees the death and spawns a replacement (restarting); kill that one at once,
+    // while it starts, from another thread: the next calls must still succeed in time.
+    let t0 = Instant::now();
+    p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
+    assert_eq!(out.restarted, vec![true, true, false, false]);
+    let second = replacement(&p, 0, first);
+    guard.0.push(second);
+    signal(second, Signal::SIGKILL);
+    for t in 0..5 {
+        p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
+        if t == 0 {
+            assert_eq!(
+                out.restarted,
+                vec![true, true, false, false],
+                "the second loss"
+            );
+        }
+    }
+    assert!(
+        t0.elapsed() < Duration::from_secs(5),
+        "no call waited out a timeout"
+    );
+    assert_eq!(p.restarts(), 2, "both deaths count against the budget");
+    let third = p.worker_pids()[0];
+    guard.0.push(third);
+    assert!(alive(third) && third != second);
+    let id = p.id().clone();
+    p.close().unwrap();
+    assert!(pool_files_gone(&id));
+}
+
+#[test]
+fn a_replacement_killed_while_restarting_under_raise_is_reported_and_one_reset_recovers() {
+    let mut c = config(EXE, test_env(), 4, 2);
+    c.on_worker_failure = FailurePolicy::Raise;
+    let mut p = pool(c);
+    let mut obs = vec![0u8; 4 * p.obs_bytes()];
+    let mut out = BatchOutput::default();
+    p.reset(&mut obs, &mut out).unwrap();
+    let first = p.worker_pids()[0];
+    let mut guard = PidGuard(p.worker_pids());
+    signal(first, Signal::SIGKILL);
+    let e = p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap_err();
+    assert!(matches!(e, PoolError::WorkerFailed(_)), "{e}");
+    let second = replacement(&p, 0, first);
+    guard.0.push(second);
+    signal(second, Signal::SIGKILL);
+    // The reset finds the replacement dead while it starts: reported as a crash while
+    // starting, and the pool is usable after the next reset.
+    let e = p.reset(&mut obs, &mut out).unwrap_err();
+    let msg = e.to_string();
+    assert!(matches!(e, PoolError::WorkerFailed(_)), "{msg}");
+    assert!(
+        msg.contains("while starting") && !msg.contains("(killed)"),
+        "{msg}"
+    );
+    guard.0.push(p.worker_pids()[0]);
+    p.reset(&mut obs, &mut out).unwrap();
+    p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
+}
+
+#[test]
+fn a_storm_of_kills_and_stops_never_bricks_the_pool() {
+    // Random SIGKILLs (and a SIGSTOP now and then) of workers, restarting ones included,
+    // every ~100-300 ms for ~4 s, under the restart policy: every step succeeds.
+    let mut c = config(EXE, test_env(), 8, 4);
+    c.step_timeout = Some(Duration::from_millis(500));
+    c.start_timeout = Duration::from_secs(2);
+    c.max_restarts = 1000;
+    let mut p = pool(c);
+    let mut obs = vec![0u8; 8 * p.obs_bytes()];
+    let mut out = BatchOutput::default();
+    p.reset(&mut obs, &mut out).unwrap();
+    let mut guard = PidGuard(Vec::new());
+    let mut rng = 0x1234_5678u64;
+    let mut next = |n: u64| {
+        rng = rogue_gym_pool::seeds::splitmix(rng);
+        rng % n
+    };
+    let t0 = Instant::now();
+    let mut last_kill = Instant::now();
+    let (mut steps, mut flagged, mut kills) = (0u64, 0usize, 0u32);
+    while t0.elapsed() < Duration::from_secs(4) {
+        if last_kill.elapsed() > Duration::from_millis(100 + next(200)) {
+            let pids = p.worker_pids();
+            let victim = pids[next(pids.len() as u64) as usize];
+            guard.0.push(victim);
+            let sig = if next(5) == 0 {
+                Signal::SIGSTOP
+            } else {
+                Signal::SIGKILL
+            };
+            if alive(victim) {
+                let _ = nix::sys::signal::kill(nix::unistd::Pid::from_raw(victim as i32), sig);
+                kills += 1;
+            }
+            last_kill = Instant::now();
+        }
+        let actions: Vec<i64> = (0..8).map(|i| action(i, steps, 5)).collect();
+        let s = Instant::now();
+        p.step(&actions, &mut obs, &mut out)
+            .expect("steps go on through the storm");
+        assert!(
+            s.elapsed() < Duration::from_secs(4),
+            "a step outlived its bounds"
+        );
+        flagged += out.restarted.iter().filter(|&&r| r).count();
+        steps += 1;
+    }
+    assert!(kills >= 8, "{kills} signals sent");
+    assert!(flagged > 0 && p.restarts() > 0, "restarts are flagged");
+    // After the storm: the pool steps normally.
+    for t in 0..20 {
+        let actions: Vec<i64> = (0..8).map(|i| action(i, t, 5)).collect();
+        p.step(&actions, &mut obs, &mut out).unwrap();
+    }
+    guard.0.extend(p.worker_pids());
+    let id = p.id().clone();
+    p.close().unwrap();
+    assert!(pool_files_gone(&id), "nothing leaks");
+}

@@ -1,11 +1,13 @@
 //! The shared batch buffer: a plain `/dev/shm` mapping that workers write observations into.
 
 use std::fs;
+use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Path as StdPath, PathBuf};
 
 use crate::cleanup::SHM_DIR;
 use crate::error::IpcError;
 use crate::naming::PoolId;
+use crate::private::{check_private, create_private_file};
 
 /// A plain shared-memory buffer of a pool (`/dev/shm/<prefix><name>`, so pool cleanup removes
 /// it), mapped read-write in every process that opens it. Used for batch observation slots that
@@ -36,20 +38,11 @@ impl SharedBuffer {
         StdPath::new(SHM_DIR).join(format!("{}{name}", id.prefix()))
     }
 
-    /// Create (or truncate) the buffer `name` of `len` bytes (zero-filled) and map it.
+    /// Create the buffer `name` of `len` bytes (zero-filled, mode 0600, exclusively and without
+    /// following a link: a name someone planted is an error) and map it.
     pub fn create(id: &PoolId, name: &str, len: usize) -> Result<Self, IpcError> {
         let path = Self::path_of(id, name);
-        let f = fs::OpenOptions::new()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(true)
-            .open(&path)
-            .map_err(|source| IpcError::Io {
-                what: "create shared buffer",
-                path: path.clone(),
-                source,
-            })?;
+        let f = create_private_file(&path)?;
         f.set_len(len as u64).map_err(|source| IpcError::Io {
             what: "size shared buffer",
             path: path.clone(),
@@ -58,18 +51,26 @@ impl SharedBuffer {
         Self::map(f, path, len)
     }
 
-    /// Open and map an existing buffer `name` of `len` bytes.
+    /// Open and map an existing buffer `name` of `len` bytes. It must be a regular file of this
+    /// user closed to group and others, reached without a link.
     pub fn open(id: &PoolId, name: &str, len: usize) -> Result<Self, IpcError> {
         let path = Self::path_of(id, name);
         let f = fs::OpenOptions::new()
             .read(true)
             .write(true)
+            .custom_flags(nix::libc::O_NOFOLLOW | nix::libc::O_CLOEXEC)
             .open(&path)
             .map_err(|source| IpcError::Io {
                 what: "open shared buffer",
                 path: path.clone(),
                 source,
             })?;
+        let meta = f.metadata().map_err(|source| IpcError::Io {
+            what: "inspect shared buffer",
+            path: path.clone(),
+            source,
+        })?;
+        check_private(&path, &meta, false)?;
         let actual = f.metadata().map(|m| m.len()).unwrap_or(0);
         if actual < len as u64 {
             return Err(IpcError::SizeMismatch(format!(

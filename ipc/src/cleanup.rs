@@ -2,6 +2,7 @@
 //! died, and removing dead iceoryx2 nodes.
 
 use std::fs;
+use std::os::unix::fs::MetadataExt;
 use std::path::{Path as StdPath, PathBuf};
 use std::time::Duration;
 
@@ -11,10 +12,12 @@ use crate::Svc;
 use crate::error::IpcError;
 use crate::error::ice;
 use crate::naming::{PoolId, process_start_time};
+use crate::private::check_private;
 
 pub(crate) const SHM_DIR: &str = "/dev/shm";
 
-/// The `/dev/shm` files whose name starts with the pool's prefix.
+/// The `/dev/shm` files whose name starts with the pool's prefix (whoever owns them: a file
+/// someone else planted under the pool's prefix is found too).
 pub fn pool_shm_files(id: &PoolId) -> Vec<PathBuf> {
     let prefix = id.prefix();
     let mut out = Vec::new();
@@ -30,9 +33,14 @@ pub fn pool_shm_files(id: &PoolId) -> Vec<PathBuf> {
 
 /// Remove every file of a pool: `/dev/shm/<prefix>*` (including iceoryx2's `*.global_mgmt`
 /// counter), the iceoryx2 root and the pool's own directory. Call only once no process of the
-/// pool is alive. Missing files are not an error.
+/// pool is alive. Missing files are not an error; files of other users are left alone (and
+/// links are removed, never followed).
 pub fn remove_pool_files(id: &PoolId) -> Result<(), IpcError> {
+    let me = nix::unistd::geteuid().as_raw();
     for p in pool_shm_files(id) {
+        if fs::symlink_metadata(&p).is_ok_and(|m| m.uid() != me) {
+            continue;
+        }
         match fs::remove_file(&p) {
             Ok(()) => {}
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
@@ -61,22 +69,22 @@ pub fn remove_pool_files(id: &PoolId) -> Result<(), IpcError> {
     Ok(())
 }
 
-/// Whether the owner recorded in a pool's owner file is still running.
-fn owner_alive(id: &PoolId) -> bool {
-    let Ok(s) = fs::read_to_string(id.aux_dir().join("owner")) else {
-        return false;
-    };
+/// Whether the owner recorded in a pool's owner file is still running. The file must be a
+/// private file of this user ([`open_private_file`]); `None` if it is missing or not.
+fn owner_alive(id: &PoolId) -> Option<bool> {
+    let data = crate::private::read_private_file(&id.aux_dir().join("owner")).ok()?;
+    let s = String::from_utf8_lossy(&data);
     let mut it = s.split_whitespace();
     let (Some(Ok(pid)), Some(Ok(start))) = (
         it.next().map(str::parse::<u32>),
         it.next().map(str::parse::<u64>),
     ) else {
-        return false;
+        return None;
     };
-    match process_start_time(pid) {
+    Some(match process_start_time(pid) {
         Some(t) => start == 0 || t == start,
         None => false,
-    }
+    })
 }
 
 /// A pool whose owner file is not written yet but whose directory is only seconds old is being
@@ -98,15 +106,28 @@ fn young_without_owner(id: &PoolId) -> bool {
 }
 
 pub(crate) fn is_pool_name(s: &str) -> bool {
-    s.len() == 10 && s.starts_with("rg") && s[2..].bytes().all(|b| b.is_ascii_hexdigit())
+    s.len() == 2 + crate::naming::NAME_HEX_DIGITS
+        && s.starts_with("rg")
+        && s[2..].bytes().all(|b| b.is_ascii_hexdigit())
 }
 
-/// Remove the files of every pool under `base` whose owner process is dead (pools left behind
-/// by a killed supervisor). A pool's aux directory (with the owner file) is created before and
-/// removed after all its other files, so every leftover is found through it. Returns the names of the pools removed. Safe to run while other live pools exist.
+/// Whether `path` is a directory of this user closed to others (not a link).
+fn own_private_dir(path: &StdPath) -> bool {
+    fs::symlink_metadata(path).is_ok_and(|m| check_private(path, &m, true).is_ok())
+}
+
+/// Remove the files of every pool in the runtime directory `base` whose owner process is dead
+/// (pools left behind by a killed supervisor). A pool's aux directory (with the owner file) is
+/// created before and removed after all its other files, so every leftover is found through
+/// it. Only pools of this user are touched: `base` must be a private directory of this user,
+/// and each pool's directories and owner file must be too; nothing is followed through a
+/// link. Returns the names of the pools removed. Safe to run while other live pools exist.
 pub fn sweep_stale_pools(base: &StdPath) -> Vec<String> {
     let mut removed = Vec::new();
     let mut seen = std::collections::BTreeSet::new();
+    if !own_private_dir(base) {
+        return removed;
+    }
     if let Ok(rd) = fs::read_dir(base) {
         for e in rd.flatten() {
             let fname = e.file_name().to_string_lossy().into_owned();
@@ -116,10 +137,14 @@ pub fn sweep_stale_pools(base: &StdPath) -> Vec<String> {
             }
             if let Ok(id) = PoolId::from_parts(&name, base) {
                 // A pool creates its aux dir (with the owner file) before anything else.
+                let dirs = [id.aux_dir(), id.root()];
+                if dirs.iter().any(|d| d.exists() && !own_private_dir(d)) {
+                    continue; // not this user's pool, or not one it made: leave it alone
+                }
                 if young_without_owner(&id) {
                     continue; // being created right now
                 }
-                if !owner_alive(&id) && remove_pool_files(&id).is_ok() {
+                if owner_alive(&id) != Some(true) && remove_pool_files(&id).is_ok() {
                     removed.push(name);
                 }
             }

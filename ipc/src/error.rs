@@ -26,6 +26,18 @@ pub enum IpcError {
     /// A name or path does not fit iceoryx2's limits.
     #[error("invalid pool name or path: {0}")]
     InvalidName(String),
+    /// A path is not private to this user: planted by someone else, a link, or open to group
+    /// or others. The pool refuses it rather than use it.
+    #[error(
+        "{path} {reason}: refusing it, since another local user could read or replace the pool's files; \
+         use a directory only you can enter (set ROGUE_GYM_RUNTIME_DIR, or runtime_dir in the pool settings), see docs/security.md"
+    )]
+    Insecure {
+        /// The path refused.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
     /// A shared resource does not have the size this side expects.
     #[error("size mismatch: {0}")]
     SizeMismatch(String),

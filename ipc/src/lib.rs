@@ -4,8 +4,11 @@
 //! pool crate (`rogue-gym-pool`) builds its supervisor and worker on top of it.
 //!
 //! What it provides, for one pool:
-//! * **Naming** ([`PoolId`]): one short unique prefix (`rg<8hex>_`) and one short root directory
-//!   per pool, so several pools coexist and unix socket paths stay under 108 bytes.
+//! * **Naming** ([`PoolId`]): one short random prefix (`rg<12hex>_`) and one short root
+//!   directory per pool, so several pools coexist and unix socket paths stay under 108 bytes.
+//! * **Privacy** ([`private`]): every pool lives in the user's runtime directory
+//!   ([`resolve_runtime_dir`], 0700, verified), and every file and directory it makes is
+//!   created exclusively, without following links, closed to group and others.
 //! * **Ports** ([`SupervisorPorts`], [`WorkerPorts`]): every iceoryx2 service is built by exactly
 //!   one function per service kind ([`cmd_service`], [`block_service`], [`cmd_event_service`],
 //!   [`block_event_service`]), so both sides always agree on the settings.
@@ -26,7 +29,7 @@
 //! Python interpreter and must not take SIGINT away from it. All ports use
 //! [`ipc_threadsafe::Service`], so supervisor-side ports and received samples are `Send`.
 //!
-//! One module per job: [`naming`], [`services`] (headers and service builders), [`ports`],
+//! One module per job: [`naming`], [`private`], [`services`] (headers and service builders), [`ports`],
 //! [`buffer`], [`wait`], [`cleanup`] and [`error`].
 
 #![deny(missing_docs)]
@@ -36,6 +39,7 @@ pub mod cleanup;
 pub mod error;
 pub mod naming;
 pub mod ports;
+pub mod private;
 pub mod services;
 #[cfg(test)]
 mod tests;
@@ -50,8 +54,9 @@ pub use iceoryx2;
 pub use buffer::SharedBuffer;
 pub use cleanup::{cleanup_dead_nodes, pool_shm_files, remove_pool_files, sweep_stale_pools};
 pub use error::IpcError;
-pub use naming::{DEFAULT_BASE_DIR, PoolId, process_start_time};
+pub use naming::{PoolId, process_start_time};
 pub use ports::{BlockListener, SupervisorPorts, WorkerPorts, words_as_bytes, words_as_bytes_mut};
+pub use private::{RUNTIME_DIR_ENV, default_runtime_dir, resolve_runtime_dir};
 pub use services::{
     BlockHeader, ChannelSettings, CmdHeader, block_event_service, block_service, cmd_event_service,
     cmd_service,

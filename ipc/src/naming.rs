@@ -1,48 +1,36 @@
 //! Naming: one short unique prefix and one short root directory per pool ([`PoolId`]).
 
-use std::fs;
 use std::io::Write;
 use std::path::{Path as StdPath, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use iceoryx2::prelude::*;
 
 use crate::Svc;
+use crate::cleanup::SHM_DIR;
 use crate::error::IpcError;
 use crate::error::ice;
+use crate::private::{check_private, create_private_dir, create_private_file, random_u64};
 
-/// Default directory under which each pool gets its short root directory.
-pub const DEFAULT_BASE_DIR: &str = "/tmp/rgp";
+/// Hex digits of the random part of a pool name (`rg` + these): 48 bits nobody can guess, so
+/// no one can plant a pool's names before it makes them.
+pub const NAME_HEX_DIGITS: usize = 12;
 
 /// Where a pool's files live. `/dev/shm/<prefix>*` holds its shared memory, `root()` the
 /// iceoryx2 root (service and node descriptions, event sockets), `aux_dir()` the pool's own
-/// files (owner pid, worker configuration, worker stderr logs).
+/// files (owner pid, worker configuration, worker stderr logs). Both directories sit in the
+/// pool's runtime directory ([`crate::resolve_runtime_dir`]), which only its user can enter.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct PoolId {
     name: String,
     base: PathBuf,
 }
 
-static POOL_COUNTER: AtomicU64 = AtomicU64::new(0);
-
-fn mix64(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
 impl PoolId {
-    /// A fresh, unique pool identity under `base` (e.g. [`DEFAULT_BASE_DIR`]). The name is
-    /// `rg` plus 8 hex digits derived from pid, time and a per-process counter.
+    /// A fresh pool identity in the runtime directory `base`. The name is `rg` plus
+    /// [`NAME_HEX_DIGITS`] random hex digits from the kernel's random source.
     pub fn new_unique(base: &StdPath) -> Result<PoolId, IpcError> {
-        let nanos = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map(|d| d.as_nanos() as u64)
-            .unwrap_or(0);
-        let n = POOL_COUNTER.fetch_add(1, Ordering::Relaxed);
-        let h = mix64(nanos ^ mix64(u64::from(std::process::id()) ^ mix64(n)));
-        Self::from_parts(&format!("rg{:08x}", h as u32), base)
+        let r = random_u64()? & ((1u64 << (4 * NAME_HEX_DIGITS)) - 1);
+        Self::from_parts(&format!("rg{r:0w$x}", w = NAME_HEX_DIGITS), base)
     }
 
     /// Rebuild a pool identity from its name (as printed by [`PoolId::name`]) and base dir;
@@ -64,8 +52,8 @@ impl PoolId {
         let sock_len = id.root().as_os_str().len() + 1 + id.prefix().len() + 30 + 6;
         if sock_len >= 108 {
             return Err(IpcError::InvalidName(format!(
-                "base directory {} is too long: iceoryx2 socket paths would be {sock_len} bytes \
-                 (limit 107); use a shorter base dir such as /tmp/rgp",
+                "runtime directory {} is too long: iceoryx2 socket paths would be {sock_len} bytes \
+                 (limit 107); use a shorter runtime directory",
                 base.display()
             )));
         }
@@ -76,7 +64,7 @@ impl PoolId {
     pub fn name(&self) -> &str {
         &self.name
     }
-    /// The base directory that holds this and other pools.
+    /// The runtime directory that holds this and the user's other pools.
     pub fn base(&self) -> &StdPath {
         &self.base
     }
@@ -93,35 +81,74 @@ impl PoolId {
         self.base.join(format!("{}.d", self.name))
     }
 
-    /// Create the pool's directories and its owner file (this process). Call once, in the
-    /// supervisor, before any node is created.
+    /// Create the pool's directories (0700) and its owner file (0600), each exclusively: an
+    /// existing name is an error. Call once, in the supervisor, after the runtime directory was
+    /// verified; then create the pool's first `/dev/shm` files and
+    /// [`PoolId::create_node_counter`] before any node.
     pub fn create_dirs(&self) -> Result<(), IpcError> {
-        let aux = self.aux_dir();
-        fs::create_dir_all(&aux).map_err(|source| IpcError::Io {
-            what: "create pool directory",
-            path: aux.clone(),
-            source,
-        })?;
-        let owner = aux.join("owner");
+        create_private_dir(&self.aux_dir())?;
+        let owner = self.aux_dir().join("owner");
         let pid = std::process::id();
         let start = process_start_time(pid).unwrap_or(0);
-        let mut f = fs::File::create(&owner).map_err(|source| IpcError::Io {
-            what: "write pool owner file",
-            path: owner.clone(),
-            source,
-        })?;
+        let mut f = create_private_file(&owner)?;
         writeln!(f, "{pid} {start}").map_err(|source| IpcError::Io {
             what: "write pool owner file",
             path: owner.clone(),
             source,
         })?;
-        let root = self.root();
-        fs::create_dir_all(&root).map_err(|source| IpcError::Io {
-            what: "create iceoryx2 root directory",
-            path: root,
+        create_private_dir(&self.root())
+    }
+
+    /// iceoryx2's per-root node counter (`/dev/shm/<prefix><type hash>_node.<version>.global_mgmt`):
+    /// the first node of a root creates it world-writable (mode 0666). Create it first,
+    /// exclusively and 0600, initialised as iceoryx2 initialises it (its version word, then a
+    /// zero counter), so that iceoryx2 opens ours and no other user ever can. The first call of
+    /// a process learns the counter's name (see `node_counter_name`).
+    pub fn create_node_counter(&self) -> Result<(), IpcError> {
+        let v = iceoryx2_bb_elementary::package_version::PackageVersion::get();
+        let path = StdPath::new(SHM_DIR).join(format!(
+            "{}{}",
+            self.prefix(),
+            node_counter_name(&self.base)?
+        ));
+        let mut f = create_private_file(&path)?;
+        // Layout of iceoryx2's `Data<State>` (repr C): a u64 version, then a u32 counter,
+        // padded to 16 bytes.
+        let mut bytes = [0u8; 16];
+        bytes[..8].copy_from_slice(&v.to_u64().to_ne_bytes());
+        f.write_all(&bytes).map_err(|source| IpcError::Io {
+            what: "write node counter",
+            path: path.clone(),
             source,
-        })?;
-        Ok(())
+        })
+    }
+
+    /// Check every file of this user under the pool's prefix in `/dev/shm` (a regular file
+    /// closed to group and others), and clear group and other bits in the pool's directories
+    /// ([`crate::private::tighten_tree`]). The supervisor runs it once its workers are up.
+    ///
+    /// Names someone else planted under the prefix are left alone: every name the pool opens
+    /// rather than creates is its own already (the node counter, [`PoolId::create_node_counter`];
+    /// iceoryx2 creates each of its other `/dev/shm` files exclusively), so a planted name can
+    /// at most make a creation fail, never feed the pool.
+    pub fn verify_files(&self) -> Result<(), IpcError> {
+        let me = nix::unistd::geteuid().as_raw();
+        for p in crate::cleanup::pool_shm_files(self) {
+            match std::fs::symlink_metadata(&p) {
+                Ok(m) if std::os::unix::fs::MetadataExt::uid(&m) != me => {}
+                Ok(m) => check_private(&p, &m, false)?,
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                Err(source) => {
+                    return Err(IpcError::Io {
+                        what: "inspect shared-memory file",
+                        path: p,
+                        source,
+                    });
+                }
+            }
+        }
+        crate::private::tighten_tree(&self.root())?;
+        crate::private::tighten_tree(&self.aux_dir())
     }
 
     /// The iceoryx2 configuration that confines every resource of the pool to its prefix and
@@ -154,10 +181,41 @@ impl PoolId {
     }
 }
 
+/// The name of iceoryx2's node counter after a root's prefix. It holds a hash of a Rust type
+/// name, so it is learnt once per process: a throwaway node in a throwaway root (in the private
+/// runtime directory `base`) makes one, whose name is read and whose files are removed.
+fn node_counter_name(base: &StdPath) -> Result<String, IpcError> {
+    static NAME: std::sync::OnceLock<Result<String, String>> = std::sync::OnceLock::new();
+    NAME.get_or_init(|| {
+        let probe = PoolId::new_unique(base).map_err(|e| e.to_string())?;
+        crate::private::create_private_dir(&probe.root()).map_err(|e| e.to_string())?;
+        let learnt = probe
+            .node("probe")
+            .map(drop)
+            .map_err(|e| e.to_string())
+            .and_then(|()| {
+                crate::cleanup::pool_shm_files(&probe)
+                    .iter()
+                    .filter_map(|p| {
+                        p.file_name()?
+                            .to_str()?
+                            .strip_prefix(&probe.prefix())
+                            .map(str::to_string)
+                    })
+                    .find(|n| n.ends_with(".global_mgmt"))
+                    .ok_or_else(|| "iceoryx2 made no node counter".to_string())
+            });
+        let _ = crate::cleanup::remove_pool_files(&probe);
+        learnt
+    })
+    .clone()
+    .map_err(|e| IpcError::InvalidName(format!("cannot learn iceoryx2's node counter name: {e}")))
+}
+
 /// The start time (in clock ticks since boot) of a process, from `/proc/<pid>/stat`; `None` if
 /// the process does not exist. Used to tell a live owner from a reused pid.
 pub fn process_start_time(pid: u32) -> Option<u64> {
-    let s = fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    let s = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
     let rest = &s[s.rfind(')')? + 2..];
     // Fields after the command: state is field 3; starttime is field 22 -> index 19 here.
     rest.split_whitespace().nth(19)?.parse().ok()

@@ -7,13 +7,21 @@ use std::time::{Duration, Instant};
 use crate::cleanup::is_pool_name;
 use crate::*;
 
+/// A private runtime directory for one test (created 0700 if missing).
+fn private_base(name: &str) -> std::path::PathBuf {
+    let base = std::env::temp_dir().join(format!("{name}-{}", std::process::id()));
+    crate::private::ensure_private_dir(&base).unwrap();
+    base
+}
+
 #[test]
-fn names_are_short_and_unique() {
-    let a = PoolId::new_unique(StdPath::new(DEFAULT_BASE_DIR)).unwrap();
-    let b = PoolId::new_unique(StdPath::new(DEFAULT_BASE_DIR)).unwrap();
+fn names_are_short_random_and_unique() {
+    let base = StdPath::new("/tmp/x");
+    let a = PoolId::new_unique(base).unwrap();
+    let b = PoolId::new_unique(base).unwrap();
     assert_ne!(a.name(), b.name());
     assert!(is_pool_name(a.name()));
-    assert_eq!(a.prefix().len(), 11);
+    assert_eq!(a.prefix().len(), 15);
     assert!(PoolId::from_parts("x", &StdPath::new("/tmp").join("a".repeat(90))).is_err());
     assert!(PoolId::from_parts("bad/name", StdPath::new("/tmp")).is_err());
 }
@@ -26,7 +34,7 @@ fn own_process_is_alive_and_start_time_readable() {
 
 #[test]
 fn pubsub_round_trip_and_cleanup() {
-    let base = std::env::temp_dir().join("rgp-ipc-test");
+    let base = private_base("rgp-ipc-test");
     let id = PoolId::new_unique(&base).unwrap();
     id.create_dirs().unwrap();
     let s = ChannelSettings {
@@ -97,7 +105,7 @@ fn thread_cpu_ticks() -> u64 {
 
 #[test]
 fn idle_wait_blocks_instead_of_spinning() {
-    let base = std::env::temp_dir().join("rgp-ipc-idle-test");
+    let base = private_base("rgp-ipc-idle-test");
     let id = PoolId::new_unique(&base).unwrap();
     id.create_dirs().unwrap();
     let s = ChannelSettings {
@@ -134,7 +142,7 @@ fn idle_wait_blocks_instead_of_spinning() {
 
 #[test]
 fn sweep_removes_pools_of_dead_owners_only() {
-    let base = std::env::temp_dir().join("rgp-ipc-sweep-test");
+    let base = private_base("rgp-ipc-sweep-test");
     let live = PoolId::new_unique(&base).unwrap();
     live.create_dirs().unwrap();
     let dead = PoolId::new_unique(&base).unwrap();
@@ -147,4 +155,127 @@ fn sweep_removes_pools_of_dead_owners_only() {
     assert!(live.aux_dir().exists());
     remove_pool_files(&live).unwrap();
     let _ = fs::remove_dir(&base);
+}
+
+/// Every mode bit a pool's path has beyond its owner's.
+fn loose_paths(id: &PoolId) -> Vec<String> {
+    use std::os::unix::fs::MetadataExt;
+    let mut out = Vec::new();
+    let mut todo: Vec<std::path::PathBuf> = pool_shm_files(id);
+    todo.extend([id.root(), id.aux_dir()]);
+    while let Some(p) = todo.pop() {
+        let m = fs::symlink_metadata(&p).unwrap();
+        if m.mode() & 0o077 != 0 || m.uid() != nix::unistd::geteuid().as_raw() {
+            out.push(format!("{} {:o}", p.display(), m.mode()));
+        }
+        if m.is_dir() {
+            todo.extend(fs::read_dir(&p).unwrap().map(|e| e.unwrap().path()));
+        }
+    }
+    out
+}
+
+#[test]
+fn every_path_of_a_live_pool_is_private() {
+    let base = private_base("rgp-ipc-private-test");
+    let id = PoolId::new_unique(&base).unwrap();
+    id.create_dirs().unwrap();
+    let s = ChannelSettings {
+        num_workers: 1,
+        max_borrowed: 2,
+    };
+    {
+        let _buf = SharedBuffer::create(&id, "batch", 4096).unwrap();
+        id.create_node_counter().unwrap();
+        let node = id.node("sup").unwrap();
+        let _sup = SupervisorPorts::new(&node, 0, 4, &s).unwrap();
+        let _bl = BlockListener::new(&node, &s).unwrap();
+        let w_node = id.node("w0").unwrap();
+        let _w = WorkerPorts::new(&w_node, 0, 8, &s).unwrap();
+        id.verify_files().unwrap();
+        assert!(pool_shm_files(&id).len() >= 4, "{:?}", pool_shm_files(&id));
+        assert_eq!(loose_paths(&id), Vec::<String>::new());
+        // The node counter iceoryx2 would make 0666 is ours, 0600.
+        let counter = pool_shm_files(&id)
+            .into_iter()
+            .find(|p| p.to_string_lossy().ends_with(".global_mgmt"))
+            .expect("node counter");
+        use std::os::unix::fs::MetadataExt;
+        assert_eq!(fs::metadata(counter).unwrap().mode() & 0o777, 0o600);
+    }
+    remove_pool_files(&id).unwrap();
+    assert!(pool_shm_files(&id).is_empty());
+    let _ = fs::remove_dir(&base);
+}
+
+#[test]
+fn a_planted_name_fails_cleanly_and_nothing_is_written_through_it() {
+    let base = private_base("rgp-ipc-planted-test");
+    let id = PoolId::new_unique(&base).unwrap();
+    id.create_dirs().unwrap();
+    // A link where the batch buffer goes, pointing at a file of ours: refused, file untouched.
+    let victim = base.join("victim");
+    fs::write(&victim, b"precious").unwrap();
+    let link = StdPath::new("/dev/shm").join(format!("{}batch", id.prefix()));
+    std::os::unix::fs::symlink(&victim, &link).unwrap();
+    let err = SharedBuffer::create(&id, "batch", 4096).unwrap_err();
+    assert!(err.to_string().contains("File exists"), "{err}");
+    assert_eq!(fs::read(&victim).unwrap(), b"precious");
+    // Opening through a link is refused too.
+    let err = SharedBuffer::open(&id, "batch", 4096).unwrap_err();
+    assert!(err.to_string().contains("open shared buffer"), "{err}");
+    // A loose (0644) file under the pool's prefix makes the pool's check fail.
+    fs::remove_file(&link).unwrap();
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let _b = SharedBuffer::create(&id, "batch", 64).unwrap();
+        let p = StdPath::new("/dev/shm").join(format!("{}batch", id.prefix()));
+        fs::set_permissions(&p, fs::Permissions::from_mode(0o644)).unwrap();
+        let err = id.verify_files().unwrap_err();
+        assert!(err.to_string().contains("open to group or others"), "{err}");
+        assert!(SharedBuffer::open(&id, "batch", 64).is_err());
+    }
+    // An existing pool directory is never reused.
+    assert!(id.create_dirs().is_err());
+    remove_pool_files(&id).unwrap();
+    let _ = fs::remove_file(&victim);
+    let _ = fs::remove_dir(&base);
+}
+
+#[test]
+fn runtime_dirs_that_are_not_private_are_refused() {
+    use crate::private::ensure_private_dir;
+    use std::os::unix::fs::PermissionsExt;
+    let base = private_base("rgp-ipc-runtime-test");
+    // A file, a link and a 0755 directory in the runtime directory's place.
+    let file = base.join("file");
+    fs::write(&file, b"").unwrap();
+    let err = ensure_private_dir(&file).unwrap_err();
+    assert!(err.to_string().contains("is not a directory"), "{err}");
+    let link = base.join("link");
+    std::os::unix::fs::symlink(&base, &link).unwrap();
+    let err = ensure_private_dir(&link).unwrap_err();
+    assert!(err.to_string().contains("symbolic link"), "{err}");
+    let open = base.join("open");
+    fs::create_dir(&open).unwrap();
+    fs::set_permissions(&open, fs::Permissions::from_mode(0o755)).unwrap();
+    let err = ensure_private_dir(&open).unwrap_err();
+    assert!(err.to_string().contains("mode 0755"), "{err}");
+    assert!(err.to_string().contains("ROGUE_GYM_RUNTIME_DIR"), "{err}");
+    // A relative path, and a missing parent.
+    assert!(ensure_private_dir(StdPath::new("relative")).is_err());
+    assert!(ensure_private_dir(&base.join("no/such")).is_err());
+    // A fresh one is made 0700; the sweep leaves a non-private pool directory alone.
+    let fresh = base.join("fresh");
+    ensure_private_dir(&fresh).unwrap();
+    assert_eq!(
+        fs::metadata(&fresh).unwrap().permissions().mode() & 0o777,
+        0o700
+    );
+    let foreign = fresh.join("rg0123456789ab.d");
+    fs::create_dir(&foreign).unwrap();
+    fs::set_permissions(&foreign, fs::Permissions::from_mode(0o755)).unwrap();
+    assert!(sweep_stale_pools(&fresh).is_empty());
+    assert!(foreign.exists());
+    fs::remove_dir_all(&base).unwrap();
 }

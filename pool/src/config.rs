@@ -99,8 +99,11 @@ pub struct PoolConfig {
     pub wait: WaitPolicy,
     /// Workers' waiting policy.
     pub worker_wait: WaitPolicy,
-    /// Directory holding the pools' short roots (default `/tmp/rgp`).
-    pub base_dir: PathBuf,
+    /// The runtime directory that holds the pool's files: it must be a directory of this user
+    /// that no one else can enter (it is created 0700 if missing). `None`:
+    /// [`rogue_gym_ipc::default_runtime_dir`] (`$ROGUE_GYM_RUNTIME_DIR`, else
+    /// `$XDG_RUNTIME_DIR/rogue-gym`, else `/tmp/rogue-gym-<uid>`).
+    pub runtime_dir: Option<PathBuf>,
 }
 
 impl PoolConfig {
@@ -131,7 +134,7 @@ impl PoolConfig {
                 block_slice: Duration::from_millis(100),
                 yield_cpu: true,
             },
-            base_dir: PathBuf::from(rogue_gym_ipc::DEFAULT_BASE_DIR),
+            runtime_dir: None,
         }
     }
 }

@@ -14,6 +14,8 @@ pub enum FailureCause {
     Died,
     /// It did not answer within the step timeout and was killed.
     Hung(Duration),
+    /// It did not say it was ready within the start timeout and was killed.
+    NotReady(Duration),
 }
 
 /// Report on a failed worker.
@@ -35,6 +37,8 @@ pub struct WorkerFailure {
     pub seeds: Vec<u64>,
     /// The end of its stderr.
     pub stderr_tail: String,
+    /// It failed while starting (at the pool's start or in a restart), before it was ready.
+    pub starting: bool,
 }
 
 impl std::fmt::Display for WorkerFailure {
@@ -45,14 +49,22 @@ impl std::fmt::Display for WorkerFailure {
             self.worker, self.pid, self.env_ids.start, self.env_ids.end
         )?;
         match &self.cause {
-            FailureCause::Hung(t) => {
-                write!(f, "hung: no answer within step_timeout {t:?}, killed")?
-            }
+            FailureCause::Hung(t) => write!(
+                f,
+                "hung: no answer within step_timeout {t:?}, so it was killed"
+            )?,
+            FailureCause::NotReady(t) => write!(
+                f,
+                "was not ready within start_timeout {t:?}, so it was killed"
+            )?,
             FailureCause::Died => match (self.signal, self.exit_code) {
                 (Some(s), _) => write!(f, "was killed by signal {s} ({})", signal_name(s))?,
                 (None, Some(c)) => write!(f, "exited with code {c}")?,
                 _ => write!(f, "died")?,
             },
+        }
+        if self.starting && self.cause == FailureCause::Died {
+            write!(f, " while starting")?;
         }
         if !self.seeds.is_empty() {
             write!(f, "; episode seeds {:?}", self.seeds)?;
@@ -61,6 +73,33 @@ impl std::fmt::Display for WorkerFailure {
             write!(f, "; its stderr was empty")
         } else {
             write!(f, "; end of its stderr:\n{}", self.stderr_tail.trim_end())
+        }
+    }
+}
+
+fn several_tail(all: &[PoolError]) -> String {
+    match all.len() {
+        0 | 1 => String::new(),
+        n => format!(
+            "\n({} more failure{} in the same call: {})",
+            n - 1,
+            if n == 2 { "" } else { "s" },
+            all[1..]
+                .iter()
+                .map(ToString::to_string)
+                .collect::<Vec<_>>()
+                .join("; ")
+        ),
+    }
+}
+
+impl PoolError {
+    /// One error for the failures of one call: the only one, or [`PoolError::Several`].
+    pub(crate) fn collected(mut all: Vec<PoolError>) -> Option<PoolError> {
+        match all.len() {
+            0 => None,
+            1 => all.pop(),
+            _ => Some(PoolError::Several(all)),
         }
     }
 }
@@ -92,7 +131,7 @@ pub enum PoolError {
         got: usize,
     },
     /// An action out of range.
-    #[error("env {env}: action {value} is out of range; valid actions are 0..{num_actions}")]
+    #[error("env {env}: action {value} is out of range; valid actions are 0 to {} (range({num_actions}))", num_actions.saturating_sub(1))]
     BadAction {
         /// Env id.
         env: usize,
@@ -150,6 +189,10 @@ pub enum PoolError {
     /// requests are abandoned: call a reset to go on.
     #[error("interrupted while waiting for the workers; call reset() to continue")]
     Interrupted,
+    /// Several envs or workers failed in one call: the first failure, then the others (each
+    /// an [`PoolError::EnvFailed`] or [`PoolError::WorkerFailed`]). One reset clears them all.
+    #[error("{}{}", .0.first().map(ToString::to_string).unwrap_or_default(), several_tail(.0))]
+    Several(Vec<PoolError>),
     /// The pool is closed.
     #[error("the pool is closed")]
     Closed,

@@ -103,10 +103,7 @@ pub fn worker_main(args: &[String], registry: &EnvRegistry) -> i32 {
         );
         return 0;
     }
-    let cfg: WorkerConfig = match std::fs::read_to_string(&a.config)
-        .map_err(|e| format!("cannot read worker config {}: {e}", a.config.display()))
-        .and_then(|s| serde_json::from_str(&s).map_err(|e| format!("bad worker config: {e}")))
-    {
+    let cfg: WorkerConfig = match read_config(&a.config) {
         Ok(c) => c,
         Err(e) => {
             eprintln!("rogue-gym worker {}: {e}", a.index);
@@ -127,6 +124,19 @@ pub fn worker_main(args: &[String], registry: &EnvRegistry) -> i32 {
             3
         }
     }
+}
+
+/// Read the worker's config: a private file of this user in a private directory of this user
+/// (the pool's, inside its verified runtime directory), so that no one else can have written
+/// what the worker builds its envs from (hosted envs unpickle it).
+fn read_config(path: &std::path::Path) -> Result<WorkerConfig, String> {
+    let dir = path.parent().unwrap_or(std::path::Path::new("/"));
+    let meta = std::fs::symlink_metadata(dir)
+        .map_err(|e| format!("cannot inspect {}: {e}", dir.display()))?;
+    rogue_gym_ipc::private::check_private(dir, &meta, true).map_err(|e| e.to_string())?;
+    let data = rogue_gym_ipc::private::read_private_file(path)
+        .map_err(|e| format!("cannot read worker config: {e}"))?;
+    serde_json::from_slice(&data).map_err(|e| format!("bad worker config: {e}"))
 }
 
 /// One env of a worker with its episode bookkeeping.
@@ -237,7 +247,11 @@ pub(crate) fn apply(
                 s.env
                     .step_bytes(&bytes[..ctx.action_bytes.min(bytes.len())], obs)
             } else if value >= ctx.num_actions as u64 {
-                let msg = format!("action {value} out of range 0..{}", ctx.num_actions);
+                let msg = format!(
+                    "action {value} is out of range; valid actions are 0 to {} (range({}))",
+                    ctx.num_actions.saturating_sub(1),
+                    ctx.num_actions
+                );
                 return Err(fault(s, "step".into(), msg));
             } else {
                 s.env.step(value as usize, obs)
@@ -336,7 +350,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
     }
     let envs = cfg.envs_of(a.index);
     let epw = envs.len();
-    let id = PoolId::from_parts(&cfg.pool_name, &cfg.base_dir)?;
+    let id = PoolId::from_parts(&cfg.pool_name, &cfg.runtime_dir)?;
     let fault_path = env_fault_path(&id, a.index, a.generation);
     let mut slots = Vec::with_capacity(epw);
     for j in 0..epw {
@@ -429,13 +443,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
 
         let target = ((h.kind & (RELOAD_SEEDS - 1)) >> TARGET_SHIFT) as usize;
         if h.kind & RELOAD_SEEDS != 0 {
-            let fresh: WorkerConfig = std::fs::read_to_string(&a.config)
-                .map_err(|e| format!("cannot re-read worker config {}: {e}", a.config.display()))
-                .and_then(|t| {
-                    serde_json::from_str(&t).map_err(|e| format!("bad worker config: {e}"))
-                })
-                .map_err(WorkerError::Msg)?;
-            seeds = fresh.seeds;
+            seeds = read_config(&a.config).map_err(WorkerError::Msg)?.seeds;
         }
         let ctx = SlotCtx {
             seeds: &seeds,

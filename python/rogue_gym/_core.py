@@ -8,6 +8,7 @@ alternately (double buffering: the workers write the slot not returned last time
 from __future__ import annotations
 
 import json
+import os
 import weakref
 from typing import Any, Mapping, Optional
 
@@ -117,6 +118,7 @@ class PoolCore:
             "on_worker_failure": st.on_worker_failure,
             "step_timeout": st.step_timeout,
             "max_restarts": st.max_restarts,
+            "runtime_dir": None if st.runtime_dir is None else os.fspath(st.runtime_dir),
         }
         self._cmd = list(st.worker_command or [])
         self._pool: Any = None
@@ -288,12 +290,14 @@ class PoolCore:
                 raise TypeError(
                     f"expected integer actions in [0, {len(ACTIONS)}), got dtype {a.dtype}"
                 )
-        if check_range:
+        if check_range or (a.dtype.kind == "u" and a.dtype.itemsize >= 8):
+            # (Checked here for uint64 too, which would wrap when cast to int64.)
             bad = (a < 0) | (a >= len(ACTIONS))
             if bad.any():
                 i = int(np.flatnonzero(bad)[0])
                 raise ValueError(
-                    f"env {i}: action {a[i]} is out of range; valid actions are 0..{len(ACTIONS)}"
+                    f"env {i}: action {a[i]} is out of range; valid actions are 0 to "
+                    f"{len(ACTIONS) - 1} (range({len(ACTIONS)}))"
                 )
         np.copyto(self._actions, a, casting="unsafe")
         return self._actions

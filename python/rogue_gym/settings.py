@@ -63,6 +63,10 @@ class PoolSettings:
             one pool of ``total_envs``. Default: the pool is the whole set.
         batch_size: envs per async ``recv`` (default all; otherwise a multiple of the envs per
             worker, which needs ``num_workers`` to divide ``num_envs``).
+        runtime_dir: the directory that holds the pool's files; it must be a directory of
+            yours that no one else can enter (created 0700 if missing; refused otherwise).
+            Default: ``$ROGUE_GYM_RUNTIME_DIR``, else ``$XDG_RUNTIME_DIR/rogue-gym``, else
+            ``/tmp/rogue-gym-<uid>`` (see docs/security.md).
     """
 
     num_envs: int = 8
@@ -84,6 +88,7 @@ class PoolSettings:
     worker_command: Optional[Sequence[str]] = None
     shard: Optional[tuple[int, int]] = None
     batch_size: Optional[int] = None
+    runtime_dir: Optional[str] = None
 
     @classmethod
     def from_kwargs(cls, options: Mapping[str, Any]) -> PoolSettings:
@@ -107,6 +112,10 @@ class PoolSettings:
         num_workers = self.num_workers
         if num_workers is None:
             num_workers = min(num_envs, os.cpu_count() or 1)
+        if not 1 <= int(num_workers) <= num_envs:
+            raise ValueError(
+                f"num_workers must be between 1 and num_envs ({num_envs}), got {num_workers}"
+            )
         if self.on_worker_failure not in FAILURE_POLICIES:
             raise ValueError(
                 f"on_worker_failure must be one of {FAILURE_POLICIES}, got {self.on_worker_failure!r}"
@@ -131,6 +140,8 @@ class PoolSettings:
         seed = self.seed
         if seed is None:
             seed = int.from_bytes(os.urandom(8), "little") >> 1
+        elif not 0 <= int(seed) < 2**64:
+            raise ValueError(f"seed must be an integer in [0, 2**64), got {seed}")
         command = self.worker_command
         if command is None:
             command = [sys.executable, "-m", "rogue_gym.worker"]

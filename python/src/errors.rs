@@ -1,6 +1,6 @@
 //! Pool errors as Python exceptions (never a panic across the FFI boundary).
 
-use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyPermissionError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rogue_gym_pool::{PoolError, WorkerFailure};
@@ -31,6 +31,10 @@ pub(crate) fn pool_error(py: Python<'_>, e: PoolError) -> PyErr {
             };
             build().unwrap_or_else(|e| e)
         }
+        PoolError::Several(all) => several(py, all),
+        e @ PoolError::Ipc(rogue_gym_ipc::IpcError::Insecure { .. }) => {
+            PyPermissionError::new_err(e.to_string())
+        }
         e @ (PoolError::Config(_)
         | PoolError::Env(_)
         | PoolError::BadAction { .. }
@@ -38,6 +42,32 @@ pub(crate) fn pool_error(py: Python<'_>, e: PoolError) -> PyErr {
         | PoolError::BadBuffer { .. }) => PyValueError::new_err(e.to_string()),
         e => PyRuntimeError::new_err(e.to_string()),
     }
+}
+
+/// Several failures of one call: the first as its own exception, the others (as exceptions)
+/// in its `others` attribute and, one line each, in its notes (shown by Python 3.11+).
+fn several(py: Python<'_>, all: Vec<PoolError>) -> PyErr {
+    let mut errs = all.into_iter().map(|e| pool_error(py, e));
+    let Some(first) = errs.next() else {
+        return PyRuntimeError::new_err("several failures (none recorded)");
+    };
+    let others: Vec<PyErr> = errs.collect();
+    let attach = || -> PyResult<()> {
+        let value = first.value(py);
+        let notes: Vec<String> = others
+            .iter()
+            .map(|o| format!("also failed in the same call: {}", o.value(py)))
+            .collect();
+        let objs: Vec<Bound<'_, PyAny>> = others
+            .iter()
+            .map(|o| o.value(py).clone().into_any())
+            .collect();
+        value.setattr("others", objs)?;
+        value.setattr("__notes__", notes)?;
+        Ok(())
+    };
+    let _ = attach();
+    first
 }
 
 /// Build a `rogue_gym.errors.WorkerCrashedError` for a failure report.

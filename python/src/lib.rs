@@ -39,6 +39,13 @@ fn block_range(num_envs: usize, parts: usize, k: usize) -> PyResult<(usize, usiz
     Ok((r.start, r.end))
 }
 
+/// The runtime directory a pool started now would use by default (`$ROGUE_GYM_RUNTIME_DIR`,
+/// else `$XDG_RUNTIME_DIR/rogue-gym`, else `/tmp/rogue-gym-<uid>`), not yet checked.
+#[pyfunction]
+fn default_runtime_dir() -> String {
+    rogue_gym_ipc::default_runtime_dir().display().to_string()
+}
+
 /// The env kinds of this extension's pools: the pool crate's own, plus `"python"` (hosted
 /// gymnasium envs, see [`hosted`]).
 pub(crate) fn registry() -> rogue_gym_pool::EnvRegistry {
@@ -58,6 +65,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(game::action_from_key, m)?)?;
     m.add_function(wrap_pyfunction!(worker_main, m)?)?;
     m.add_function(wrap_pyfunction!(block_range, m)?)?;
+    m.add_function(wrap_pyfunction!(default_runtime_dir, m)?)?;
     m.add_function(wrap_pyfunction!(summary::floor_summary, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("ACTION_KEYS", rogue_gym_engine::ACTION_KEYS)?;

@@ -558,6 +558,18 @@ impl PyPool {
         Ok(guard.as_ref().map(Pool::restarts).unwrap_or(0))
     }
 
+    /// The runtime directory that holds the pool's directories (`""` once closed).
+    fn runtime_dir(&self) -> PyResult<String> {
+        let guard = self
+            .pool
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        Ok(guard
+            .as_ref()
+            .map(|p| p.id().base().display().to_string())
+            .unwrap_or_default())
+    }
+
     /// The pool's name (the prefix of its shared-memory files).
     fn name(&self) -> PyResult<String> {
         let guard = self

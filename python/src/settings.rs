@@ -36,8 +36,9 @@ pub(crate) struct PyPoolSettings {
     max_restarts: Option<u32>,
     #[serde(default)]
     max_borrowed: Option<usize>,
+    /// The runtime directory (`None`: the default, see `rogue_gym_ipc::default_runtime_dir`).
     #[serde(default)]
-    base_dir: Option<String>,
+    runtime_dir: Option<String>,
     /// The supervisor's yield-poll budget before it blocks, µs.
     #[serde(default)]
     poll_us: Option<u64>,
@@ -87,9 +88,7 @@ pub(crate) fn pool_config(
     if let Some(m) = s.max_borrowed {
         cfg.max_borrowed = m;
     }
-    if let Some(d) = s.base_dir {
-        cfg.base_dir = d.into();
-    }
+    cfg.runtime_dir = s.runtime_dir.map(Into::into);
     if let Some(us) = s.poll_us {
         cfg.wait.poll_budget = Duration::from_micros(us);
     }

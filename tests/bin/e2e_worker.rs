@@ -26,7 +26,7 @@ fn main() {
                 cmd,
             );
             if let Some(b) = base {
-                cfg.base_dir = b;
+                cfg.runtime_dir = Some(b);
             }
             let pool = match Pool::new(cfg, &EnvRegistry::with_defaults()) {
                 Ok(p) => p,
@@ -45,7 +45,7 @@ fn main() {
         }
         _ => {
             eprintln!(
-                "usage: e2e_worker worker <args> | e2e_worker hold-pool <num_workers> [base_dir]"
+                "usage: e2e_worker worker <args> | e2e_worker hold-pool <num_workers> [runtime_dir]"
             );
             std::process::exit(2);
         }

@@ -53,9 +53,9 @@ def pid_alive(pid: int) -> bool:
 
 
 def pool_files(name: str) -> list[str]:
-    """Files of pool ``name`` left in /dev/shm and /tmp/rgp."""
+    """Files of pool ``name`` left in /dev/shm and in the runtime directory."""
     out = [f"/dev/shm/{f}" for f in os.listdir("/dev/shm") if f.startswith(f"{name}_")]
-    base = "/tmp/rgp"
+    base = rogue_gym._native.default_runtime_dir()
     if os.path.isdir(base):
         out += [f"{base}/{f}" for f in os.listdir(base) if f == name or f.startswith(f"{name}.")]
     return out

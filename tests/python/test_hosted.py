@@ -383,3 +383,40 @@ def test_sigterm_stops_the_workers_and_removes_every_file() -> None:
             proc.wait()
     assert wait_until(lambda: not any(pid_alive(int(p)) for p in pids))
     assert pool_files(name) == []
+
+
+def test_several_envs_raising_in_one_step_are_all_reported_and_one_reset_recovers(pool) -> None:
+    env = pool([functools.partial(RaisingEnv, fail_after=1)] * 4, num_workers=2)
+    env.reset(seed=0)
+    env.step(np.zeros(4, np.int64))
+    # Env 1 (worker 0) and env 3 (worker 1) raise in the same step.
+    with pytest.raises(SpecialError, match="step 2 refused action 1") as info:
+        env.step(np.array([0, 1, 0, 1]))
+    others = info.value.others  # type: ignore[attr-defined]
+    assert len(others) == 1 and isinstance(others[0], SpecialError), others
+    for e in [info.value, *others]:
+        assert "rogue_gym_exception" not in str(e), "no raw JSON in a message"
+    env.reset(seed=0)  # one reset clears both
+    env.step(np.zeros(4, np.int64))
+
+
+def test_bad_arguments_name_the_argument_and_its_range(make_vec) -> None:
+    with pytest.raises(ValueError, match=r"seed must be an integer in \[0, 2\*\*64\), got -1"):
+        make_vec(seed=-1)
+    with pytest.raises(ValueError, match=r"seed must be an integer in \[0, 2\*\*64\)"):
+        make_vec(seed=2**70)
+    with pytest.raises(
+        ValueError, match=r"num_workers must be between 1 and num_envs \(4\), got 0"
+    ):
+        make_vec(num_workers=0)
+    with pytest.raises(ValueError, match="num_workers must be between 1"):
+        PoolVectorEnv([cartpole] * 2, num_workers=0)
+    with pytest.raises(TypeError, match=r"returned 'int', not a gymnasium\.Env"):
+        PoolVectorEnv([lambda: 3] * 2, num_workers=1)
+    envs = make_vec()
+    envs.reset()
+    with pytest.raises(
+        ValueError,
+        match=r"action 18446744073709551615 is out of range; valid actions are 0 to 10 \(range\(11\)\)",
+    ):
+        envs.step(np.array([0, 0, 0, 2**64 - 1], np.uint64))

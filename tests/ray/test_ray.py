@@ -32,10 +32,11 @@ POOL = {"obs": "symbol_index", "num_workers": 1, "max_steps": 40}
 
 
 def _ours() -> set[str]:
-    """The pool files in /dev/shm and the pools' temp dir (/tmp/rgp)."""
+    """The pool files in /dev/shm and in the pools' runtime directory."""
     files = {f"/dev/shm/{f}" for f in os.listdir("/dev/shm") if f.startswith("rg")}
-    if os.path.isdir("/tmp/rgp"):
-        files |= {f"/tmp/rgp/{f}" for f in os.listdir("/tmp/rgp")}
+    base = rogue_gym._native.default_runtime_dir()
+    if os.path.isdir(base):
+        files |= {f"{base}/{f}" for f in os.listdir(base)}
     return files
 
 

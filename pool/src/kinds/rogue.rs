@@ -110,7 +110,8 @@ impl Env for RogueEnv {
     fn step(&mut self, action: usize, obs: &mut [u8]) -> Result<StepOutcome, EnvError> {
         let a = Action::from_index(action).ok_or_else(|| {
             EnvError::new(format!(
-                "rogue env: action {action} out of range 0..{}",
+                "rogue env: action {action} is out of range; valid actions are 0 to {} (range({}))",
+                rogue_gym_engine::NUM_ACTIONS - 1,
                 rogue_gym_engine::NUM_ACTIONS
             ))
         })?;

@@ -11,7 +11,6 @@ mod stepping;
 mod workers;
 
 use std::collections::VecDeque;
-use std::fs;
 use std::ops::Range;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -56,8 +55,12 @@ struct Core {
     /// Workers must re-read the seed schedule at their next reset.
     reload_seeds: Vec<bool>,
     worker_config: Option<WorkerConfig>,
-    /// An env failure reported by a worker, raised by the current wait.
-    env_fault: Option<PoolError>,
+    /// Failures of the current call (env errors, workers lost under the raise policy), raised
+    /// together once no worker still owes the call an answer.
+    faults: Vec<PoolError>,
+    /// While draining stale answers before a reset: env errors of abandoned commands are
+    /// dropped, not raised (the reset starts those envs afresh anyway); lost workers are not.
+    discard_faults: bool,
 }
 
 /// A pool of envs stepped by worker processes, with observations in shared memory.
@@ -149,8 +152,9 @@ impl Pool {
                 extra_bytes: spec.extra_bytes,
             })
             .collect();
-        rogue_gym_ipc::sweep_stale_pools(&cfg.base_dir);
-        let id = PoolId::new_unique(&cfg.base_dir)?;
+        let runtime_dir = rogue_gym_ipc::resolve_runtime_dir(cfg.runtime_dir.as_deref())?;
+        rogue_gym_ipc::sweep_stale_pools(&runtime_dir);
+        let id = PoolId::new_unique(&runtime_dir)?;
         id.create_dirs()?;
         let settings = ChannelSettings {
             num_workers: cfg.num_workers,
@@ -158,7 +162,7 @@ impl Pool {
         };
         let wcfg = WorkerConfig {
             pool_name: id.name().to_string(),
-            base_dir: cfg.base_dir.clone(),
+            runtime_dir,
             num_envs: cfg.num_envs,
             num_workers: cfg.num_workers,
             env: cfg.env.clone(),
@@ -196,7 +200,8 @@ impl Pool {
                 closed: false,
                 reload_seeds: vec![false; num_workers],
                 worker_config: None,
-                env_fault: None,
+                faults: Vec::new(),
+                discard_faults: false,
             },
         };
         // From here on, Drop cleans up whatever was created.
@@ -209,14 +214,16 @@ impl Pool {
         let c = &mut self.core;
         let json = serde_json::to_string(wcfg)
             .map_err(|e| PoolError::Config(format!("cannot serialize worker config: {e}")))?;
-        fs::write(&c.config_path, json)
-            .map_err(|e| PoolError::Io(format!("cannot write {}: {e}", c.config_path.display())))?;
+        rogue_gym_ipc::private::write_private_file(&c.config_path, json.as_bytes())?;
         c.slot_bytes = slot_bytes(c.cfg.num_envs, c.spec.obs_bytes());
         c.batch = Some(std::sync::Arc::new(rogue_gym_ipc::SharedBuffer::create(
             &c.id,
             BATCH_BUFFER,
             BATCH_SLOTS * c.slot_bytes,
         )?));
+        // Right after the pool's first /dev/shm file, before any node: iceoryx2's node counter,
+        // private (see PoolId::create_node_counter).
+        c.id.create_node_counter()?;
         let node = c.id.node("sup")?;
         self.listener = Some(BlockListener::new(&node, &c.settings)?);
         for k in 0..c.cfg.num_workers {
@@ -244,7 +251,9 @@ impl Pool {
             !c.slots
                 .iter()
                 .any(|s| matches!(s.state, SlotState::Starting { .. }))
-        })
+        })?;
+        self.core.id.verify_files()?;
+        Ok(())
     }
 
     /// Replace the seed schedule and restart every env's episode count: the next reset
@@ -266,11 +275,8 @@ impl Pool {
         wcfg.seeds = seeds.clone();
         let json = serde_json::to_string(&wcfg)
             .map_err(|e| PoolError::Config(format!("cannot serialize worker config: {e}")))?;
-        // Write then rename, so a worker (re)reading it never sees a partial file.
-        let tmp = c.config_path.with_extension("json.tmp");
-        fs::write(&tmp, json)
-            .and_then(|_| fs::rename(&tmp, &c.config_path))
-            .map_err(|e| PoolError::Io(format!("cannot write {}: {e}", c.config_path.display())))?;
+        // Written then renamed, so a worker (re)reading it never sees a partial file.
+        rogue_gym_ipc::private::write_private_file(&c.config_path, json.as_bytes())?;
         c.cfg.seeds = seeds;
         c.worker_config = Some(wcfg);
         c.cur_episode.iter_mut().for_each(|e| *e = None);
@@ -348,8 +354,24 @@ impl Pool {
                 }
             }
             core.poll_all()?;
-            if let Some(e) = core.env_fault.take() {
-                return Err(e);
+            if core.discard_faults {
+                // Env errors of abandoned commands; a worker lost meanwhile is still news.
+                core.faults
+                    .retain(|f| !matches!(f, PoolError::EnvFailed { .. }));
+            }
+            if !core.faults.is_empty() {
+                if !core
+                    .slots
+                    .iter()
+                    .any(|s| matches!(s.state, SlotState::Pending { .. }))
+                {
+                    // Every worker of the call has answered or was handled: raise all its
+                    // failures at once, so that one reset clears them.
+                    let all = std::mem::take(&mut core.faults);
+                    return Err(PoolError::collected(all).unwrap_or(PoolError::Interrupted));
+                } else {
+                    return Ok(false);
+                }
             }
             Ok(done(core))
         })?;
@@ -430,16 +452,21 @@ impl Pool {
         Ok(())
     }
 
-    /// Wait for every outstanding request (and starting worker) and discard the results.
+    /// Wait for every outstanding request (and starting worker) and discard the results,
+    /// env errors of those requests included.
     fn drain(&mut self) -> Result<(), PoolError> {
-        self.wait_until(|c| {
+        self.core.faults.clear();
+        self.core.discard_faults = true;
+        let drained = self.wait_until(|c| {
             !c.slots.iter().any(|s| {
                 matches!(
                     s.state,
                     SlotState::Starting { .. } | SlotState::Pending { .. }
                 )
             })
-        })?;
+        });
+        self.core.discard_faults = false;
+        drained?;
         for s in &mut self.core.slots {
             if matches!(s.state, SlotState::Ready(_)) {
                 s.state = SlotState::Idle;

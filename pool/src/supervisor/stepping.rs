@@ -298,7 +298,7 @@ mod tests {
         let e = validate_actions(&[0, 11], 4..6, 11).unwrap_err();
         assert_eq!(
             e.to_string(),
-            "env 5: action 11 is out of range; valid actions are 0..11"
+            "env 5: action 11 is out of range; valid actions are 0 to 10 (range(11))"
         );
         assert!(matches!(
             validate_actions(&[-1], 0..1, 11),

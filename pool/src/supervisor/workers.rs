@@ -15,7 +15,7 @@ use super::Core;
 use super::stepping::Actions;
 use crate::batch::Block;
 use crate::config::{AutoresetMode, FailurePolicy};
-use crate::error::{FailureCause, PoolError, WorkerFailure, signal_name};
+use crate::error::{FailureCause, PoolError, WorkerFailure};
 use crate::wire::{
     BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE,
     RELOAD_SEEDS, TARGET_SHIFT, env_fault_path,
@@ -90,8 +90,7 @@ impl Core {
     pub(super) fn spawn(&mut self, k: usize, then_reset: bool) -> Result<(), PoolError> {
         let generation = self.slots[k].generation;
         let log = self.id.aux_dir().join(format!("w{k}.g{generation}.stderr"));
-        let file = fs::File::create(&log)
-            .map_err(|e| PoolError::Io(format!("cannot create {}: {e}", log.display())))?;
+        let file = rogue_gym_ipc::private::create_private_file(&log)?;
         let w = &self.cfg.worker;
         let child = Command::new(&w.program)
             .args(&w.args)
@@ -277,7 +276,7 @@ impl Core {
                             message: format!("an env of the worker failed; {e}"),
                         });
                         self.must_reset = true;
-                        self.env_fault.get_or_insert(PoolError::EnvFailed {
+                        self.faults.push(PoolError::EnvFailed {
                             fault: Box::new(fault),
                             worker: k,
                             pid: s.pid,
@@ -290,14 +289,17 @@ impl Core {
         Ok(())
     }
 
-    /// Detect dead and hung workers; restart them or fail per policy.
+    /// Detect dead and hung workers, whatever they were doing (starting, restarting, or
+    /// answering a command), and handle each per policy ([`Core::handle_failure`]). A failure
+    /// the caller must hear of is queued in `self.faults`; only a spent restart budget returns
+    /// at once.
     pub(super) fn check_liveness(&mut self) -> Result<(), PoolError> {
         for k in 0..self.slots.len() {
             let range = self.env_range(k);
             let s = &mut self.slots[k];
-            let (since, starting) = match s.state {
-                SlotState::Starting { since, .. } => (since, true),
-                SlotState::Pending { since } => (since, false),
+            let (since, starting, then_reset) = match s.state {
+                SlotState::Starting { since, then_reset } => (since, true, then_reset),
+                SlotState::Pending { since } => (since, false, true),
                 _ => continue,
             };
             let exited = match s.child.as_mut() {
@@ -309,8 +311,9 @@ impl Core {
             } else {
                 self.cfg.step_timeout
             };
-            let hung = exited.is_none() && limit.is_some_and(|l| since.elapsed() > l);
-            if exited.is_none() && !hung {
+            let lost = s.child.is_none();
+            let hung = !lost && exited.is_none() && limit.is_some_and(|l| since.elapsed() > l);
+            if !lost && exited.is_none() && !hung {
                 continue;
             }
             if hung && let Some(ch) = s.child.as_mut() {
@@ -324,74 +327,68 @@ impl Core {
             s.child = None;
             let (code, signal) = status.as_ref().map(status_parts).unwrap_or((None, None));
             let tail = stderr_tail(&s.stderr_path);
-            if starting {
-                // An env that failed to build: raise its report, do not retry.
-                let path = env_fault_path(&self.id, k, s.generation);
-                if path.exists() {
-                    let fault = EnvFault::take(&path).map_err(PoolError::Io)?;
-                    return Err(PoolError::EnvFailed {
-                        fault: Box::new(fault),
-                        worker: k,
-                        pid: s.pid,
-                    });
-                }
-                let reason = if hung {
-                    format!(
-                        "not ready within start_timeout {:?} (killed)",
-                        self.cfg.start_timeout
-                    )
-                } else {
-                    match (signal, code) {
-                        (Some(sig), _) => {
-                            format!(
-                                "killed by signal {sig} ({}) during start-up",
-                                signal_name(sig)
-                            )
-                        }
-                        (None, Some(c)) => format!("exited with code {c} during start-up"),
-                        _ => "died during start-up".into(),
-                    }
-                };
-                return Err(PoolError::StartFailed {
+            let fault_path = env_fault_path(&self.id, k, s.generation);
+            if starting && fault_path.exists() {
+                // An env that failed to build: its report goes to the caller as is. The worker
+                // is respawned (not counted as a crash) so that a reset can try again.
+                let fault = EnvFault::take(&fault_path).map_err(PoolError::Io)?;
+                let pid = s.pid;
+                self.respawn_now(k, then_reset)?;
+                self.must_reset = true;
+                self.faults.push(PoolError::EnvFailed {
+                    fault: Box::new(fault),
                     worker: k,
-                    reason,
-                    stderr_tail: tail,
+                    pid,
                 });
+                continue;
             }
             let failure = WorkerFailure {
                 worker: k,
                 env_ids: range.clone(),
                 pid: s.pid,
-                cause: if hung {
-                    FailureCause::Hung(limit.unwrap_or_default())
-                } else {
-                    FailureCause::Died
+                cause: match (hung, starting) {
+                    (true, true) => FailureCause::NotReady(self.cfg.start_timeout),
+                    (true, false) => FailureCause::Hung(limit.unwrap_or_default()),
+                    _ => FailureCause::Died,
                 },
                 exit_code: code,
                 signal,
                 seeds: self.cur_seed[range.clone()].to_vec(),
                 stderr_tail: tail,
+                starting,
             };
-            self.handle_failure(k, failure)?;
+            self.handle_failure(k, failure, then_reset)?;
         }
         Ok(())
     }
 
-    pub(super) fn handle_failure(
-        &mut self,
-        k: usize,
-        failure: WorkerFailure,
-    ) -> Result<(), PoolError> {
+    /// Forget worker `k`'s incarnation (its iceoryx2 leftovers and queued answers) and spawn the
+    /// next generation.
+    fn respawn_now(&mut self, k: usize, then_reset: bool) -> Result<(), PoolError> {
         rogue_gym_ipc::cleanup_dead_nodes(&self.id)?;
         // Drop whatever the dead incarnation left in the queue.
         while self.slots[k].ports.try_recv()?.is_some() {}
         self.ready_order.retain(|&w| w != k);
         self.slots[k].generation += 1;
+        self.spawn(k, then_reset)
+    }
+
+    /// A worker died or hung (while starting, restarting or stepping). Restart policy: count it
+    /// against the budget and respawn it after the backoff; its envs, if an episode was cut
+    /// (`then_reset`), restart theirs and are flagged. Raise policy: respawn it and queue
+    /// [`PoolError::WorkerFailed`]. Either way the pool steps again after one reset.
+    pub(super) fn handle_failure(
+        &mut self,
+        k: usize,
+        failure: WorkerFailure,
+        then_reset: bool,
+    ) -> Result<(), PoolError> {
         match self.cfg.on_worker_failure {
             FailurePolicy::Raise => {
-                self.spawn(k, false)?;
+                self.respawn_now(k, false)?;
                 self.must_reset = true;
-                Err(PoolError::WorkerFailed(Box::new(failure)))
+                self.faults.push(PoolError::WorkerFailed(Box::new(failure)));
+                Ok(())
             }
             FailurePolicy::Restart => {
                 self.restarts += 1;
@@ -408,9 +405,9 @@ impl Core {
                     .is_some_and(|t| now.duration_since(t) < RESTART_QUIET);
                 s.restart_streak = if quick { s.restart_streak + 1 } else { 0 };
                 s.last_restart = Some(now);
-                s.restarted = true;
+                s.restarted |= then_reset;
                 std::thread::sleep(restart_backoff(s.restart_streak));
-                self.spawn(k, true)
+                self.respawn_now(k, then_reset)
             }
         }
     }

@@ -54,17 +54,15 @@ pub fn decode(mut data: &[u8]) -> Result<Vec<(u32, Vec<u8>)>, String> {
     Ok(out)
 }
 
-/// Write a call file (temporary name, then rename).
+/// Write a call file: private, to a temporary name, then renamed.
 pub(crate) fn write(path: &Path, data: &[u8]) -> Result<(), String> {
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, data)
-        .and_then(|_| std::fs::rename(&tmp, path))
-        .map_err(|e| format!("cannot write {}: {e}", path.display()))
+    rogue_gym_ipc::private::write_private_file(path, data).map_err(|e| e.to_string())
 }
 
-/// Read and remove a call file.
+/// Read and remove a call file; it must be a private file of this user (its bytes are
+/// unpickled by hosted envs).
 pub(crate) fn take(path: &Path) -> Result<Vec<(u32, Vec<u8>)>, String> {
-    let data = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let data = rogue_gym_ipc::private::read_private_file(path).map_err(|e| e.to_string())?;
     let _ = std::fs::remove_file(path);
     decode(&data)
 }

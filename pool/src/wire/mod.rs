@@ -72,21 +72,18 @@ pub struct EnvFault {
 }
 
 impl EnvFault {
-    /// Write the report (then rename, so a reader never sees a partial file).
+    /// Write the report as a private file (then rename, so a reader never sees a partial
+    /// file).
     pub(crate) fn write(&self, path: &std::path::Path) -> Result<(), String> {
         let json =
             serde_json::to_string(self).map_err(|e| format!("cannot encode {self:?}: {e}"))?;
-        let tmp = path.with_extension("tmp");
-        std::fs::write(&tmp, json)
-            .and_then(|_| std::fs::rename(&tmp, path))
-            .map_err(|e| format!("cannot write {}: {e}", path.display()))
+        rogue_gym_ipc::private::write_private_file(path, json.as_bytes()).map_err(|e| e.to_string())
     }
-    /// Read (and remove) a report.
+    /// Read (and remove) a report; it must be a private file of this user.
     pub(crate) fn take(path: &std::path::Path) -> Result<EnvFault, String> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        let data = rogue_gym_ipc::private::read_private_file(path).map_err(|e| e.to_string())?;
         let _ = std::fs::remove_file(path);
-        serde_json::from_str(&text).map_err(|e| format!("bad env fault report: {e}"))
+        serde_json::from_slice(&data).map_err(|e| format!("bad env fault report: {e}"))
     }
 }
 
@@ -96,13 +93,14 @@ pub(crate) fn env_fault_path(id: &rogue_gym_ipc::PoolId, index: usize, generatio
         .join(format!("w{index}.g{generation}.fault.json"))
 }
 
-/// Everything a worker needs, written by the supervisor to a JSON file in the pool's directory.
+/// Everything a worker needs, written by the supervisor to a private JSON file in the pool's
+/// directory (inside the verified runtime directory, so no one else can swap it).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct WorkerConfig {
     /// Pool name (`rg<8hex>`).
     pub pool_name: String,
-    /// Base dir of the pool's files.
-    pub base_dir: PathBuf,
+    /// The pool's runtime directory (verified private by the supervisor).
+    pub runtime_dir: PathBuf,
     /// Envs of the whole pool.
     pub num_envs: usize,
     /// Workers of the pool.

@@ -88,6 +88,8 @@ class PoolVectorEnv(VectorEnv):
         poll_us, worker_poll_us: how long this process and the workers poll (yielding the
             CPU) before they block when waiting for each other, in µs (default: the pool's
             50 µs here, :data:`HOSTED_WORKER_POLL_US` in the workers).
+        runtime_dir: the private directory of the pool's files (see
+            :class:`rogue_gym.settings.PoolSettings`; default the user's runtime directory).
         shared_memory, context, daemon: accepted for ``AsyncVectorEnv`` compatibility; the
             pool always uses shared memory and fresh (spawned) worker processes that die with
             this one.
@@ -113,6 +115,7 @@ class PoolVectorEnv(VectorEnv):
         batch_size: Optional[int] = None,
         poll_us: Optional[int] = None,
         worker_poll_us: Optional[int] = HOSTED_WORKER_POLL_US,
+        runtime_dir: Optional[str] = None,
         shared_memory: bool = True,
         context: Optional[str] = None,
         daemon: bool = True,
@@ -138,7 +141,16 @@ class PoolVectorEnv(VectorEnv):
         )
 
         # Probe one env here for the spaces and metadata, as AsyncVectorEnv does.
+        if not 1 <= workers <= self.num_envs:
+            raise ValueError(
+                f"num_workers must be between 1 and the number of envs ({self.num_envs}), got {workers}"
+            )
         probe = env_fns[0]()
+        if not isinstance(probe, gym.Env):
+            raise TypeError(
+                f"env_fns[0]() returned {type(probe).__name__!r}, not a gymnasium.Env: each env "
+                "function must build and return an env (e.g. lambda: gym.make('CartPole-v1'))"
+            )
         try:
             self.single_observation_space = probe.observation_space
             self.single_action_space = probe.action_space
@@ -192,6 +204,7 @@ class PoolVectorEnv(VectorEnv):
             "batch_size": batch_size,
             "poll_us": poll_us,
             "worker_poll_us": worker_poll_us,
+            "runtime_dir": None if runtime_dir is None else os.fspath(runtime_dir),
         }
         command = list(worker_command or [sys.executable, "-m", "rogue_gym.worker"])
         _sigterm.install()
@@ -588,18 +601,38 @@ def _mark(infos: dict[str, Any], key: str, rows: Any, n: int) -> None:
     mask[rows] = True
 
 
-def _reraise(err: EnvFailedError) -> NoReturn:
-    """Raise the env's own exception carried by ``err`` (with the worker-side traceback as a
-    note), or ``err`` itself if it carries none."""
+def _env_exception(err: BaseException) -> BaseException:
+    """The env's own exception carried by an ``EnvFailedError`` (with the worker-side traceback
+    as a note on Python 3.11+), or ``err`` itself if it carries none."""
+    if not isinstance(err, EnvFailedError):
+        return err
     decoded = decode_exception(err.detail)
     if decoded is None:
-        raise err
+        return err
     exc, tb = decoded
     if hasattr(exc, "add_note"):  # Python 3.11+
         exc.add_note(
             f"raised by env {err.env} during {err.context} in worker {err.worker} (pid {err.pid}); "
             f"call reset() to continue. Worker-side traceback:\n{tb}"
         )
+    return exc
+
+
+def _reraise(err: EnvFailedError) -> NoReturn:
+    """Raise the env's own exception carried by ``err``. When several envs or workers failed
+    in the same call, the first is raised and the others (decoded too) are in its ``others``
+    attribute, one note each on Python 3.11+; one ``reset()`` clears them all."""
+    exc = _env_exception(err)
+    others = [_env_exception(o) for o in getattr(err, "others", [])]
+    if others:
+        if exc is not err:
+            exc.__notes__ = [
+                n for n in getattr(exc, "__notes__", []) if not n.startswith("also failed")
+            ]
+        exc.others = others  # type: ignore[attr-defined]
+        for o in others:
+            if hasattr(exc, "add_note"):
+                exc.add_note(f"also failed in the same call: {type(o).__name__}: {o}")
     raise exc from None
 
 
