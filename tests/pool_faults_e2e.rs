@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use nix::sys::signal::Signal;
 use rogue_gym_e2e::*;
-use rogue_gym_pool::{BatchOutput, FailurePolicy, PoolError};
+use rogue_gym_pool::{BatchOutput, EnvRegistry, FailurePolicy, Pool, PoolError};
 use serde_json::json;
 
 const EXE: &str = env!("CARGO_BIN_EXE_e2e_worker");
@@ -440,4 +440,103 @@ fn a_storm_of_kills_and_stops_never_bricks_the_pool() {
     let id = p.id().clone();
     p.close().unwrap();
     assert!(pool_files_gone(&id), "nothing leaks");
+}
+
+/// Pids of this process's live children whose command line contains `mark` (the workers of
+/// one pool, by its runtime directory: other tests' pools run in this process too).
+fn children_running(mark: &str) -> Vec<u32> {
+    let me = std::process::id();
+    let mut out = Vec::new();
+    for e in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(pid) = e.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else {
+            continue;
+        };
+        let ppid = stat
+            .rsplit_once(')')
+            .and_then(|(_, r)| r.split_whitespace().nth(1))
+            .and_then(|p| p.parse::<u32>().ok());
+        let cmd = std::fs::read(format!("/proc/{pid}/cmdline")).unwrap_or_default();
+        let has_mark = cmd.windows(mark.len()).any(|w| w == mark.as_bytes());
+        if ppid == Some(me) && has_mark && alive(pid) {
+            out.push(pid);
+        }
+    }
+    out
+}
+
+#[test]
+fn a_worker_killed_during_the_pools_start_is_restarted_or_reported() {
+    let base = test_base().join("startkill");
+    let _sweep = SweepGuard(base.clone());
+    let mark = base.display().to_string();
+    for policy in [FailurePolicy::Restart, FailurePolicy::Raise] {
+        // A killer thread SIGKILLs the first worker it sees while the pool starts.
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let killer = {
+            let stop = stop.clone();
+            let mark = mark.clone();
+            std::thread::spawn(move || {
+                let t0 = Instant::now();
+                while !stop.load(std::sync::atomic::Ordering::Relaxed)
+                    && t0.elapsed() < Duration::from_secs(10)
+                {
+                    if let Some(&pid) = children_running(&mark).first() {
+                        signal(pid, Signal::SIGKILL);
+                        return Some(pid);
+                    }
+                    std::thread::sleep(Duration::from_micros(200));
+                }
+                None
+            })
+        };
+        let mut c = config(EXE, test_env(), 4, 2);
+        c.on_worker_failure = policy;
+        c.start_timeout = Duration::from_secs(5);
+        c.runtime_dir = Some(base.clone());
+        let t0 = Instant::now();
+        let made = Pool::new(c, &EnvRegistry::with_defaults());
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        let killed = killer.join().unwrap().expect("a worker was seen starting");
+        assert!(
+            t0.elapsed() < Duration::from_secs(5),
+            "no start-up waited out a timeout"
+        );
+        match (policy, made) {
+            (FailurePolicy::Restart, Ok(mut p)) => {
+                let _g = PidGuard(p.worker_pids());
+                assert_eq!(p.restarts(), 1);
+                assert!(!p.worker_pids().contains(&killed));
+                run_sync(&mut p, 5).unwrap();
+            }
+            (FailurePolicy::Raise, Err(e)) => {
+                let msg = e.to_string();
+                assert!(matches!(e, PoolError::WorkerFailed(_)), "{msg}");
+                assert!(
+                    msg.contains(&format!("pid {killed}")) && msg.contains("SIGKILL"),
+                    "{msg}"
+                );
+            }
+            (policy, made) => panic!("{policy:?}: unexpected {:?}", made.map(|_| ())),
+        }
+    }
+}
+
+#[test]
+fn a_worker_killed_just_before_close_is_no_error_and_nothing_leaks() {
+    let mut p = pool(config(EXE, test_env(), 4, 2));
+    let _g = PidGuard(p.worker_pids());
+    let mut obs = vec![0u8; 4 * p.obs_bytes()];
+    let mut out = BatchOutput::default();
+    p.reset(&mut obs, &mut out).unwrap();
+    let pids = p.worker_pids();
+    signal(pids[1], Signal::SIGKILL);
+    let id = p.id().clone();
+    let t0 = Instant::now();
+    p.close().unwrap();
+    assert!(t0.elapsed() < Duration::from_secs(1));
+    assert!(pids.iter().all(|&w| !alive(w)));
+    assert!(pool_files_gone(&id));
 }

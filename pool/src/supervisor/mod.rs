@@ -55,6 +55,9 @@ struct Core {
     /// Workers must re-read the seed schedule at their next reset.
     reload_seeds: Vec<bool>,
     worker_config: Option<WorkerConfig>,
+    /// The first start is over (every worker was ready once): from then on a worker that
+    /// exits while starting is a crash like any other, not a broken worker command.
+    started: bool,
     /// Failures of the current call (env errors, workers lost under the raise policy), raised
     /// together once no worker still owes the call an answer.
     faults: Vec<PoolError>,
@@ -200,6 +203,7 @@ impl Pool {
                 closed: false,
                 reload_seeds: vec![false; num_workers],
                 worker_config: None,
+                started: false,
                 faults: Vec::new(),
                 discard_faults: false,
             },
@@ -252,6 +256,7 @@ impl Pool {
                 .iter()
                 .any(|s| matches!(s.state, SlotState::Starting { .. }))
         })?;
+        self.core.started = true;
         self.core.id.verify_files()?;
         Ok(())
     }

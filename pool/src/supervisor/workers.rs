@@ -342,6 +342,19 @@ impl Core {
                 });
                 continue;
             }
+            if starting && !self.started && !hung && signal.is_none() {
+                // The pool's first start, and the worker gave up by itself (bad arguments, a
+                // config it cannot read, no such program): another try would fail the same way.
+                let reason = match code {
+                    Some(c) => format!("exited with code {c} during start-up"),
+                    None => "exited during start-up".into(),
+                };
+                return Err(PoolError::StartFailed {
+                    worker: k,
+                    reason,
+                    stderr_tail: tail,
+                });
+            }
             let failure = WorkerFailure {
                 worker: k,
                 env_ids: range.clone(),
