@@ -4,9 +4,9 @@ use std::fs;
 use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Path as StdPath, PathBuf};
 
-use crate::cleanup::SHM_DIR;
 use crate::error::IpcError;
 use crate::naming::PoolId;
+use crate::naming::SHM_DIR;
 use crate::private::{check_private, create_private_file};
 
 /// A plain shared-memory buffer of a pool (`/dev/shm/<prefix><name>`, so pool cleanup removes

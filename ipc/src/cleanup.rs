@@ -3,7 +3,7 @@
 
 use std::fs;
 use std::os::unix::fs::MetadataExt;
-use std::path::{Path as StdPath, PathBuf};
+use std::path::Path as StdPath;
 use std::time::Duration;
 
 use iceoryx2::prelude::*;
@@ -11,25 +11,8 @@ use iceoryx2::prelude::*;
 use crate::Svc;
 use crate::error::IpcError;
 use crate::error::ice;
-use crate::naming::{PoolId, process_start_time};
+use crate::naming::{PoolId, pool_shm_files, process_start_time};
 use crate::private::check_private;
-
-pub(crate) const SHM_DIR: &str = "/dev/shm";
-
-/// The `/dev/shm` files whose name starts with the pool's prefix (whoever owns them: a file
-/// someone else planted under the pool's prefix is found too).
-pub fn pool_shm_files(id: &PoolId) -> Vec<PathBuf> {
-    let prefix = id.prefix();
-    let mut out = Vec::new();
-    if let Ok(rd) = fs::read_dir(SHM_DIR) {
-        for e in rd.flatten() {
-            if e.file_name().to_string_lossy().starts_with(&prefix) {
-                out.push(e.path());
-            }
-        }
-    }
-    out
-}
 
 /// Remove every file of a pool: `/dev/shm/<prefix>*` (including iceoryx2's `*.global_mgmt`
 /// counter), the iceoryx2 root and the pool's own directory. Call only once no process of the

@@ -29,7 +29,7 @@
 //! Python interpreter and must not take SIGINT away from it. All ports use
 //! [`ipc_threadsafe::Service`], so supervisor-side ports and received samples are `Send`.
 //!
-//! One module per job: [`naming`], [`private`], [`services`] (headers and service builders), [`ports`],
+//! One module per job: [`naming`], [`private`], [`pool_files`], [`services`] (headers and service builders), [`ports`],
 //! [`buffer`], [`wait`], [`cleanup`] and [`error`].
 
 #![deny(missing_docs)]
@@ -38,6 +38,7 @@ pub mod buffer;
 pub mod cleanup;
 pub mod error;
 pub mod naming;
+pub mod pool_files;
 pub mod ports;
 pub mod private;
 pub mod services;
@@ -52,9 +53,10 @@ use iceoryx2::sample_mut::SampleMut;
 pub use iceoryx2;
 
 pub use buffer::SharedBuffer;
-pub use cleanup::{cleanup_dead_nodes, pool_shm_files, remove_pool_files, sweep_stale_pools};
+pub use cleanup::{cleanup_dead_nodes, remove_pool_files, sweep_stale_pools};
 pub use error::IpcError;
-pub use naming::{PoolId, process_start_time};
+pub use naming::{PoolId, pool_shm_files, process_start_time};
+pub use pool_files::{create_node_counter, verify_pool_files};
 pub use ports::{BlockListener, SupervisorPorts, WorkerPorts, words_as_bytes, words_as_bytes_mut};
 pub use private::{RUNTIME_DIR_ENV, default_runtime_dir, resolve_runtime_dir};
 pub use services::{

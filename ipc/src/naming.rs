@@ -6,10 +6,9 @@ use std::path::{Path as StdPath, PathBuf};
 use iceoryx2::prelude::*;
 
 use crate::Svc;
-use crate::cleanup::SHM_DIR;
 use crate::error::IpcError;
 use crate::error::ice;
-use crate::private::{check_private, create_private_dir, create_private_file, random_u64};
+use crate::private::{create_private_dir, create_private_file, random_u64};
 
 /// Hex digits of the random part of a pool name (`rg` + these): 48 bits nobody can guess, so
 /// no one can plant a pool's names before it makes them.
@@ -84,7 +83,7 @@ impl PoolId {
     /// Create the pool's directories (0700) and its owner file (0600), each exclusively: an
     /// existing name is an error. Call once, in the supervisor, after the runtime directory was
     /// verified; then create the pool's first `/dev/shm` files and
-    /// [`PoolId::create_node_counter`] before any node.
+    /// [`crate::create_node_counter`] before any node.
     pub fn create_dirs(&self) -> Result<(), IpcError> {
         create_private_dir(&self.aux_dir())?;
         let owner = self.aux_dir().join("owner");
@@ -97,58 +96,6 @@ impl PoolId {
             source,
         })?;
         create_private_dir(&self.root())
-    }
-
-    /// iceoryx2's per-root node counter (`/dev/shm/<prefix><type hash>_node.<version>.global_mgmt`):
-    /// the first node of a root creates it world-writable (mode 0666). Create it first,
-    /// exclusively and 0600, initialised as iceoryx2 initialises it (its version word, then a
-    /// zero counter), so that iceoryx2 opens ours and no other user ever can. The first call of
-    /// a process learns the counter's name (see `node_counter_name`).
-    pub fn create_node_counter(&self) -> Result<(), IpcError> {
-        let v = iceoryx2_bb_elementary::package_version::PackageVersion::get();
-        let path = StdPath::new(SHM_DIR).join(format!(
-            "{}{}",
-            self.prefix(),
-            node_counter_name(&self.base)?
-        ));
-        let mut f = create_private_file(&path)?;
-        // Layout of iceoryx2's `Data<State>` (repr C): a u64 version, then a u32 counter,
-        // padded to 16 bytes.
-        let mut bytes = [0u8; 16];
-        bytes[..8].copy_from_slice(&v.to_u64().to_ne_bytes());
-        f.write_all(&bytes).map_err(|source| IpcError::Io {
-            what: "write node counter",
-            path: path.clone(),
-            source,
-        })
-    }
-
-    /// Check every file of this user under the pool's prefix in `/dev/shm` (a regular file
-    /// closed to group and others), and clear group and other bits in the pool's directories
-    /// ([`crate::private::tighten_tree`]). The supervisor runs it once its workers are up.
-    ///
-    /// Names someone else planted under the prefix are left alone: every name the pool opens
-    /// rather than creates is its own already (the node counter, [`PoolId::create_node_counter`];
-    /// iceoryx2 creates each of its other `/dev/shm` files exclusively), so a planted name can
-    /// at most make a creation fail, never feed the pool.
-    pub fn verify_files(&self) -> Result<(), IpcError> {
-        let me = nix::unistd::geteuid().as_raw();
-        for p in crate::cleanup::pool_shm_files(self) {
-            match std::fs::symlink_metadata(&p) {
-                Ok(m) if std::os::unix::fs::MetadataExt::uid(&m) != me => {}
-                Ok(m) => check_private(&p, &m, false)?,
-                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-                Err(source) => {
-                    return Err(IpcError::Io {
-                        what: "inspect shared-memory file",
-                        path: p,
-                        source,
-                    });
-                }
-            }
-        }
-        crate::private::tighten_tree(&self.root())?;
-        crate::private::tighten_tree(&self.aux_dir())
     }
 
     /// The iceoryx2 configuration that confines every resource of the pool to its prefix and
@@ -181,35 +128,21 @@ impl PoolId {
     }
 }
 
-/// The name of iceoryx2's node counter after a root's prefix. It holds a hash of a Rust type
-/// name, so it is learnt once per process: a throwaway node in a throwaway root (in the private
-/// runtime directory `base`) makes one, whose name is read and whose files are removed.
-fn node_counter_name(base: &StdPath) -> Result<String, IpcError> {
-    static NAME: std::sync::OnceLock<Result<String, String>> = std::sync::OnceLock::new();
-    NAME.get_or_init(|| {
-        let probe = PoolId::new_unique(base).map_err(|e| e.to_string())?;
-        crate::private::create_private_dir(&probe.root()).map_err(|e| e.to_string())?;
-        let learnt = probe
-            .node("probe")
-            .map(drop)
-            .map_err(|e| e.to_string())
-            .and_then(|()| {
-                crate::cleanup::pool_shm_files(&probe)
-                    .iter()
-                    .filter_map(|p| {
-                        p.file_name()?
-                            .to_str()?
-                            .strip_prefix(&probe.prefix())
-                            .map(str::to_string)
-                    })
-                    .find(|n| n.ends_with(".global_mgmt"))
-                    .ok_or_else(|| "iceoryx2 made no node counter".to_string())
-            });
-        let _ = crate::cleanup::remove_pool_files(&probe);
-        learnt
-    })
-    .clone()
-    .map_err(|e| IpcError::InvalidName(format!("cannot learn iceoryx2's node counter name: {e}")))
+pub(crate) const SHM_DIR: &str = "/dev/shm";
+
+/// The `/dev/shm` files whose name starts with the pool's prefix (whoever owns them: a file
+/// someone else planted under the pool's prefix is found too).
+pub fn pool_shm_files(id: &PoolId) -> Vec<PathBuf> {
+    let prefix = id.prefix();
+    let mut out = Vec::new();
+    if let Ok(rd) = std::fs::read_dir(SHM_DIR) {
+        for e in rd.flatten() {
+            if e.file_name().to_string_lossy().starts_with(&prefix) {
+                out.push(e.path());
+            }
+        }
+    }
+    out
 }
 
 /// The start time (in clock ticks since boot) of a process, from `/proc/<pid>/stat`; `None` if

@@ -186,13 +186,13 @@ fn every_path_of_a_live_pool_is_private() {
     };
     {
         let _buf = SharedBuffer::create(&id, "batch", 4096).unwrap();
-        id.create_node_counter().unwrap();
+        create_node_counter(&id).unwrap();
         let node = id.node("sup").unwrap();
         let _sup = SupervisorPorts::new(&node, 0, 4, &s).unwrap();
         let _bl = BlockListener::new(&node, &s).unwrap();
         let w_node = id.node("w0").unwrap();
         let _w = WorkerPorts::new(&w_node, 0, 8, &s).unwrap();
-        id.verify_files().unwrap();
+        verify_pool_files(&id).unwrap();
         assert!(pool_shm_files(&id).len() >= 4, "{:?}", pool_shm_files(&id));
         assert_eq!(loose_paths(&id), Vec::<String>::new());
         // The node counter iceoryx2 would make 0666 is ours, 0600.
@@ -231,7 +231,7 @@ fn a_planted_name_fails_cleanly_and_nothing_is_written_through_it() {
         let _b = SharedBuffer::create(&id, "batch", 64).unwrap();
         let p = StdPath::new("/dev/shm").join(format!("{}batch", id.prefix()));
         fs::set_permissions(&p, fs::Permissions::from_mode(0o644)).unwrap();
-        let err = id.verify_files().unwrap_err();
+        let err = verify_pool_files(&id).unwrap_err();
         assert!(err.to_string().contains("open to group or others"), "{err}");
         assert!(SharedBuffer::open(&id, "batch", 64).is_err());
     }

@@ -5,7 +5,37 @@ use std::time::Duration;
 
 use rogue_gym_ipc::IpcError;
 
+use serde::{Deserialize, Serialize};
+
 use crate::env::EnvError;
+
+/// An env's failure on a command, as the worker reports it: which env, during what, and the
+/// env's own message (for hosted Python envs, the encoded exception).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct EnvFault {
+    /// Global env id.
+    pub env: u64,
+    /// What the env was doing, e.g. `step (episode 3, seed 7, step 12)`.
+    pub context: String,
+    /// The env's error message.
+    pub message: String,
+}
+
+impl EnvFault {
+    /// Write the report as a private file (then rename, so a reader never sees a partial
+    /// file).
+    pub(crate) fn write(&self, path: &std::path::Path) -> Result<(), String> {
+        let json =
+            serde_json::to_string(self).map_err(|e| format!("cannot encode {self:?}: {e}"))?;
+        rogue_gym_ipc::private::write_private_file(path, json.as_bytes()).map_err(|e| e.to_string())
+    }
+    /// Read (and remove) a report; it must be a private file of this user.
+    pub(crate) fn take(path: &std::path::Path) -> Result<EnvFault, String> {
+        let data = rogue_gym_ipc::private::read_private_file(path).map_err(|e| e.to_string())?;
+        let _ = std::fs::remove_file(path);
+        serde_json::from_slice(&data).map_err(|e| format!("bad env fault report: {e}"))
+    }
+}
 
 /// Why a worker failed.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -171,7 +201,7 @@ pub enum PoolError {
     #[error("env {} failed in {} (worker {worker}, pid {pid}): {}; call reset() to continue", fault.env, fault.context, fault.message)]
     EnvFailed {
         /// The report.
-        fault: Box<crate::wire::EnvFault>,
+        fault: Box<EnvFault>,
         /// Index of the env's worker.
         worker: usize,
         /// Its process id.

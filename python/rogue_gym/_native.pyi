@@ -22,10 +22,10 @@ __all__ = [
     "__version__",
     "action_from_key",
     "block_range",
+    "default_runtime_dir",
     "floor_summary",
     "normalize_obs_spec",
     "worker_main",
-    "default_runtime_dir",
 ]
 
 __version__: str

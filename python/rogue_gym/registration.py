@@ -2,20 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import gymnasium as gym
 
 __all__ = ["ENV_ID", "register_envs"]
 
 #: The gymnasium id of Rogue-Gym.
 ENV_ID = "RogueGym-v0"
-
-
-def _make_vec(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
-    from .vector import RogueVectorEnv
-
-    return RogueVectorEnv(num_envs, **kwargs)
 
 
 def register_envs() -> None:
@@ -30,6 +22,6 @@ def register_envs() -> None:
     gym.register(
         id=ENV_ID,
         entry_point="rogue_gym.envs:RogueEnv",
-        vector_entry_point=_make_vec,
+        vector_entry_point="rogue_gym.vector:RogueVectorEnv",
         disable_env_checker=False,
     )

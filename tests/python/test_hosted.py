@@ -420,3 +420,55 @@ def test_bad_arguments_name_the_argument_and_its_range(make_vec) -> None:
         match=r"action 18446744073709551615 is out of range; valid actions are 0 to 10 \(range\(11\)\)",
     ):
         envs.step(np.array([0, 0, 0, 2**64 - 1], np.uint64))
+
+
+class _CheckedActionEnv(gym.Env):
+    """Asserts that every action it gets is in its action space."""
+
+    observation_space = gym.spaces.Box(0.0, 1.0, (1,), np.float32)
+
+    def __init__(self, space: gym.Space) -> None:
+        self.action_space = space
+
+    def reset(self, *, seed: Any = None, options: Any = None) -> Any:
+        super().reset(seed=seed)
+        return np.zeros(1, np.float32), {}
+
+    def step(self, action: Any) -> Any:
+        assert action in self.action_space, (action, self.action_space)
+        return np.zeros(1, np.float32), 0.0, False, False, {}
+
+
+ACTION_SPACES = [
+    gym.spaces.Discrete(4),
+    gym.spaces.Discrete(4, start=1, dtype=np.int32),
+    gym.spaces.Discrete(3, start=-1, dtype=np.int8),
+    gym.spaces.Box(-1.0, 1.0, (2,), np.float32),
+    gym.spaces.Box(-1.0, 1.0, (2, 3), np.float64),
+    gym.spaces.Box(0, 255, (3,), np.uint8),
+    gym.spaces.Box(-5, 5, (2,), np.int64),
+    gym.spaces.MultiDiscrete([2, 3, 4]),
+    gym.spaces.MultiDiscrete([2, 3], start=[-1, 1], dtype=np.int32),
+    gym.spaces.MultiBinary(5),
+    gym.spaces.MultiBinary([2, 2]),
+    gym.spaces.Dict({"pick": gym.spaces.Discrete(3, start=2), "move": gym.spaces.Box(-1, 1, (2,))}),
+    gym.spaces.Tuple((gym.spaces.Discrete(2), gym.spaces.MultiBinary(3))),
+]
+
+
+@pytest.mark.parametrize("space", ACTION_SPACES, ids=str)
+def test_every_action_space_reaches_the_env_inside_its_space(pool, space) -> None:
+    env = pool([functools.partial(_CheckedActionEnv, space)] * 2, num_workers=1)
+    env.reset(seed=0)
+    env.action_space.seed(0)
+    for _ in range(5):
+        env.step(env.action_space.sample())  # the env raises if an action is outside its space
+
+
+def test_discrete_actions_outside_the_space_are_named_in_the_callers_terms(pool) -> None:
+    space = gym.spaces.Discrete(3, start=-1, dtype=np.int8)
+    env = pool([functools.partial(_CheckedActionEnv, space)] * 2, num_workers=1)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"env 1: action 2 is not in .*valid actions are -1 to 1"):
+        env.step(np.array([0, 2]))
+    env.step(np.array([-1, 1]))

@@ -226,8 +226,8 @@ impl Pool {
             BATCH_SLOTS * c.slot_bytes,
         )?));
         // Right after the pool's first /dev/shm file, before any node: iceoryx2's node counter,
-        // private (see PoolId::create_node_counter).
-        c.id.create_node_counter()?;
+        // private (see rogue_gym_ipc::create_node_counter).
+        rogue_gym_ipc::create_node_counter(&c.id)?;
         let node = c.id.node("sup")?;
         self.listener = Some(BlockListener::new(&node, &c.settings)?);
         for k in 0..c.cfg.num_workers {
@@ -257,7 +257,7 @@ impl Pool {
                 .any(|s| matches!(s.state, SlotState::Starting { .. }))
         })?;
         self.core.started = true;
-        self.core.id.verify_files()?;
+        rogue_gym_ipc::verify_pool_files(&self.core.id)?;
         Ok(())
     }
 

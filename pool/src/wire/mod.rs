@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use crate::config::AutoresetMode;
+pub use crate::error::EnvFault;
 use crate::seeds::SeedSchedule;
 
 /// Command: reset the block's envs; payload = episode index per env.
@@ -58,34 +59,6 @@ pub(crate) const BLOCK_DATA: u32 = 2;
 pub(crate) const BLOCK_ERROR: u32 = 3;
 /// Block: the replies of a [`CMD_CALL`] are written (no data).
 pub(crate) const BLOCK_CALL: u32 = 4;
-
-/// An env's failure on a command, as the worker reports it: which env, during what, and the
-/// env's own message (for hosted Python envs, the encoded exception).
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-pub struct EnvFault {
-    /// Global env id.
-    pub env: u64,
-    /// What the env was doing, e.g. `step (episode 3, seed 7, step 12)`.
-    pub context: String,
-    /// The env's error message.
-    pub message: String,
-}
-
-impl EnvFault {
-    /// Write the report as a private file (then rename, so a reader never sees a partial
-    /// file).
-    pub(crate) fn write(&self, path: &std::path::Path) -> Result<(), String> {
-        let json =
-            serde_json::to_string(self).map_err(|e| format!("cannot encode {self:?}: {e}"))?;
-        rogue_gym_ipc::private::write_private_file(path, json.as_bytes()).map_err(|e| e.to_string())
-    }
-    /// Read (and remove) a report; it must be a private file of this user.
-    pub(crate) fn take(path: &std::path::Path) -> Result<EnvFault, String> {
-        let data = rogue_gym_ipc::private::read_private_file(path).map_err(|e| e.to_string())?;
-        let _ = std::fs::remove_file(path);
-        serde_json::from_slice(&data).map_err(|e| format!("bad env fault report: {e}"))
-    }
-}
 
 /// The file where worker `index` (generation `generation`) reports an env failure.
 pub(crate) fn env_fault_path(id: &rogue_gym_ipc::PoolId, index: usize, generation: u64) -> PathBuf {

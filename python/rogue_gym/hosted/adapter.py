@@ -108,17 +108,19 @@ def _guarded(method: Any) -> Any:
 
 
 class _DiscreteActions:
-    """A Discrete space's actions by index, as the numpy ints vector envs pass (a table for
-    spaces of up to 65536 actions)."""
+    """A Discrete space's actions by index, as numpy scalars of the space's own dtype (what
+    ``space.sample()`` gives and ``action in space`` accepts), from a table for spaces of up to
+    65536 actions."""
 
-    def __init__(self, start: int, n: int) -> None:
+    def __init__(self, start: int, n: int, dtype: Any = np.int64) -> None:
         self.start = start
-        self.table = [np.int64(start + i) for i in range(n)] if n <= 1 << 16 else None
+        self.make = np.dtype(dtype).type
+        self.table = [self.make(start + i) for i in range(n)] if n <= 1 << 16 else None
 
-    def __getitem__(self, index: int) -> np.int64:
+    def __getitem__(self, index: int) -> Any:
         if self.table is not None:
             return self.table[index]
-        return np.int64(self.start + index)
+        return self.make(self.start + index)
 
 
 class HostedEnv:
@@ -132,7 +134,7 @@ class HostedEnv:
         self._discrete = (
             None
             if discrete_start is None
-            else _DiscreteActions(discrete_start, int(action_space.n))
+            else _DiscreteActions(discrete_start, int(action_space.n), action_space.dtype)
         )
         self._fresh = True
         #: Options for the next reset only (set by a call, as SB3's set_options does).

@@ -307,12 +307,7 @@ class PoolVectorEnv(VectorEnv):
             )
         recs = self._recs
         if self._discrete_start is not None:
-            a = np.asarray(actions)
-            if a.shape != (self.num_envs,) or a.dtype.kind not in "iu":
-                raise ValueError(
-                    f"expected integer actions of shape ({self.num_envs},), got {a.dtype} {a.shape}"
-                )
-            acts = a.astype(np.int64) - self._discrete_start
+            acts = self._discrete_indices(actions, range(self.num_envs))
             slot = int(self._call(lambda: self._pool.step_shared(acts, recs, self._final)))
         else:
             self._act_layout.write_batch(actions, self._act_rows)
@@ -354,12 +349,7 @@ class PoolVectorEnv(VectorEnv):
             raise RuntimeError("send() needs env_id, or a previous recv() whose envs it answers")
         env_ids = [int(i) for i in ids]
         if self._discrete_start is not None:
-            a = np.asarray(actions)
-            if a.shape != (len(env_ids),) or a.dtype.kind not in "iu":
-                raise ValueError(
-                    f"expected integer actions of shape ({len(env_ids)},), got {a.dtype} {a.shape}"
-                )
-            acts = a.astype(np.int64) - self._discrete_start
+            acts = self._discrete_indices(actions, env_ids)
             self._call(lambda: self._pool.send(acts, env_ids))
         else:
             rows = np.zeros((len(env_ids), self._act_layout.nbytes), np.uint8)
@@ -484,6 +474,26 @@ class PoolVectorEnv(VectorEnv):
             return fn()
         except EnvFailedError as err:
             _reraise(err)
+
+    def _discrete_indices(self, actions: Any, env_ids: Sequence[int]) -> np.ndarray:
+        """Discrete actions (one per env of ``env_ids``) as indices from 0, checked against
+        the space in the caller's terms (``start`` included)."""
+        a = np.asarray(actions)
+        if a.shape != (len(env_ids),) or a.dtype.kind not in "iu":
+            raise ValueError(
+                f"expected integer actions of shape ({len(env_ids)},), got {a.dtype} {a.shape}"
+            )
+        space = self.single_action_space
+        start, n = int(space.start), int(space.n)  # type: ignore[attr-defined]
+        wide = a.astype(object) if a.dtype.kind == "u" and a.dtype.itemsize >= 8 else a
+        bad = (wide < start) | (wide >= start + n)
+        if bad.any():
+            j = int(np.flatnonzero(bad)[0])
+            raise ValueError(
+                f"env {env_ids[j]}: action {a[j]} is not in {space}; valid actions are "
+                f"{start} to {start + n - 1}"
+            )
+        return a.astype(np.int64) - start
 
     def _observations(self, slot: int) -> Any:
         views = self._slot_views[slot]
