@@ -32,6 +32,9 @@ default ``symbol_onehot`` in uint8, ``symbol_onehot:float32`` for the paper's in
 ``seed(seed: int)`` method it is called once before evaluation with ``--policy-seed``; a
 policy must be deterministic given that seed, and then the whole evaluation is: the pool's
 episodes are a pure function of the seed schedule, independent of the number of workers.
+A policy with a ``required_obs`` attribute is given that encoding whatever ``--obs`` says.
+``--policy checkpoint:RUN/models/frames-N.pt`` scores a network saved by ``rogue_gym.train``
+(:mod:`rogue_gym.train.posthoc`; it reads symbol indices).
 
 **Episode schedule.** With ``K`` test seeds and ``E`` episodes per seed, the evaluator hands
 the pool the seed list with the sequential (round-robin) seed policy: environment ``i``'s
@@ -148,6 +151,11 @@ def load_policy(spec: str) -> Policy:
     """
     if spec == "random":
         return RandomPolicy()
+    if spec.startswith("checkpoint:"):
+        # A saved network of rogue_gym.train (needs torch): RUN/models/frames-N.pt.
+        from .train.posthoc import checkpoint_policy
+
+        return checkpoint_policy(Path(spec.split(":", 1)[1]))
     if ":" not in spec:
         raise ValueError(f"--policy must be 'random' or 'module:attr', got {spec!r}")
     mod_name, attr = spec.rsplit(":", 1)
@@ -468,6 +476,8 @@ def evaluate(
     """
     if policy is None:
         policy = load_policy(policy_spec)
+    # A policy that reads one observation only (a trained network: symbol indices) says so.
+    obs = getattr(policy, "required_obs", obs)
     is_random = policy_spec == "random" and isinstance(policy, RandomPolicy)
     seeds = suite.test_seed_list()
     if seeds_limit is not None:
@@ -619,7 +629,11 @@ def _parser() -> argparse.ArgumentParser:
         description="Score a policy on a frozen Rogue-Gym generalization suite's test seeds.",
     )
     p.add_argument("--suite", required=True, choices=suite_names())
-    p.add_argument("--policy", default="random", help="'random' or 'module:attr' (see docs)")
+    p.add_argument(
+        "--policy",
+        default="random",
+        help="'random', 'module:attr' or 'checkpoint:RUN/models/frames-N.pt' (see docs)",
+    )
     p.add_argument("--policy-seed", type=int, default=0)
     p.add_argument("--episodes-per-seed", type=int, default=None, help="default: the suite's")
     p.add_argument("--num-envs", type=int, default=64)

@@ -462,3 +462,38 @@ def test_sigterm_stops_training_and_leaves_nothing_behind(tmp_path: Path) -> Non
         assert not pid_alive(pid), f"worker {pid} outlived the trainer"
     leaked = set(os.listdir("/dev/shm")) - shm_before
     assert not leaked, f"left in /dev/shm: {sorted(leaked)[:5]}"
+
+
+def test_saved_checkpoints_are_rescored_post_hoc_as_in_training_and_resume(tmp_path: Path) -> None:
+    from rogue_gym.evaluate import evaluate
+    from rogue_gym.suites import get_suite
+    from rogue_gym.train.posthoc import checkpoint_policy, score_runs
+
+    out = tmp_path / "run"
+    train(smoke_config(out))
+    in_training = {int(r["frames"]): float(r["gen_score"]) for r in _rows(out) if r["gen_score"]}
+    logged: list[str] = []
+    # The in-training protocol (2 seeds x 1 episode, 2 envs, the run's seed): the same scores.
+    files = score_runs([out], 2, 1, num_envs=2, num_workers=2, seed=0, log=logged.append)
+    with files[out].open() as f:
+        rows = list(csv.DictReader(f))
+    assert {int(r["frames"]): float(r["gen_score"]) for r in rows} == in_training
+    assert files[out].name == "posthoc-2-1.csv"
+    # Scored checkpoints are skipped: the scoring resumes where it stopped.
+    score_runs([out], 2, 1, num_envs=2, num_workers=2, seed=0, log=logged.append)
+    assert logged[-1].endswith("2 scored, 0 to score")
+    # The evaluator takes a checkpoint as a policy (symbol indices whatever --obs says).
+    policy = checkpoint_policy(out / "models" / "frames-0000001024.pt")
+    assert policy.config.variant == "small" and policy.required_obs == "symbol_index"
+    res = evaluate(
+        get_suite("paper-10"),
+        policy_spec=f"checkpoint:{out / 'models' / 'frames-0000001024.pt'}",
+        seeds_limit=2,
+        episodes_per_seed=1,
+        num_envs=2,
+        with_random=False,
+        progress=False,
+    )
+    assert res["_agents"][0].returns.shape == (2, 1)
+    with pytest.raises(ValueError, match=r"frames-N\.pt"):
+        checkpoint_policy(out / "config.json")
