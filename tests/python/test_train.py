@@ -4,7 +4,9 @@ plots and the command line."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -497,3 +499,109 @@ def test_saved_checkpoints_are_rescored_post_hoc_as_in_training_and_resume(tmp_p
     assert res["_agents"][0].returns.shape == (2, 1)
     with pytest.raises(ValueError, match=r"frames-N\.pt"):
         checkpoint_policy(out / "config.json")
+
+
+def test_compat_original_initialises_as_the_papers_code() -> None:
+    gain2 = 2.0  # orthogonal rows of norm sqrt(2)
+    for variant in ("small", "large", "vae"):
+        ours = build_network(variant, SYMBOLS, HEIGHT, WIDTH, ACTIONS)
+        orig = build_network(variant, SYMBOLS, HEIGHT, WIDTH, ACTIONS, original=True)
+        assert float(ours.value_head.weight.detach().pow(2).sum()) == pytest.approx(1.0, rel=1e-5)
+        assert float(orig.value_head.weight.detach().pow(2).sum()) == pytest.approx(gain2, rel=1e-5)
+        assert sum(p.numel() for p in ours.parameters()) >= sum(
+            p.numel() for p in orig.parameters()
+        )
+    large = build_network("large", SYMBOLS, HEIGHT, WIDTH, ACTIONS, original=True)
+    residual_biases = [m.bias for m in large.modules() if isinstance(m, torch.nn.Conv2d)]
+    assert residual_biases and all(b is None for b in residual_biases), "no conv biases"
+    vae = build_network("vae", SYMBOLS, HEIGHT, WIDTH, ACTIONS, original=True)
+    for layer in (vae.mu, vae.logvar, vae.dec_fc1):
+        w = layer.weight.detach()
+        rows = w @ w.T if w.shape[0] <= w.shape[1] else w.T @ w
+        assert torch.allclose(rows, gain2 * torch.eye(rows.shape[0]), atol=1e-4)
+
+
+def test_compat_original_keeps_batchnorm_in_train_mode_and_evaluates_same_seed_batches(
+    tmp_path: Path,
+) -> None:
+    from rogue_gym.suites import get_suite
+    from rogue_gym.train.evaluation import generalization, same_seed_schedule
+    from rogue_gym.train.posthoc import load_network
+
+    assert same_seed_schedule([5, 7], 3) == [5, 5, 5, 7, 7, 7]
+    net = build_network("batchnorm", SYMBOLS, HEIGHT, WIDTH, ACTIONS)
+    bn = next(m for m in net.modules() if isinstance(m, torch.nn.BatchNorm2d))
+    seen: list[tuple[bool, int]] = []
+    bn.register_forward_pre_hook(lambda m, x: seen.append((m.training, x[0].shape[0])))
+    suite = get_suite("paper-10")
+    for compat, mode in (("ours", False), ("original", True)):
+        seen.clear()
+        net.train(True)
+        generalization(net, torch.device("cpu"), suite, 2, 2, 4, 2, 0, compat)
+        assert {m for m, _ in seen} == {mode}, compat
+        assert net.training, "the caller's mode is restored"
+    assert {b for _, b in seen} == {2}, "original: one batch of the seed's 2 episodes"
+    # A whole run under --compat original: minibatch 400 by default, the BN variant trains,
+    # and its checkpoint loads (same architecture) in train mode.
+    cfg = smoke_config(tmp_path / "orig", "batchnorm", frames=512, compat="original")
+    cfg = dataclasses.replace(cfg, minibatch_size=None, num_steps=64)
+    assert cfg.checked().minibatch_size == 400
+    train(cfg)
+    saved = json.loads((tmp_path / "orig" / "config.json").read_text())
+    assert saved["compat"] == "original" and saved["minibatch_size"] == 400
+    loaded, _ = load_network(tmp_path / "orig" / "models" / "frames-0000000512.pt")
+    assert loaded.training
+
+
+def test_the_paper_matrix_prints_runs_and_resumably_trains_and_scores(tmp_path: Path) -> None:
+    from rogue_gym.train import matrix
+
+    assert [r.name for r in matrix.runs()] == [
+        "small-10",
+        "large-10",
+        "batchnorm-10",
+        "l2-10",
+        "vae-10",
+        "betavae-10",
+        "large-20",
+        "l2-20",
+        "betavae-20",
+        "large-40",
+        "l2-40",
+        "betavae-40",
+    ]
+    with pytest.raises(ValueError, match="unknown runs"):
+        matrix.runs(["small-7"])
+    out = tmp_path / "paper"
+    smoke = "--num-envs 8 --num-steps 32 --epochs 1 --minibatch-size 64 --eval-envs 2 "
+    smoke += "--random-episodes 10 --no-progress --threads 1"
+    argv = ["--only", "small-10", "--out", str(out), "--device", "cpu", "--frames", "512"]
+    argv += ["--checkpoint-every", "256", "--eval-seeds", "2", "--eval-episodes", "1"]
+    argv += ["--run", "--", *smoke.split()]
+    assert matrix.main(argv) == 0
+    run = out / "small-10"
+    cfg = json.loads((run / "config.json").read_text())
+    assert (cfg["suite"], cfg["frames"], cfg["compat"]) == ("paper-10-original", 512, "ours")
+    with (run / "posthoc-2-1.csv").open() as f:
+        assert [int(r["frames"]) for r in csv.DictReader(f)] == [256, 512]
+    meta = json.loads((out / "matrix.json").read_text())
+    assert meta["runs"] == ["small-10"] and meta["protocol"]["eval_seeds"] == 2
+    # Done: only the (resumable, here empty) scoring is left.
+    args = matrix.parser().parse_args(argv)
+    due = matrix.commands(matrix.runs(["small-10"])[0], args)
+    assert len(due) == 1 and "rogue_gym.train.posthoc" in due[0]
+    # The paper's analyses on the same run, and the figures the plot command draws of them.
+    from rogue_gym.train.plot import plot_runs
+    from rogue_gym.train.posthoc import entropy_runs, one_seed_runs
+
+    ent = entropy_runs([run], seeds=2, episodes=2, log=lambda _: None)[run]
+    with ent.open() as f:
+        rows = list(csv.DictReader(f))
+    assert [int(r["frames"]) for r in rows] == [256, 512]
+    assert all(0.0 < float(r["entropy"]) <= math.log(11) + 1e-6 for r in rows)
+    seed = json.loads(one_seed_runs([run], 1008, trials=2, log=lambda _: None)[run].read_text())
+    assert seed["seed"] == 1008 and len(seed["returns"]) == 2 and seed["frames"] == 512
+    assert sum(seed["action_probs"].values()) == pytest.approx(1.0, abs=1e-4)
+    png = plot_runs([run], tmp_path / "fig.png")
+    assert png.exists() and (tmp_path / "fig-seed.png").exists()
+    assert "small-10" in (tmp_path / "fig-seed.md").read_text()

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, Optional, Sequence
 
 from ..suites import suite_names
-from .config import TrainConfig
+from .config import COMPAT_MODES, TrainConfig
 from .networks import VARIANTS
 
 __all__ = ["main", "parser"]
@@ -37,6 +37,8 @@ _HELP = {
     "random_episodes": "episodes behind random.json's training score",
     "threads": "torch CPU threads",
     "weight_decay": "L2 weight decay (default: 1e-4 for l2, else 0)",
+    "minibatch_size": "samples per minibatch (default: 200; 400 with --compat original)",
+    "compat": "ours, or original: the paper's code's behaviours (docs/training.md)",
 }
 
 
@@ -60,7 +62,7 @@ def parser() -> argparse.ArgumentParser:
         kind: Any = type(default)
         if f.name == "weight_decay":
             kind = float
-        elif f.name == "threads":
+        elif f.name in ("threads", "minibatch_size"):
             kind = int
         elif kind is Path:
             kind = Path
@@ -71,6 +73,8 @@ def parser() -> argparse.ArgumentParser:
         }
         if f.name == "variant":
             kwargs["choices"] = VARIANTS
+        elif f.name == "compat":
+            kwargs["choices"] = COMPAT_MODES
         elif f.name == "suite":
             kwargs["choices"] = suite_names()
         p.add_argument(flag, **kwargs)

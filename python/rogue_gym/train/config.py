@@ -15,7 +15,13 @@ from typing import Any, Dict, Optional
 
 from .networks import VARIANTS
 
-__all__ = ["TrainConfig"]
+__all__ = ["COMPAT_MODES", "TrainConfig"]
+
+#: ``--compat``: this trainer's behaviour, or the paper's code's where they differ.
+COMPAT_MODES = ("ours", "original")
+
+#: Minibatch size per ``--compat`` mode: the paper's table says 200, its code uses 400.
+MINIBATCH = {"ours": 200, "original": 400}
 
 
 @dataclasses.dataclass
@@ -64,7 +70,14 @@ class TrainConfig:
     num_steps: int = 125
     """Rollout length per env and update."""
     epochs: int = 10
-    minibatch_size: int = 200
+    minibatch_size: Optional[int] = None
+    """Samples per minibatch (default: 200, the paper's table; 400 with ``--compat original``,
+    the paper's code)."""
+    compat: str = "ours"
+    """``ours``, or ``original``: the paper's code's behaviours where it differs from the paper
+    (docs/training.md, "--compat original"): BatchNorm in train mode while acting and
+    evaluating, evaluation in same-seed batches, its initialisation, advantages normalised once
+    per rollout, minibatch 400."""
     lr: float = 2.5e-4
     adam_eps: float = 1e-4
     gamma: float = 0.99
@@ -84,16 +97,21 @@ class TrainConfig:
         """A copy with defaults resolved; ``ValueError`` names a bad value."""
         from ..suites import get_suite
 
+        if self.compat not in COMPAT_MODES:
+            raise ValueError(
+                f"compat must be one of {', '.join(COMPAT_MODES)}, got {self.compat!r}"
+            )
+        mb = MINIBATCH[self.compat] if self.minibatch_size is None else int(self.minibatch_size)
         if self.variant not in VARIANTS:
             raise ValueError(f"variant must be one of {', '.join(VARIANTS)}, got {self.variant!r}")
         get_suite(self.suite)  # KeyError listing the suites
         batch = self.num_envs * self.num_steps
-        for name in ("frames", "num_envs", "num_workers", "num_steps", "epochs", "minibatch_size"):
+        for name in ("frames", "num_envs", "num_workers", "num_steps", "epochs"):
             if int(getattr(self, name)) <= 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
-        if self.minibatch_size > batch:
+        if not 0 < mb <= batch:
             raise ValueError(
-                f"minibatch_size {self.minibatch_size} exceeds the rollout batch "
+                f"minibatch_size {mb} must be positive and at most the rollout batch "
                 f"{batch} (num_envs x num_steps)"
             )
         if self.num_envs % self.num_workers:
@@ -113,7 +131,9 @@ class TrainConfig:
         wd = self.weight_decay
         if wd is None:
             wd = 1e-4 if self.variant == "l2" else 0.0
-        return dataclasses.replace(self, out=Path(self.out), weight_decay=float(wd))
+        return dataclasses.replace(
+            self, out=Path(self.out), weight_decay=float(wd), minibatch_size=mb
+        )
 
     @property
     def batch_size(self) -> int:

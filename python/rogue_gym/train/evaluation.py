@@ -18,7 +18,7 @@ from ..evaluate import AgentResult, RandomPolicy, run_episodes
 from ..suites import Suite
 from .networks import PolicyNet
 
-__all__ = ["TorchPolicy", "generalization", "random_baseline"]
+__all__ = ["TorchPolicy", "generalization", "random_baseline", "same_seed_schedule"]
 
 #: Confidence level of the reported intervals.
 CONFIDENCE = 0.95
@@ -66,6 +66,13 @@ def _run(
     )
 
 
+def same_seed_schedule(seeds: List[int], episodes: int) -> List[int]:
+    """Each seed ``episodes`` times in a row: with ``episodes`` envs and the evaluator's
+    round-robin schedule, round ``r`` starts every env on seed ``r`` together (the paper's
+    code evaluated each test seed with all its envs seeded alike)."""
+    return [s for s in seeds for _ in range(episodes)]
+
+
 def generalization(
     net: PolicyNet,
     device: torch.device,
@@ -75,14 +82,26 @@ def generalization(
     num_envs: int,
     workers: int,
     seed: int,
+    compat: str = "ours",
 ) -> AgentResult:
-    """The policy's score on the first ``seeds`` test seeds, ``episodes`` each."""
+    """The policy's score on the first ``seeds`` test seeds, ``episodes`` each.
+
+    ``compat="original"`` evaluates as the paper's code did: the network stays in train mode
+    (BatchNorm uses each batch's statistics) and the ``episodes`` episodes of a seed are
+    played side by side as one batch of ``episodes`` envs (``num_envs`` is then ignored).
+    """
     was_training = net.training
-    net.eval()
+    original = compat == "original"
+    net.train(original)
     try:
         policy = TorchPolicy(net, device)
         test = suite.test_seed_list()[:seeds]
-        returns = _run(suite, policy, test, episodes, num_envs, workers, seed)
+        if original:
+            w = workers if episodes % workers == 0 else 1
+            flat = _run(suite, policy, same_seed_schedule(test, episodes), 1, episodes, w, seed)
+            returns = flat.reshape(len(test), episodes)
+        else:
+            returns = _run(suite, policy, test, episodes, num_envs, workers, seed)
     finally:
         net.train(was_training)
     return AgentResult.from_returns("policy", returns, CONFIDENCE, 0)

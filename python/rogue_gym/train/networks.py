@@ -240,12 +240,19 @@ class _MapLinear(torch.autograd.Function):
 
 
 class PolicyNet(nn.Module):
-    """A body producing features, plus the policy and value heads."""
+    """A body producing features, plus the policy and value heads.
 
-    def __init__(self, features: int, num_actions: int) -> None:
+    ``original`` (``--compat original``) initialises as the paper's code did where it differs
+    from the paper's description (docs/training.md): the value head orthogonal with gain
+    sqrt(2) instead of 1, and in the subclasses no residual biases and the VAE's heads and
+    decoder orthogonal with gain sqrt(2).
+    """
+
+    def __init__(self, features: int, num_actions: int, original: bool = False) -> None:
         super().__init__()
+        self.original = original
         self.policy_head = orthogonal_init(nn.Linear(features, num_actions), 0.01)
-        self.value_head = orthogonal_init(nn.Linear(features, 1), 1.0)
+        self.value_head = orthogonal_init(nn.Linear(features, 1), RELU_GAIN if original else 1.0)
 
     def body(self, x: torch.Tensor) -> torch.Tensor:
         """Features of a batch of symbol-index screens."""
@@ -260,8 +267,10 @@ class PolicyNet(nn.Module):
 class SmallNet(PolicyNet):
     """PPO Small: the DQN-like three-convolution network (valid convolutions, stride 1)."""
 
-    def __init__(self, symbols: int, height: int, width: int, num_actions: int) -> None:
-        super().__init__(256, num_actions)
+    def __init__(
+        self, symbols: int, height: int, width: int, num_actions: int, original: bool = False
+    ) -> None:
+        super().__init__(256, num_actions, original)
         self.conv1: nn.Module = OneHotConv2d(symbols, 32, 8)
         self.conv2 = nn.Conv2d(32, 64, 4)
         self.conv3 = nn.Conv2d(64, 32, 3)
@@ -281,13 +290,16 @@ class SmallNet(PolicyNet):
 class _Residual(nn.Module):
     """ReLU, conv3x3, [BN], ReLU, conv3x3, [BN], plus the skip.
 
-    As in the paper's code, whose first ReLU is in place, the skip carries ``relu(x)``.
+    As in the paper's code, whose first ReLU is in place, the skip carries ``relu(x)``. The
+    convolutions have biases unless a BatchNorm follows them or ``bias`` is false (the paper's
+    code has none).
     """
 
-    def __init__(self, channels: int, batch_norm: bool) -> None:
+    def __init__(self, channels: int, batch_norm: bool, bias: bool = True) -> None:
         super().__init__()
-        self.conv1 = nn.Conv2d(channels, channels, 3, padding=1, bias=not batch_norm)
-        self.conv2 = nn.Conv2d(channels, channels, 3, padding=1, bias=not batch_norm)
+        bias = bias and not batch_norm
+        self.conv1 = nn.Conv2d(channels, channels, 3, padding=1, bias=bias)
+        self.conv2 = nn.Conv2d(channels, channels, 3, padding=1, bias=bias)
         self.bn1 = nn.BatchNorm2d(channels) if batch_norm else nn.Identity()
         self.bn2 = nn.BatchNorm2d(channels) if batch_norm else nn.Identity()
 
@@ -309,9 +321,15 @@ class ImpalaNet(PolicyNet):
     CHANNELS = (16, 32, 32)
 
     def __init__(
-        self, symbols: int, height: int, width: int, num_actions: int, batch_norm: bool = False
+        self,
+        symbols: int,
+        height: int,
+        width: int,
+        num_actions: int,
+        batch_norm: bool = False,
+        original: bool = False,
     ) -> None:
-        super().__init__(256, num_actions)
+        super().__init__(256, num_actions, original)
         stages = []
         in_c = symbols
         for s, out_c in enumerate(self.CHANNELS):
@@ -326,8 +344,8 @@ class ImpalaNet(PolicyNet):
                     conv,
                     nn.BatchNorm2d(out_c) if batch_norm else nn.Identity(),
                     nn.MaxPool2d(3, stride=stride, padding=1),
-                    _Residual(out_c, batch_norm),
-                    _Residual(out_c, batch_norm),
+                    _Residual(out_c, batch_norm, bias=not original),
+                    _Residual(out_c, batch_norm, bias=not original),
                 )
             )
             in_c = out_c
@@ -355,9 +373,16 @@ class VaeNet(PolicyNet):
     """
 
     def __init__(
-        self, symbols: int, height: int, width: int, num_actions: int, beta: float, z_dim: int = 64
+        self,
+        symbols: int,
+        height: int,
+        width: int,
+        num_actions: int,
+        beta: float,
+        z_dim: int = 64,
+        original: bool = False,
     ) -> None:
-        super().__init__(z_dim, num_actions)
+        super().__init__(z_dim, num_actions, original)
         self.beta = beta
         self.conv1 = OneHotConv2d(symbols, 32, 8, padding=1)
         self.conv2 = nn.Conv2d(32, 64, 4, padding=1)
@@ -373,7 +398,11 @@ class VaeNet(PolicyNet):
         self.deconv3 = nn.ConvTranspose2d(32, 64, 3, padding=1)
         self.deconv2 = nn.ConvTranspose2d(64, 32, 4, padding=1)
         self.deconv1 = nn.ConvTranspose2d(32, symbols, 8, padding=1)
-        for m in (self.conv1, self.conv2, self.conv3, self.fc):
+        initialised: Tuple[nn.Module, ...] = (self.conv1, self.conv2, self.conv3, self.fc)
+        if original:  # the paper's code: its ReLU initializer on every layer but the actor
+            initialised += (self.mu, self.logvar, self.dec_fc1, self.dec_fc2)
+            initialised += (self.deconv3, self.deconv2, self.deconv1)
+        for m in initialised:
             orthogonal_init(m, RELU_GAIN)
 
     def encode(self, x: torch.Tensor) -> Tuple[torch.Tensor, torch.Tensor]:
@@ -406,15 +435,18 @@ class VaeNet(PolicyNet):
 
 
 def build_network(
-    variant: str, symbols: int, height: int, width: int, num_actions: int
+    variant: str, symbols: int, height: int, width: int, num_actions: int, original: bool = False
 ) -> PolicyNet:
-    """The network of ``variant`` (one of :data:`VARIANTS`) for screens of ``height x width``."""
+    """The network of ``variant`` (one of :data:`VARIANTS`) for screens of ``height x width``;
+    ``original``: initialised as the paper's code (``--compat original``)."""
     if variant == "small":
-        return SmallNet(symbols, height, width, num_actions)
+        return SmallNet(symbols, height, width, num_actions, original=original)
     if variant in ("large", "l2"):
-        return ImpalaNet(symbols, height, width, num_actions)
+        return ImpalaNet(symbols, height, width, num_actions, original=original)
     if variant == "batchnorm":
-        return ImpalaNet(symbols, height, width, num_actions, batch_norm=True)
+        return ImpalaNet(symbols, height, width, num_actions, batch_norm=True, original=original)
     if variant in VAE_BETA:
-        return VaeNet(symbols, height, width, num_actions, beta=VAE_BETA[variant])
+        return VaeNet(
+            symbols, height, width, num_actions, beta=VAE_BETA[variant], original=original
+        )
     raise ValueError(f"unknown variant {variant!r}; choose one of {', '.join(VARIANTS)}")

@@ -12,6 +12,18 @@ the paper's protocol (1000 test seeds x 10 episodes) without writing code::
 Each run gets ``RUN/posthoc-S-E.csv`` (S seeds, E episodes) with the progress columns of an
 evaluation (``frames, gen_score, gen_ci_low, gen_ci_high``) plus ``seeds, episodes``; a
 checkpoint already in that file is skipped, so an interrupted scoring resumes where it stopped.
+
+The paper's two analyses, on the same checkpoints:
+
+* ``--entropy``: the policy's mean entropy per step on the first 10 *training* seeds, 10
+  episodes each, for every checkpoint (the authors' ``agents/eval_cog_ent.py``), into
+  ``RUN/entropy-S-E.csv`` (``frames, entropy, seeds, episodes``; resumable). The entropy is
+  averaged over every step the policy takes while those episodes are played.
+* ``--one-seed 1008 --trials 10``: the last checkpoint's returns on one test seed, and its
+  mean action probabilities there (the authors' ``agents/eval_1seed.py``), into
+  ``RUN/seed-1008.json``.
+
+``python -m rogue_gym.train.plot`` draws all three.
 """
 
 from __future__ import annotations
@@ -24,6 +36,7 @@ import sys
 from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence
 
+import numpy as np
 import torch
 
 from ..suites import Suite, get_suite
@@ -31,7 +44,14 @@ from .config import TrainConfig
 from .evaluation import CONFIDENCE, TorchPolicy, generalization
 from .networks import PolicyNet, build_network
 
-__all__ = ["CheckpointPolicy", "checkpoint_policy", "checkpoints", "score_runs"]
+__all__ = [
+    "CheckpointPolicy",
+    "checkpoint_policy",
+    "checkpoints",
+    "entropy_runs",
+    "one_seed_runs",
+    "score_runs",
+]
 
 #: Columns of ``posthoc-S-E.csv``.
 COLUMNS = ["frames", "gen_score", "gen_ci_low", "gen_ci_high", "seeds", "episodes"]
@@ -72,9 +92,10 @@ def load_network(path: Path, device: str = "cpu") -> tuple[PolicyNet, TrainConfi
     symbols, height, width = _screen(get_suite(cfg.suite))
     from ..evaluate import NUM_ACTIONS
 
-    net = build_network(cfg.variant, symbols, height, width, NUM_ACTIONS)
+    original = cfg.compat == "original"
+    net = build_network(cfg.variant, symbols, height, width, NUM_ACTIONS, original=original)
     net.load_state_dict(torch.load(path, map_location=device, weights_only=True))
-    net.to(device).eval()
+    net.to(device).train(original)  # the paper's code never left train mode
     return net, cfg
 
 
@@ -96,6 +117,124 @@ def checkpoint_policy(path: Path, device: str = "cpu") -> CheckpointPolicy:
     """The policy of checkpoint ``path`` (``RUN/models/frames-N.pt``)."""
     net, cfg = load_network(path, device)
     return CheckpointPolicy(net, torch.device(device), cfg)
+
+
+class _MeasuringPolicy(CheckpointPolicy):
+    """A checkpoint policy that also sums its entropy and action probabilities over steps."""
+
+    def __init__(self, net: PolicyNet, device: torch.device, cfg: TrainConfig) -> None:
+        super().__init__(net, device, cfg)
+        self.entropy_sum = 0.0
+        self.prob_sum: Optional[torch.Tensor] = None
+        self.rows = 0
+
+    @torch.no_grad()
+    def __call__(self, obs: Any) -> Any:
+        x = torch.from_numpy(np.array(obs, copy=True)).to(self.device)
+        logp = torch.log_softmax(self.net(x).logits.float(), dim=-1).cpu()
+        probs = logp.exp()
+        self.entropy_sum += float(-(probs * logp).sum())
+        total = probs.sum(0)
+        self.prob_sum = total if self.prob_sum is None else self.prob_sum + total
+        self.rows += probs.shape[0]
+        return torch.multinomial(probs, 1, generator=self.generator).squeeze(1).numpy()
+
+
+def _measure(
+    path: Path, seeds: List[int], episodes: int, num_workers: int, seed: int, device: str
+) -> tuple[_MeasuringPolicy, np.ndarray]:
+    """Play ``episodes`` episodes on each of ``seeds`` (one batch of ``episodes`` envs per seed,
+    as the authors' scripts did) with checkpoint ``path``; the policy and the returns."""
+    from ..evaluate import run_episodes
+    from .evaluation import same_seed_schedule
+
+    net, cfg = load_network(path, device)
+    policy = _MeasuringPolicy(net, torch.device(device), cfg)
+    w = num_workers if episodes % num_workers == 0 else 1
+    returns = run_episodes(
+        get_suite(cfg.suite),
+        policy,
+        same_seed_schedule(seeds, episodes),
+        1,
+        num_envs=episodes,
+        num_workers=w,
+        obs="symbol_index",
+        policy_seed=seed,
+        progress=False,
+    )
+    return policy, returns.reshape(len(seeds), episodes)
+
+
+def entropy_runs(
+    runs: Sequence[Path],
+    seeds: int = 10,
+    episodes: int = 10,
+    num_workers: int = 2,
+    seed: int = 0,
+    device: str = "cpu",
+    log: Any = print,
+) -> Dict[Path, Path]:
+    """Each checkpoint's mean policy entropy per step on the first ``seeds`` training seeds,
+    ``episodes`` episodes each, into ``RUN/entropy-S-E.csv`` (checkpoints done are skipped)."""
+    out: Dict[Path, Path] = {}
+    for run in map(Path, runs):
+        cfg = run_config(run)
+        train_seeds = get_suite(cfg.suite).train_seed_list()[:seeds]
+        results = run / f"entropy-{seeds}-{episodes}.csv"
+        done = _done(results)
+        for frames, path in checkpoints(run):
+            if frames in done:
+                continue
+            policy, _ = _measure(path, train_seeds, episodes, num_workers, seed, device)
+            ent = policy.entropy_sum / max(policy.rows, 1)
+            new = not results.exists()
+            with results.open("a", newline="") as f:
+                w = csv.writer(f)
+                if new:
+                    w.writerow(["frames", "entropy", "seeds", "episodes"])
+                w.writerow([frames, ent, len(train_seeds), episodes])
+            log(f"{run} frames {frames}: entropy {ent:.4f} nats per step")
+        out[run] = results
+    return out
+
+
+def one_seed_runs(
+    runs: Sequence[Path],
+    test_seed: int = 1008,
+    trials: int = 10,
+    num_workers: int = 2,
+    seed: int = 0,
+    device: str = "cpu",
+    log: Any = print,
+) -> Dict[Path, Path]:
+    """The last checkpoint's returns in ``trials`` episodes on ``test_seed`` and its mean
+    action probabilities there, into ``RUN/seed-S.json``."""
+    from ..envs.rogue_env import ACTIONS
+
+    out: Dict[Path, Path] = {}
+    for run in map(Path, runs):
+        found = checkpoints(run)
+        if not found:
+            raise FileNotFoundError(f"{run}: no checkpoint in {run / 'models'}")
+        frames, path = found[-1]
+        policy, returns = _measure(path, [test_seed], trials, num_workers, seed, device)
+        rows = max(policy.rows, 1)
+        probs = [] if policy.prob_sum is None else (policy.prob_sum / rows).tolist()
+        result = {
+            "run": run.name,
+            "variant": policy.config.variant,
+            "suite": policy.config.suite,
+            "frames": frames,
+            "seed": test_seed,
+            "returns": [float(r) for r in returns[0]],
+            "mean": float(returns.mean()),
+            "action_probs": dict(zip(ACTIONS, probs)),
+        }
+        path_out = run / f"seed-{test_seed}.json"
+        path_out.write_text(json.dumps(result, indent=1) + "\n")
+        log(f"{run}: seed {test_seed}, {trials} trials, mean {result['mean']:.2f}")
+        out[run] = path_out
+    return out
 
 
 def checkpoints(run: Path) -> List[tuple[int, Path]]:
@@ -147,6 +286,7 @@ def score_runs(
                 num_envs,
                 num_workers,
                 seed,
+                cfg.compat,
             )
             new = not results.exists()
             with results.open("a", newline="") as f:
@@ -176,8 +316,29 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--num-workers", type=int, default=2)
     p.add_argument("--seed", type=int, default=0, help="seeds the policy's action sampling")
     p.add_argument("--device", default="cpu")
+    p.add_argument(
+        "--entropy",
+        action="store_true",
+        help="measure each checkpoint's policy entropy on the first --eval-seeds training "
+        "seeds instead (the paper: 10 seeds x 10 episodes)",
+    )
+    p.add_argument(
+        "--one-seed",
+        type=int,
+        default=None,
+        help="score the last checkpoint on this one test seed instead (the paper: 1008), with "
+        "its action probabilities",
+    )
+    p.add_argument("--trials", type=int, default=10, help="episodes for --one-seed")
     a = p.parse_args(argv)
-    score_runs(a.runs, a.eval_seeds, a.eval_episodes, a.num_envs, a.num_workers, a.seed, a.device)
+    if a.one_seed is not None:
+        one_seed_runs(a.runs, a.one_seed, a.trials, a.num_workers, a.seed, a.device)
+    elif a.entropy:
+        entropy_runs(a.runs, a.eval_seeds, a.eval_episodes, a.num_workers, a.seed, a.device)
+    else:
+        score_runs(
+            a.runs, a.eval_seeds, a.eval_episodes, a.num_envs, a.num_workers, a.seed, a.device
+        )
     return 0
 
 

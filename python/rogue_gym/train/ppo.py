@@ -4,7 +4,8 @@ Everything stays on the device in whole tensors: one GAE pass over the rollout, 
 epoch one permutation of the batch and one forward/backward per minibatch. The losses follow
 the paper's code (Rainy): the clipped surrogate objective, a clipped value loss (the larger of
 the clipped and unclipped squared errors), an entropy bonus, advantages normalized per
-minibatch, and the global gradient norm clipped. An episode end (termination, the 500-step
+minibatch (once per rollout under ``--compat original``, as Rainy 0.1 does), and the global
+gradient norm clipped. An episode end (termination, the 500-step
 limit, or a worker restart) cuts the return there, as in the paper's code.
 """
 
@@ -78,7 +79,10 @@ def ppo_update(
     actions = buf.actions.flatten()
     old_logp = buf.logprobs.flatten()
     old_values = buf.values.flatten()
-    n, mb = adv.shape[0], cfg.minibatch_size
+    whole_rollout = cfg.compat == "original"
+    if whole_rollout:  # Rainy 0.1: rainy/lib/rollout.py:147-149, eps 1e-5
+        adv = (adv - adv.mean()) / (adv.std() + 1e-5)
+    n, mb = adv.shape[0], int(cfg.minibatch_size or 0)
     sums = torch.zeros(6, device=adv.device)
     count = 0
     net.train()
@@ -93,7 +97,8 @@ def ppo_update(
             log_ratio = logp - old_logp[idx]
             ratio = log_ratio.exp()
             a = adv[idx]
-            a = (a - a.mean()) / (a.std() + 1e-5)
+            if not whole_rollout:
+                a = (a - a.mean()) / (a.std() + 1e-5)
             pg_loss = -torch.min(ratio * a, ratio.clamp(1.0 - cfg.clip, 1.0 + cfg.clip) * a).mean()
             v, v_old, ret = out.value, old_values[idx], returns[idx]
             v_clipped = v_old + (v - v_old).clamp(-cfg.clip, cfg.clip)

@@ -189,12 +189,14 @@ class Collector:
         self.env.send(actions, group.ids)
 
     @torch.no_grad()
-    def collect(self, net: PolicyNet, buf: Rollout) -> None:
-        """Play ``num_steps`` steps in every env with ``net`` (in eval mode) into ``buf``."""
+    def collect(self, net: PolicyNet, buf: Rollout, train_mode: bool = False) -> None:
+        """Play ``num_steps`` steps in every env with ``net`` into ``buf``: in eval mode, or in
+        train mode with ``train_mode`` (``--compat original``: BatchNorm then normalises each
+        batch of screens by its own statistics, as the paper's code did)."""
         if not self._groups:
             self.start()
         was_training = net.training
-        net.eval()
+        net.train(train_mode)
         # Gumbel noise for every (step, env, action): sampling independent of arrival order.
         u = torch.rand((self.num_steps, self.num_envs, self.num_actions), generator=self.generator)
         noise = (-torch.log(-torch.log(u.clamp_(1e-12, 1.0 - 1e-7)))).to(self.device)

@@ -77,8 +77,8 @@ def train(cfg: TrainConfig) -> Dict[str, Any]:
     if cfg.resume:
         state = load(out)
         saved = state["config"]
-        for key in ("variant", "suite", "num_envs", "num_steps"):
-            if saved[key] != getattr(cfg, key):
+        for key in ("variant", "suite", "num_envs", "num_steps", "compat"):
+            if saved.get(key, "ours" if key == "compat" else None) != getattr(cfg, key):
                 raise ValueError(
                     f"--resume: the run in {out} has {key}={saved[key]!r}, not "
                     f"{getattr(cfg, key)!r}; resume with the same {key}"
@@ -114,8 +114,14 @@ def train(cfg: TrainConfig) -> Dict[str, Any]:
         space = env.single_observation_space  # symbol indices: Box(0, symbols - 1, (H, W))
         obs_shape = tuple(space.shape)
         symbols = int(space.high.max()) + 1
+        original = cfg.compat == "original"
         net = build_network(
-            cfg.variant, symbols, obs_shape[0], obs_shape[1], int(env.single_action_space.n)
+            cfg.variant,
+            symbols,
+            obs_shape[0],
+            obs_shape[1],
+            int(env.single_action_space.n),
+            original=original,
         ).to(device)
         optimizer = _adam(net, cfg)
         collector = Collector(env, cfg.num_steps, device, seed=cfg.seed)
@@ -139,7 +145,7 @@ def train(cfg: TrainConfig) -> Dict[str, Any]:
         try:
             while frames < cfg.frames:
                 t0 = time.perf_counter()
-                collector.collect(net, buf)
+                collector.collect(net, buf, train_mode=original)
                 t1 = time.perf_counter()
                 stats = ppo_update(net, optimizer, buf, cfg, update_gen)
                 t2 = time.perf_counter()
@@ -166,6 +172,7 @@ def train(cfg: TrainConfig) -> Dict[str, Any]:
                         cfg.eval_envs,
                         cfg.num_workers,
                         cfg.seed,
+                        cfg.compat,
                     )
                     eval_s += time.perf_counter() - t3
                     row.update(gen_score=gen.mean, gen_ci_low=gen.ci_low, gen_ci_high=gen.ci_high)

@@ -1,0 +1,192 @@
+"""The paper's experiment as one command: its run matrix at its protocol.
+
+The paper (Kanagawa & Kaneko, CoG 2019) trains the six variants on 10 training seeds, then
+Large, L2 and the beta-VAE on 20 and on 40: 12 runs. Its protocol (the authors' code,
+``agents/env.py``): the original's dungeons (suites ``paper-N-original``), 40M frames,
+weights saved every 2M, and each checkpoint scored on the 1000 test seeds x 10 episodes.
+
+``python -m rogue_gym.train.matrix`` prints the commands of every run (or of ``--only``
+some), ``--run`` runs them one after another: each run trains (resuming a run folder that
+stopped), then :mod:`.posthoc` scores all its checkpoints (resuming too). A run's folder is
+``OUT/VARIANT-N`` and holds its ``config.json`` (variant, suite, frames, compat mode, seed),
+so it describes itself; ``python -m rogue_gym.train.plot`` draws the figures from the folders.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import List, Optional, Sequence
+
+__all__ = ["PAPER_RUNS", "PROTOCOL", "Run", "commands", "runs"]
+
+#: The paper's protocol (the authors' ``agents/env.py``: ``max_steps = int(2e7) * 2``,
+#: ``save_freq = int(2e6)``; ``agents/eval_cog.py``: 1000 test seeds x 10 episodes).
+PROTOCOL = {
+    "frames": 40_000_000,
+    "checkpoint_every": 2_000_000,
+    "eval_seeds": 1000,
+    "eval_episodes": 10,
+}
+
+#: ``(variant, training seeds)`` of the paper's 12 runs.
+PAPER_RUNS = [(v, 10) for v in ("small", "large", "batchnorm", "l2", "vae", "betavae")] + [
+    (v, n) for n in (20, 40) for v in ("large", "l2", "betavae")
+]
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run of the matrix."""
+
+    variant: str
+    seeds: int
+
+    @property
+    def name(self) -> str:
+        """``VARIANT-N``, the run folder's name."""
+        return f"{self.variant}-{self.seeds}"
+
+    @property
+    def suite(self) -> str:
+        """The original's dungeons with ``seeds`` training seeds."""
+        return f"paper-{self.seeds}-original"
+
+
+def runs(only: Optional[Sequence[str]] = None) -> List[Run]:
+    """The matrix's runs, or those named in ``only`` (``small-10``, ``l2-40``, ...)."""
+    every = [Run(v, n) for v, n in PAPER_RUNS]
+    if not only:
+        return every
+    names = {r.name: r for r in every}
+    unknown = [o for o in only if o not in names]
+    if unknown:
+        raise ValueError(f"unknown runs {unknown}; the paper's are {', '.join(names)}")
+    return [names[o] for o in only]
+
+
+def _train_args(run: Run, args: argparse.Namespace, resume: bool) -> List[str]:
+    cmd = [
+        "-m",
+        "rogue_gym.train",
+        "--variant",
+        run.variant,
+        "--suite",
+        run.suite,
+        "--frames",
+        str(args.frames),
+        "--checkpoint-every",
+        str(args.checkpoint_every),
+        "--eval-every",
+        "0",
+        "--eval-seeds",
+        str(args.eval_seeds),
+        "--eval-episodes",
+        str(args.eval_episodes),
+        "--device",
+        args.device,
+        "--seed",
+        str(args.seed),
+        "--compat",
+        args.compat,
+        "--num-workers",
+        str(args.num_workers),
+        "--out",
+        str(args.out / run.name),
+    ]
+    return cmd + (["--resume"] if resume else []) + list(args.train_args)
+
+
+def _posthoc_args(run: Run, args: argparse.Namespace) -> List[str]:
+    return [
+        "-m",
+        "rogue_gym.train.posthoc",
+        str(args.out / run.name),
+        "--eval-seeds",
+        str(args.eval_seeds),
+        "--eval-episodes",
+        str(args.eval_episodes),
+        "--device",
+        args.device,
+        "--num-workers",
+        str(args.num_workers),
+    ]
+
+
+def _trained_frames(folder: Path) -> int:
+    """Frames of the last ``progress.csv`` row (0 without one)."""
+    path = folder / "progress.csv"
+    if not path.exists():
+        return 0
+    lines = path.read_text().strip().splitlines()
+    return int(lines[-1].split(",")[0]) if len(lines) > 1 else 0
+
+
+def commands(run: Run, args: argparse.Namespace) -> List[List[str]]:
+    """The commands still due for ``run``: training (resumed if its folder has a checkpoint;
+    none once it has its frames), then the post-hoc scoring."""
+    folder = args.out / run.name
+    due = []
+    if _trained_frames(folder) < args.frames:
+        due.append(_train_args(run, args, resume=(folder / "checkpoint.pt").exists()))
+    due.append(_posthoc_args(run, args))
+    return [[sys.executable, *c] for c in due]
+
+
+def parser() -> argparse.ArgumentParser:
+    """The command line."""
+    p = argparse.ArgumentParser(
+        prog="python -m rogue_gym.train.matrix",
+        description="The paper's 12 runs at its protocol: print their commands, or --run them.",
+    )
+    p.add_argument("--only", nargs="*", default=None, help="runs to keep, e.g. small-10 l2-40")
+    p.add_argument("--run", action="store_true", help="run the commands (resumable)")
+    p.add_argument("--out", type=Path, default=Path("runs/paper"), help="folder of the runs")
+    p.add_argument("--device", default="cuda")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--compat", default="ours", choices=("ours", "original"))
+    p.add_argument("--num-workers", type=int, default=2)
+    for key, value in PROTOCOL.items():
+        p.add_argument("--" + key.replace("_", "-"), type=int, default=value)
+    p.add_argument(
+        "train_args", nargs="*", help="more flags for rogue_gym.train, after --", default=[]
+    )
+    return p
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """Print or run the matrix; returns the exit status."""
+    args = parser().parse_args(argv)
+    chosen = runs(args.only)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "matrix.json").write_text(
+        json.dumps(
+            {
+                "runs": [r.name for r in chosen],
+                "protocol": {k: getattr(args, k) for k in PROTOCOL},
+                "compat": args.compat,
+                "seed": args.seed,
+            },
+            indent=1,
+        )
+        + "\n"
+    )
+    for i, run in enumerate(chosen, 1):
+        for cmd in commands(run, args):
+            line = " ".join(shlex.quote(c) for c in cmd)
+            print(f"[{i}/{len(chosen)} {run.name}] {line}", flush=True)
+            if args.run:
+                code = subprocess.call(cmd)
+                if code != 0:
+                    print(f"{run.name}: exited with {code}; rerun to resume", file=sys.stderr)
+                    return code
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
