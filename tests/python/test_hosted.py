@@ -469,6 +469,8 @@ def test_discrete_actions_outside_the_space_are_named_in_the_callers_terms(pool)
     space = gym.spaces.Discrete(3, start=-1, dtype=np.int8)
     env = pool([functools.partial(_CheckedActionEnv, space)] * 2, num_workers=1)
     env.reset(seed=0)
-    with pytest.raises(ValueError, match=r"env 1: action 2 is not in .*valid actions are -1 to 1"):
+    with pytest.raises(
+        ValueError, match=r"env 1: action 2 is out of range of .*valid actions are -1 to 1"
+    ):
         env.step(np.array([0, 2]))
     env.step(np.array([-1, 1]))

@@ -490,7 +490,7 @@ class PoolVectorEnv(VectorEnv):
         if bad.any():
             j = int(np.flatnonzero(bad)[0])
             raise ValueError(
-                f"env {env_ids[j]}: action {a[j]} is not in {space}; valid actions are "
+                f"env {env_ids[j]}: action {a[j]} is out of range of {space}; valid actions are "
                 f"{start} to {start + n - 1}"
             )
         return a.astype(np.int64) - start
