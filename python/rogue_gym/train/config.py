@@ -38,8 +38,8 @@ class TrainConfig:
     """Network variant, one of ``small, large, batchnorm, l2, vae, betavae``."""
     suite: str = "paper-10"
     """Suite whose training seeds the agent plays and whose test seeds score it."""
-    frames: int = 20_000_000
-    """Environment steps to train for (all envs together)."""
+    frames: int = 40_000_000
+    """Environment steps to train for (all envs together; the paper's code: 40M)."""
     device: str = "cpu"
     """``cpu`` or ``cuda`` (or any torch device string)."""
     seed: int = 0
@@ -60,8 +60,8 @@ class TrainConfig:
     random_episodes: int = 1000
     """Episodes behind the random agent's training score in ``random.json`` (spread evenly
     over the training seeds; the trainer's own score averages 1000 too)."""
-    checkpoint_every: int = 1_000_000
-    """Frames between checkpoints (the last one is always written)."""
+    checkpoint_every: int = 2_000_000
+    """Frames between checkpoints (the last one is always written; the paper's code: 2M)."""
 
     num_envs: int = 32
     num_workers: int = 2

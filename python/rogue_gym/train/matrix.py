@@ -23,15 +23,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import List, Optional, Sequence
 
+from .config import TrainConfig
+
 __all__ = ["PAPER_RUNS", "PROTOCOL", "Run", "commands", "runs"]
 
-#: The paper's protocol (the authors' ``agents/env.py``: ``max_steps = int(2e7) * 2``,
-#: ``save_freq = int(2e6)``; ``agents/eval_cog.py``: 1000 test seeds x 10 episodes).
+#: The paper's protocol, :class:`TrainConfig`'s defaults (the authors' ``agents/env.py``:
+#: ``max_steps = int(2e7) * 2``, ``save_freq = int(2e6)``; ``agents/eval_cog.py``: 1000 test
+#: seeds x 10 episodes).
 PROTOCOL = {
-    "frames": 40_000_000,
-    "checkpoint_every": 2_000_000,
-    "eval_seeds": 1000,
-    "eval_episodes": 10,
+    key: getattr(TrainConfig, key)
+    for key in ("frames", "checkpoint_every", "eval_seeds", "eval_episodes")
 }
 
 #: ``(variant, training seeds)`` of the paper's 12 runs.
