@@ -24,17 +24,7 @@ pub fn remove_pool_files(id: &PoolId) -> Result<(), IpcError> {
         if fs::symlink_metadata(&p).is_ok_and(|m| m.uid() != me) {
             continue;
         }
-        match fs::remove_file(&p) {
-            Ok(()) => {}
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(source) => {
-                return Err(IpcError::Io {
-                    what: "remove shared-memory file",
-                    path: p,
-                    source,
-                });
-            }
-        }
+        crate::private::remove_if_present(&p, "remove shared-memory file")?;
     }
     for dir in [id.root(), id.aux_dir()] {
         match fs::remove_dir_all(&dir) {

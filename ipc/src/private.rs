@@ -224,20 +224,23 @@ pub fn write_private_file(path: &Path, data: &[u8]) -> Result<(), IpcError> {
     let mut tmp = path.as_os_str().to_owned();
     tmp.push(".tmp");
     let tmp = PathBuf::from(tmp);
-    match fs::remove_file(&tmp) {
-        Ok(()) => {}
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-        Err(source) => {
-            return Err(IpcError::Io {
-                what: "remove stale temporary file",
-                path: tmp,
-                source,
-            });
-        }
-    }
+    remove_if_present(&tmp, "remove stale temporary file")?;
     let mut f = create_private_file(&tmp)?;
     f.write_all(data).map_err(io("write private file", &tmp))?;
     fs::rename(&tmp, path).map_err(io("rename private file", path))
+}
+
+/// Remove file `path` (a link itself, never its target); a missing file is not an error.
+pub fn remove_if_present(path: &Path, what: &'static str) -> Result<(), IpcError> {
+    match fs::remove_file(path) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(source) => Err(IpcError::Io {
+            what,
+            path: path.to_path_buf(),
+            source,
+        }),
+    }
 }
 
 /// Open an existing file for reading without following a link, and check that it is a regular
