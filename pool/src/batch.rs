@@ -94,6 +94,8 @@ pub struct Block {
     pub(crate) layout: BlockLayout,
     pub(crate) restarted: bool,
     pub(crate) sample: BlockSample,
+    /// Extra info of the rows flagged `FLAG_EXTRA_APART`, from the block's side file.
+    pub(crate) apart: Vec<(u32, Vec<u8>)>,
 }
 
 impl std::fmt::Debug for Block {
@@ -125,8 +127,15 @@ impl Block {
     }
     /// Extra info of row `j` (empty if the env wrote none).
     pub fn extra(&self, j: usize) -> &[u8] {
-        let len = self.layout.record(self.sample.payload(), j).extra_len;
-        self.layout.extra(self.sample.payload(), j, len)
+        let r = self.layout.record(self.sample.payload(), j);
+        if r.extra_apart() {
+            return self
+                .apart
+                .iter()
+                .find(|(row, _)| *row as usize == j)
+                .map_or(&[], |(_, b)| b.as_slice());
+        }
+        self.layout.extra(self.sample.payload(), j, r.extra_len)
     }
     /// Record of row `j` (with the restart flags applied).
     pub fn record(&self, j: usize) -> EnvRecord {

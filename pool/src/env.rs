@@ -47,8 +47,8 @@ pub struct EnvSpec {
     /// then unused.
     #[serde(default)]
     pub action_bytes: usize,
-    /// Room per env and step for variable-size extra info ([`Env::extra_info`]), in bytes;
-    /// `0`: the env has none.
+    /// Room per env and step for variable-size extra info ([`Env::extra_info`]) in the
+    /// worker's block, in bytes; longer info goes through a side file. `0`: the env has none.
     #[serde(default)]
     pub extra_bytes: usize,
 }
@@ -135,13 +135,14 @@ pub trait Env {
             "this env kind takes action indices, not raw action bytes",
         ))
     }
-    /// Write the variable-size extra info of the last `reset`/`step` (at most
-    /// [`EnvSpec::extra_bytes`]) into `out` and return its length; `0`: none. Called once
-    /// after each reset or step; what it means is the env's business (hosted envs: their
-    /// pickled info dicts).
-    fn extra_info(&mut self, out: &mut [u8]) -> Result<usize, EnvError> {
+    /// Append the variable-size extra info of the last command (its `reset`, its `step`, or
+    /// a step and its autoreset) to `out`; append nothing for none. Called once after each
+    /// command, only for specs with [`EnvSpec::extra_bytes`] > 0; what the bytes mean is the
+    /// env's business (hosted envs: their info dicts as typed rows or pickles). Info longer
+    /// than [`EnvSpec::extra_bytes`] is not an error: the worker carries it apart.
+    fn extra_info(&mut self, out: &mut Vec<u8>) -> Result<(), EnvError> {
         let _ = out;
-        Ok(0)
+        Ok(())
     }
     /// Write the env's info values (as many as [`EnvSpec::info_names`]) into `out`.
     fn info(&self, out: &mut [f64]) {

@@ -17,12 +17,13 @@ use crate::env::{Env, MAX_INFO};
 use crate::registry::EnvRegistry;
 use crate::seeds::SeedSchedule;
 use crate::wire::layout::{
-    BlockLayout, EnvRecord, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED, write_record_words,
+    BlockLayout, EnvRecord, FLAG_EXTRA_APART, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED,
+    write_record_words,
 };
 use crate::wire::{
     BATCH_BUFFER, BATCH_SLOTS, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_CALL,
     CMD_CLOSE, CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE, RELOAD_SEEDS, TARGET_SHIFT,
-    WorkerConfig, calls, env_fault_path, slot_bytes,
+    WorkerConfig, calls, env_fault_path, extra_apart_path, slot_bytes,
 };
 
 #[derive(Debug, thiserror::Error)]
@@ -174,6 +175,8 @@ pub(crate) struct SlotCtx<'a> {
     /// `EnvSpec::action_bytes` (0: action indices).
     pub(crate) action_bytes: usize,
     pub(crate) n_info: usize,
+    /// Whether the env has extra info (`EnvSpec::extra_bytes` > 0).
+    pub(crate) extra_info: bool,
 }
 
 /// Where one env writes its answer to a command (parts of the block being filled).
@@ -183,6 +186,9 @@ pub(crate) struct EnvOut<'a> {
     pub(crate) fin: &'a mut [u8],
     /// Extra-info room (`EnvSpec::extra_bytes`).
     pub(crate) extra: &'a mut [u8],
+    /// The env's extra info, whole; when it does not fit `extra`, the record is flagged
+    /// [`FLAG_EXTRA_APART`] and the caller sends these bytes apart.
+    pub(crate) info: &'a mut Vec<u8>,
 }
 
 fn fault(s: &Slot, context: String, message: impl std::fmt::Display) -> EnvFault {
@@ -218,7 +224,12 @@ pub(crate) fn apply(
     out: EnvOut<'_>,
     ctx: &SlotCtx,
 ) -> Result<EnvRecord, EnvFault> {
-    let EnvOut { obs, fin, extra } = out;
+    let EnvOut {
+        obs,
+        fin,
+        extra,
+        info,
+    } = out;
     let value = words.first().copied().unwrap_or(0);
     let mut rec = EnvRecord::default();
     match kind {
@@ -295,19 +306,18 @@ pub(crate) fn apply(
             }
         }
     }
-    if !extra.is_empty() {
-        let n = s
-            .env
-            .extra_info(extra)
+    if ctx.extra_info {
+        info.clear();
+        s.env
+            .extra_info(info)
             .map_err(|e| fault(s, "extra info".into(), e))?;
-        if n > extra.len() {
-            let msg = format!(
-                "extra info of {n} bytes does not fit its {} bytes",
-                extra.len()
-            );
-            return Err(fault(s, "extra info".into(), msg));
+        let n = info.len();
+        rec.extra_len = u32::try_from(n)
+            .map_err(|_| fault(s, "extra info".into(), format!("{n} bytes of extra info")))?;
+        match extra.get_mut(..n) {
+            Some(room) => room.copy_from_slice(info),
+            None => rec.flags |= FLAG_EXTRA_APART,
         }
-        rec.extra_len = n as u32;
     }
     Ok(rec)
 }
@@ -400,6 +410,9 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
 
     let mut seeds = cfg.seeds.clone();
     let mut payload: Vec<u64> = vec![0; epw * aw];
+    // One env's extra info, and the block's infos that did not fit its room.
+    let mut info: Vec<u8> = Vec::new();
+    let mut apart: Vec<(u32, Vec<u8>)> = Vec::new();
     loop {
         let mut cmd = None;
         hybrid_wait::<WorkerError>(ports.cmd_listener(), &policy, None, |call| {
@@ -452,6 +465,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
             num_actions: spec.num_actions,
             action_bytes: spec.action_bytes,
             n_info,
+            extra_info: spec.extra_bytes > 0,
         };
         if target > BATCH_SLOTS {
             return Err(WorkerError::Msg(format!("bad observation target {target}")));
@@ -476,18 +490,39 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         let fob = if layout.final_obs { ob } else { 0 };
         let xb = layout.extra_bytes;
         let mut failed = None;
+        apart.clear();
         for (j, s) in slots.iter_mut().enumerate() {
             let out = EnvOut {
                 obs: &mut obs_area[j * ob..(j + 1) * ob],
                 fin: &mut areas.final_obs[j * fob..(j + 1) * fob],
                 extra: &mut areas.extra[j * xb..(j + 1) * xb],
+                info: &mut info,
             };
             match apply(s, kind, &payload[j * per_env..(j + 1) * per_env], out, &ctx) {
-                Ok(rec) => write_record_words(areas.records, j, &rec),
+                Ok(rec) => {
+                    write_record_words(areas.records, j, &rec);
+                    if rec.extra_apart() {
+                        apart.push((j as u32, std::mem::take(&mut info)));
+                    }
+                }
                 Err(f) => {
                     failed = Some(f);
                     break;
                 }
+            }
+        }
+        if failed.is_none() && !apart.is_empty() {
+            // Info too long for the block's room goes beside it, in a private file named by
+            // the block; the supervisor takes it with the block.
+            let entries: Vec<(u32, &[u8])> =
+                apart.iter().map(|(j, b)| (*j, b.as_slice())).collect();
+            let path = extra_apart_path(&id, a.index, a.generation, h.seq);
+            if let Err(e) = calls::write(&path, &calls::encode(&entries)) {
+                failed = Some(EnvFault {
+                    env: first_env as u64 + u64::from(apart[0].0),
+                    context: "extra info".into(),
+                    message: format!("cannot write the info that did not fit the block: {e}"),
+                });
             }
         }
         if let Some(f) = failed {
@@ -524,7 +559,19 @@ mod tests {
         c: &SlotCtx,
     ) -> Result<EnvRecord, EnvFault> {
         let extra: &mut [u8] = &mut [];
-        apply(s, kind, &[value], EnvOut { obs, fin, extra }, c)
+        let info = &mut Vec::new();
+        apply(
+            s,
+            kind,
+            &[value],
+            EnvOut {
+                obs,
+                fin,
+                extra,
+                info,
+            },
+            c,
+        )
     }
 
     fn ctx(seeds: &SeedSchedule, autoreset: AutoresetMode) -> SlotCtx<'_> {
@@ -535,6 +582,7 @@ mod tests {
             num_actions: 5,
             action_bytes: 0,
             n_info: 2,
+            extra_info: false,
         }
     }
 

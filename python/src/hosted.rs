@@ -2,8 +2,9 @@
 //!
 //! The worker runs the pool's Rust loop with the GIL released; each call on a [`HostedEnv`]
 //! takes the GIL and calls its adapter (`rogue_gym.hosted.adapter.HostedEnv`), which builds the
-//! env from the caller's cloudpickled callable and turns observations, actions and infos into
-//! the flat bytes the pool carries. The env's JSON spec is
+//! env from the caller's cloudpickled callable, decodes actions, writes each observation
+//! straight into the destination the worker lends it (by address, during the call only) and
+//! returns infos as bytes (typed rows or pickles). The env's JSON spec is
 //! `{"kind": "python", "spec": <EnvSpec>, "adapter": {...}}`: the [`EnvSpec`] the front end
 //! computed (the supervisor gets the same one), and what the adapter needs.
 //!
@@ -27,8 +28,10 @@ struct HostedEnv {
     /// The adapter's exception class for encoded env exceptions.
     encoded: Py<PyAny>,
     spec: EnvSpec,
-    /// The last call left info to hand over ([`Env::extra_info`]).
-    has_info: bool,
+    /// The info bytes of the current command, to hand over ([`Env::extra_info`]).
+    info: Vec<u8>,
+    /// The last call was a successful step: a reset now is its autoreset (same command).
+    after_step: bool,
 }
 
 /// The message of a Python error: the adapter's encoding, or `Type: message` for anything else.
@@ -73,7 +76,8 @@ pub(crate) fn make_hosted_env(v: &Value, index: u64) -> Result<Box<dyn Env>, Env
             adapter,
             encoded,
             spec,
-            has_info: false,
+            info: Vec::new(),
+            after_step: false,
         }) as Box<dyn Env>)
     })
 }
@@ -85,44 +89,44 @@ fn returned_bytes<'a>(b: &'a Bound<'_, PyAny>, what: &str) -> Result<&'a [u8], E
         .map_err(|_| EnvError::new(format!("the adapter's {what} returned non-bytes")))
 }
 
-/// Copy an observation the adapter returned (bytes, at most the observation's room; the rest
-/// is padding and zeroed).
-fn write_obs(b: &Bound<'_, PyAny>, obs: &mut [u8]) -> Result<(), EnvError> {
-    let bytes = returned_bytes(b, "observation")?;
-    if bytes.len() > obs.len() {
-        return Err(EnvError::new(format!(
-            "the observation takes {} bytes; its space has room for {}",
-            bytes.len(),
-            obs.len()
-        )));
-    }
-    obs[..bytes.len()].copy_from_slice(bytes);
-    obs[bytes.len()..].fill(0);
-    Ok(())
+/// The address of an observation destination, as the adapter's `address` argument. The
+/// adapter writes at most the observation space's bytes there, during the call only.
+fn address(obs: &mut [u8]) -> usize {
+    obs.as_mut_ptr() as usize
 }
 
 impl HostedEnv {
-    /// Call `adapter.step(arg)` and unpack `(obs, reward, terminated, truncated, has_info)`.
+    /// Keep the info bytes an adapter call returned (`None`: no info).
+    fn keep_info(&mut self, b: &Bound<'_, PyAny>) -> Result<(), EnvError> {
+        self.info.clear();
+        if !b.is_none() {
+            self.info.extend_from_slice(returned_bytes(b, "info")?);
+        }
+        Ok(())
+    }
+
+    /// Call `adapter.step(arg, address)` and unpack `(reward, terminated, truncated, info)`.
     fn step_with<'py>(
         &mut self,
         py: Python<'py>,
         arg: Bound<'py, PyAny>,
         obs: &mut [u8],
     ) -> Result<StepOutcome, EnvError> {
+        self.after_step = false;
         let err = |e: PyErr| env_error(py, &self.encoded, e);
         let r = self
             .adapter
             .bind(py)
-            .call_method1(intern!(py, "step"), (arg,))
+            .call_method1(intern!(py, "step"), (arg, address(obs)))
             .map_err(err)?;
         let t = r
             .cast::<PyTuple>()
             .map_err(|_| EnvError::new("the adapter's step returned a non-tuple"))?;
-        write_obs(&t.get_item(0).map_err(err)?, obs)?;
-        let reward: f64 = t.get_item(1).and_then(|x| x.extract()).map_err(err)?;
-        let terminated: bool = t.get_item(2).and_then(|x| x.extract()).map_err(err)?;
-        let truncated: bool = t.get_item(3).and_then(|x| x.extract()).map_err(err)?;
-        self.has_info = t.get_item(4).and_then(|x| x.extract()).map_err(err)?;
+        let reward: f64 = t.get_item(0).and_then(|x| x.extract()).map_err(err)?;
+        let terminated: bool = t.get_item(1).and_then(|x| x.extract()).map_err(err)?;
+        let truncated: bool = t.get_item(2).and_then(|x| x.extract()).map_err(err)?;
+        self.keep_info(&t.get_item(3).map_err(err)?)?;
+        self.after_step = true;
         Ok(StepOutcome {
             reward,
             terminated,
@@ -141,19 +145,16 @@ impl Env for HostedEnv {
     }
 
     fn reset_episode(&mut self, seed: u64, episode: u64, obs: &mut [u8]) -> Result<(), EnvError> {
+        // A reset right after a step of the same command is its autoreset: the step's info
+        // stays with the reset's.
+        let fresh = !std::mem::take(&mut self.after_step);
         Python::attach(|py| {
-            let err = |e: PyErr| env_error(py, &self.encoded, e);
             let r = self
                 .adapter
                 .bind(py)
-                .call_method1(intern!(py, "reset"), (seed, episode))
-                .map_err(err)?;
-            let t = r
-                .cast::<PyTuple>()
-                .map_err(|_| EnvError::new("the adapter's reset returned a non-tuple"))?;
-            write_obs(&t.get_item(0).map_err(err)?, obs)?;
-            self.has_info = t.get_item(1).and_then(|x| x.extract()).map_err(err)?;
-            Ok(())
+                .call_method1(intern!(py, "reset"), (seed, episode, fresh, address(obs)))
+                .map_err(|e| env_error(py, &self.encoded, e))?;
+            self.keep_info(&r)
         })
     }
 
@@ -173,27 +174,10 @@ impl Env for HostedEnv {
         })
     }
 
-    fn extra_info(&mut self, out: &mut [u8]) -> Result<usize, EnvError> {
-        if !std::mem::take(&mut self.has_info) {
-            return Ok(0);
-        }
-        Python::attach(|py| {
-            let b = self
-                .adapter
-                .bind(py)
-                .call_method0(intern!(py, "take_info"))
-                .map_err(|e| env_error(py, &self.encoded, e))?;
-            let bytes = returned_bytes(&b, "take_info")?;
-            if bytes.len() > out.len() {
-                return Err(EnvError::new(format!(
-                    "the env's info takes {} bytes pickled, more than the {} reserved per env and step; pass a larger info_bytes to the vector env",
-                    bytes.len(),
-                    out.len()
-                )));
-            }
-            out[..bytes.len()].copy_from_slice(bytes);
-            Ok(bytes.len())
-        })
+    fn extra_info(&mut self, out: &mut Vec<u8>) -> Result<(), EnvError> {
+        self.after_step = false;
+        out.append(&mut self.info);
+        Ok(())
     }
 
     fn call(&mut self, request: &[u8]) -> Result<Vec<u8>, EnvError> {
@@ -209,12 +193,11 @@ impl Env for HostedEnv {
 
     fn observe(&self, obs: &mut [u8]) -> Result<(), EnvError> {
         Python::attach(|py| {
-            let b = self
-                .adapter
+            self.adapter
                 .bind(py)
-                .call_method0("observe")
+                .call_method1(intern!(py, "observe"), (address(obs),))
                 .map_err(|e| env_error(py, &self.encoded, e))?;
-            write_obs(&b, obs)
+            Ok(())
         })
     }
 }

@@ -110,12 +110,56 @@ class SpecialError(ValueError):
     """A user-defined exception, to check that the type survives the trip."""
 
 
-class BigInfoEnv(RaisingEnv):
-    """Returns an info too large for a small ``info_bytes``."""
+class InfoEnv(RaisingEnv):
+    """Infos of every kind on every step, drawn from the env's generator: Python and numpy
+    scalars (NaN included), arrays, nested and empty dicts, a key only some steps have, a key
+    that is an int at reset and a float on steps, and now and then values that only pickle (a
+    string, a numpy bool). Episodes end at random or after 30 steps."""
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> Any:
+        super().reset(seed=seed)
+        return np.zeros(4, np.float32), {"count": 0, "lives": np.int16(3)}
 
     def step(self, action: Any) -> Any:
-        obs, r, term, trunc, _ = super().step(0)
-        return obs, r, term, trunc, {"blob": np.zeros(10_000, np.uint8)}
+        self.t += 1
+        r = self.np_random
+        info: dict[str, Any] = {
+            "count": float(self.t),
+            "x": float(r.normal()),
+            "f32": np.float32(r.normal()),
+            "u64": np.uint64(2**63 + self.t),
+            "flag": bool(self.t % 2),
+            "maybe_nan": float("nan") if self.t % 5 == 0 else 0.5,
+            "pos": r.normal(size=3).astype(np.float32),
+            "mask": r.integers(0, 2, (2, 2)).astype(bool),
+            "inventory": {"wood": int(r.integers(5)), "stone": np.int32(self.t)},
+            "achievements": {},
+        }
+        if self.t % 3 == 0:
+            info["sometimes"] = np.int8(self.t)
+        if self.t % 7 == 0:
+            info["note"] = f"step {self.t}"
+        if self.t % 11 == 0:
+            info["np_bool"] = np.bool_(True)
+        obs = np.full(4, self.t / 100, np.float32)
+        return obs, float(action), bool(r.random() < 0.1), self.t >= 30, info
+
+
+class GrowingInfoEnv(RaisingEnv):
+    """Infos that outgrow the pool's default room per env (4096 bytes) as an episode goes on,
+    some envs sooner than others: an array of ``300 t`` int64 values, on some steps of some
+    envs one more array of 700 values (typed rows), and on even steps a string of ``100 t``
+    or ``100 t + 5000`` characters (pickled)."""
+
+    def step(self, action: Any) -> Any:
+        self.t += 1
+        big = bool(self.np_random.integers(2))
+        info: dict[str, Any] = {"blob": np.arange(300 * self.t, dtype=np.int64)}
+        if self.t % 2 == 0:
+            info["log"] = "x" * (100 * self.t + 5000 * big)
+        elif big:
+            info["pad"] = np.ones(700, np.int64)
+        return np.full(4, self.t / 100, np.float32), 1.0, False, self.t >= 25, info
 
 
 class TextEnv(RaisingEnv):

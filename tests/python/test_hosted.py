@@ -20,12 +20,13 @@ import pytest
 import rogue_gym
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
 from gymnasium.vector.utils import concatenate, create_empty_array
-from rogue_gym import EnvFailedError, PoolVectorEnv, WorkerCrashedError
+from rogue_gym import PoolVectorEnv, WorkerCrashedError
 from rogue_gym.hosted import UnsupportedSpaceError
 
 from conftest import pid_alive, pool_files, wait_until
 from hosted_envs import (
-    BigInfoEnv,
+    GrowingInfoEnv,
+    InfoEnv,
     NestedEnv,
     RaisingEnv,
     SpecialError,
@@ -57,26 +58,38 @@ def pool() -> Iterator[Callable[..., PoolVectorEnv]]:
         assert pool_files(name) == []
 
 
-def assert_tree_equal(a: Any, b: Any) -> None:
+def assert_tree_equal(a: Any, b: Any, *, same_dtype: bool = True) -> None:
+    """``a`` and ``b`` are equal trees of arrays: same keys, shapes and values (NaN equal to
+    NaN) and, with ``same_dtype``, the same dtypes."""
     if isinstance(a, dict):
         assert isinstance(b, dict) and sorted(a) == sorted(b), (list(a), list(b))
         for k in a:
-            assert_tree_equal(a[k], b[k])
+            assert_tree_equal(a[k], b[k], same_dtype=same_dtype)
     elif isinstance(a, tuple):
         assert isinstance(b, tuple) and len(a) == len(b)
         for x, y in zip(a, b):
-            assert_tree_equal(x, y)
+            assert_tree_equal(x, y, same_dtype=same_dtype)
     elif isinstance(a, np.ndarray) and a.dtype == object:  # final_obs: one entry per env
         assert isinstance(b, np.ndarray) and b.dtype == object and a.shape == b.shape
         for x, y in zip(a, b):
             if x is None or y is None:
                 assert x is None and y is None
             else:
-                assert_tree_equal(x, y)
+                assert_tree_equal(x, y, same_dtype=same_dtype)
     else:
         x, y = np.asarray(a), np.asarray(b)
-        assert x.dtype == y.dtype and x.shape == y.shape, (x.dtype, x.shape, y.dtype, y.shape)
-        assert np.array_equal(x, y), (x, y)
+        assert x.shape == y.shape, (x.shape, y.shape)
+        assert x.dtype == y.dtype or not same_dtype, (x.dtype, y.dtype)
+        assert np.array_equal(x, y, equal_nan=x.dtype.kind in "fc"), (x, y)
+
+
+def rows(tree: Any, order: np.ndarray) -> Any:
+    """Every array of ``tree`` (dicts and tuples of arrays) taken at the rows ``order``."""
+    if isinstance(tree, dict):
+        return {k: rows(v, order) for k, v in tree.items()}
+    if isinstance(tree, tuple):
+        return tuple(rows(v, order) for v in tree)
+    return tree[order]
 
 
 def run_both(
@@ -247,15 +260,44 @@ def test_constructor_exceptions_reach_the_caller() -> None:
         PoolVectorEnv([functools.partial(fails_in_workers, os.getpid())] * 2, num_workers=1)
 
 
-def test_oversized_info_is_a_clear_error(pool) -> None:
-    env = pool([BigInfoEnv] * 2, num_workers=1, info_bytes=256)
-    env.reset(seed=0)
-    with pytest.raises(EnvFailedError, match="info_bytes"):
-        env.step(np.zeros(2, np.int64))
-    roomy = pool([BigInfoEnv] * 2, num_workers=1, info_bytes=20_000)
-    roomy.reset(seed=0)
-    infos = roomy.step(np.zeros(2, np.int64))[-1]
-    assert infos["blob"].shape == (2, 10_000) and infos["_blob"].all()
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_numeric_infos_match_sync_vector_env_bit_for_bit(pool, mode) -> None:
+    """Per-step infos of numbers and arrays (typed rows in shared memory), mixed with values
+    that only pickle: the same keys, dtypes, masks, nesting and values as SyncVectorEnv's,
+    through step() and through recv()."""
+    ours = pool([InfoEnv] * 6, num_workers=2, autoreset_mode=mode)
+    ref = SyncVectorEnv([InfoEnv] * 6, autoreset_mode=mode)
+    run_both(ours, ref, steps=80, seed=5)
+    ref.close()
+    if mode == AutoresetMode.NEXT_STEP:
+        ref = SyncVectorEnv([InfoEnv] * 6)
+        ref.reset(seed=9)
+        ours.async_reset(seed=9)
+        ours.recv()
+        actions = np.zeros(6, np.int64)
+        ours.send(actions, np.arange(6))
+        for t in range(40):
+            obs, rew, term, trunc, infos = ours.recv()
+            ids = infos.pop("env_id")
+            assert sorted(ids.tolist()) == list(range(6))
+            by_env = rows((obs, rew, term, trunc, infos), np.argsort(ids))
+            # The rows come in arrival order, and the first row of a key sets its dtype (here
+            # "count", an int at reset and a float on steps): values are compared.
+            assert_tree_equal(by_env, ref.step(actions), same_dtype=False)
+            actions = np.full(6, t % 2, np.int64)
+            ours.send(actions, ids)
+        ref.close()
+
+
+def test_infos_larger_than_the_room_travel_beside_the_block(pool) -> None:
+    """Infos that outgrow the default room (4096 bytes per env), typed and pickled, some envs
+    of a block in it and others beside it: never an error, equal to SyncVectorEnv's."""
+    ours = pool([GrowingInfoEnv] * 4, num_workers=2)
+    ref = SyncVectorEnv([GrowingInfoEnv] * 4)
+    run_both(ours, ref, steps=60, seed=1)
+    ref.close()
+    aux = os.path.join(rogue_gym._native.default_runtime_dir(), f"{ours.pool_name}.d")
+    assert not [f for f in os.listdir(aux) if "extra" in f], "side files are removed as read"
 
 
 def test_unsupported_spaces_and_bad_actions_are_clear_errors(pool) -> None:
@@ -474,3 +516,37 @@ def test_discrete_actions_outside_the_space_are_named_in_the_callers_terms(pool)
     ):
         env.step(np.array([0, 2]))
     env.step(np.array([-1, 1]))
+
+
+def test_info_rows_are_typed_when_they_can_be() -> None:
+    """Numbers and arrays in nested dicts travel as typed rows, read back as the same values
+    of the same types; anything else is pickled; many rows become columns at once."""
+    from rogue_gym.hosted.infos import MAGIC, InfoDecoder, InfoEncoder, add_row_info
+
+    enc, dec = InfoEncoder(), InfoDecoder()
+    info = {
+        "i": 3,
+        "f": 0.25,
+        "b": True,
+        "f32": np.float32(1.5),
+        "u8": np.uint8(7),
+        "a": np.arange(6, dtype=np.int16).reshape(2, 3),
+        "d": {"x": -1, "e": {}},
+    }
+    data = enc.encode([("step", info)])
+    assert data.startswith(MAGIC)
+    [(kind, back)] = dec.entries(data)
+    assert kind == "step"
+    assert {k: type(v) for k, v in back.items()} == {k: type(v) for k, v in info.items()}
+    assert_tree_equal(back, info)
+    for untyped in ({"s": "text"}, {"nb": np.bool_(True)}, {"big": 2**70}, {"l": [1]}):
+        assert not enc.encode([("step", untyped)]).startswith(MAGIC), untyped
+    assert not enc.encode([("step", info), ("reset", info)]).startswith(MAGIC)
+
+    rows = [(r, enc.encode([("step", {**info, "i": r})])) for r in (0, 2, 3)]
+    columns: dict = {}
+    assert dec.put_typed(columns, rows, 5)
+    one_by_one: dict = {}
+    for r, _ in rows:
+        one_by_one = add_row_info(one_by_one, {**info, "i": r}, r, 5)
+    assert_tree_equal(columns, one_by_one)

@@ -18,7 +18,7 @@ use crate::config::{AutoresetMode, FailurePolicy};
 use crate::error::{FailureCause, PoolError, WorkerFailure};
 use crate::wire::{
     BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE,
-    RELOAD_SEEDS, TARGET_SHIFT, env_fault_path,
+    RELOAD_SEEDS, TARGET_SHIFT, calls, env_fault_path, extra_apart_path,
 };
 
 pub(super) enum SlotState {
@@ -204,12 +204,26 @@ impl Core {
         match std::mem::replace(&mut s.state, SlotState::Idle) {
             SlotState::Ready(sample) => {
                 let restarted = std::mem::take(&mut s.restarted);
+                let layout = self.layouts[k];
+                let apart =
+                    if (0..layout.envs).any(|j| layout.record(sample.payload(), j).extra_apart()) {
+                        let seq = sample.user_header().seq;
+                        let path = extra_apart_path(&self.id, k, s.generation, seq);
+                        calls::take(&path).map_err(|e| {
+                            PoolError::Io(format!(
+                                "worker {k}: the extra info beside block {seq}: {e}"
+                            ))
+                        })?
+                    } else {
+                        Vec::new()
+                    };
                 Ok(Block {
                     worker: k,
                     env_start: self.blocks[k].start,
-                    layout: self.layouts[k],
+                    layout,
                     restarted,
                     sample,
+                    apart,
                 })
             }
             other => {

@@ -16,6 +16,9 @@ pub const FLAG_TRUNCATED: u32 = 2;
 pub const FLAG_RESTARTED: u32 = 4;
 /// (SAME_STEP) the block's final-obs area holds this env's final observation.
 pub const FLAG_FINAL_OBS: u32 = 8;
+/// The env's extra info (`extra_len` bytes) did not fit its room in the block: it travels
+/// in the block's side file ([`crate::wire::extra_apart_path`]).
+pub const FLAG_EXTRA_APART: u32 = 16;
 
 /// Per-env scalars of one step, as written by the worker.
 ///
@@ -63,6 +66,10 @@ impl EnvRecord {
     /// Whether a final observation is available (SAME_STEP).
     pub fn has_final_obs(&self) -> bool {
         self.flags & FLAG_FINAL_OBS != 0
+    }
+    /// Whether the extra info is in the block's side file.
+    pub fn extra_apart(&self) -> bool {
+        self.flags & FLAG_EXTRA_APART != 0
     }
 }
 

@@ -66,6 +66,19 @@ pub(crate) fn env_fault_path(id: &rogue_gym_ipc::PoolId, index: usize, generatio
         .join(format!("w{index}.g{generation}.fault.json"))
 }
 
+/// Where worker `index`, generation `generation`, puts the extra info of its block `seq` that
+/// did not fit the block (entries in the [`calls::encode`] format, one per env flagged
+/// [`layout::FLAG_EXTRA_APART`]); the supervisor reads and removes it.
+pub(crate) fn extra_apart_path(
+    id: &rogue_gym_ipc::PoolId,
+    index: usize,
+    generation: u64,
+    seq: u64,
+) -> PathBuf {
+    id.aux_dir()
+        .join(format!("w{index}.g{generation}.extra-{seq}"))
+}
+
 /// Everything a worker needs, written by the supervisor to a private JSON file in the pool's
 /// directory (inside the verified runtime directory, so no one else can swap it).
 #[derive(Debug, Clone, Serialize, Deserialize)]

@@ -21,6 +21,7 @@ from typing import Any, Optional
 import cloudpickle
 import numpy as np
 
+from .infos import InfoEncoder
 from .layout import SpaceLayout
 
 __all__ = [
@@ -48,6 +49,9 @@ CALL_OPS = (
     "render",
     "set_reset_options",
 )
+
+#: Observation writers kept per env (one per destination the pool lends; a few dozen).
+MAX_WRITERS = 1024
 
 #: The key of an encoded exception in an env error message.
 _KEY = "rogue_gym_exception"
@@ -130,7 +134,6 @@ class HostedEnv:
         self.env = env
         self._obs = SpaceLayout(obs_space)
         self._act = SpaceLayout(action_space)
-        self._encode_obs = self._obs.encode
         self._discrete = (
             None
             if discrete_start is None
@@ -139,8 +142,13 @@ class HostedEnv:
         self._fresh = True
         #: Options for the next reset only (set by a call, as SB3's set_options does).
         self._options: Optional[dict[str, Any]] = None
-        self._last = b""
+        #: The last observation (for :meth:`observe`).
+        self._last: Any = None
+        #: The infos of the current command (a step, a reset, or a step and its autoreset).
         self._infos: list[tuple[str, dict[str, Any]]] = []
+        self._info_encoder = InfoEncoder()
+        #: Observation writers by destination address (the pool's slots are reused).
+        self._writers: dict[int, Any] = {}
 
     @classmethod
     @_guarded
@@ -167,11 +175,26 @@ class HostedEnv:
                 )
         return cls(env, obs_space, action_space, cfg["discrete_start"])
 
-    def reset(self, seed: int, episode: int) -> tuple[bytes, bool]:
-        """Start an episode: seeded with ``seed`` if it is the schedule's first (episode 0) or
-        this env was just built, unless it is :data:`NO_SEED`; otherwise the env continues its
-        own generator (gymnasium's convention). Returns the observation's bytes and whether there is info to take."""
+    def _write_obs(self, obs: Any, address: int) -> None:
+        """Write an observation straight into the pool's memory at ``address`` (the
+        destination the worker lends for this call: the observation's row of a batch slot)."""
+        writer = self._writers.get(address)
+        if writer is None:
+            if len(self._writers) >= MAX_WRITERS:
+                self._writers.clear()
+            writer = self._writers[address] = self._obs.writer(address)
+        writer(obs)
+        self._last = obs
+
+    def reset(self, seed: int, episode: int, fresh: bool, address: int) -> Optional[bytes]:
+        """Start an episode and write its first observation at ``address``: seeded with
+        ``seed`` if it is the schedule's first (episode 0) or this env was just built, unless it
+        is :data:`NO_SEED`; otherwise the env continues its own generator (gymnasium's
+        convention). ``fresh``: this reset starts a command (not the autoreset after a step of
+        the same command). Returns the command's info bytes so far, or ``None``."""
         try:
+            if fresh:
+                self._infos = []
             use_seed = seed if (episode == 0 or self._fresh) and seed != NO_SEED else None
             self._fresh = False
             options, self._options = self._options, None
@@ -179,31 +202,26 @@ class HostedEnv:
                 obs, info = self.env.reset(seed=use_seed, options=options)
             else:
                 obs, info = self.env.reset(seed=use_seed)
-            self._last = self._encode_obs(obs)
+            self._write_obs(obs, address)
             if info:
                 self._infos.append(("reset", info))
-            return self._last, bool(self._infos)
+            return self._info_encoder.encode(self._infos) if self._infos else None
         except BaseException as exc:
             raise EncodedEnvError(encode_exception(exc)) from exc
 
-    def step(self, action: Any) -> tuple[bytes, float, bool, bool, bool]:
-        """Step with an action index (Discrete action spaces) or the action's bytes."""
+    def step(self, action: Any, address: int) -> tuple[float, bool, bool, Optional[bytes]]:
+        """Step with an action index (Discrete action spaces) or the action's bytes, and write
+        the observation at ``address``. Returns ``(reward, terminated, truncated, info bytes
+        or None)``."""
         try:
             action = self._act.decode(action) if self._discrete is None else self._discrete[action]
             obs, reward, terminated, truncated, info = self.env.step(action)
-            self._last = self._encode_obs(obs)
-            if info:
-                self._infos.append(("step", info))
-            return self._last, float(reward), bool(terminated), bool(truncated), bool(self._infos)
+            self._write_obs(obs, address)
+            self._infos = [("step", info)] if info else []
+            data = self._info_encoder.encode(self._infos) if info else None
+            return float(reward), bool(terminated), bool(truncated), data
         except BaseException as exc:
             raise EncodedEnvError(encode_exception(exc)) from exc
-
-    @_guarded
-    def take_info(self) -> bytes:
-        """The infos since the last call, pickled: a list of ``("reset" | "step", info)``."""
-        data = pickle.dumps(self._infos, protocol=pickle.HIGHEST_PROTOCOL)
-        self._infos = []
-        return data
 
     def call(self, request: bytes) -> bytes:
         """Answer a call from the caller (off the hot path): ``request`` is a pickled
@@ -258,9 +276,11 @@ class HostedEnv:
     def _op_set_reset_options(self, name: str, options: Optional[dict[str, Any]]) -> None:
         self._options = options
 
-    def observe(self) -> bytes:
-        """The current observation's bytes again (for partial resets)."""
-        return self._last
+    def observe(self, address: int) -> None:
+        """Write the current observation again, at ``address`` (for partial resets)."""
+        if self._last is None:
+            raise RuntimeError("the env has no observation yet: reset it first")
+        self._write_obs(self._last, address)
 
     def close(self) -> None:
         """Close the env (when the worker exits); errors are ignored."""

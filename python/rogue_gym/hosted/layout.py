@@ -10,6 +10,7 @@ batch is a zero-copy strided view of it. Nothing is pickled.
 
 from __future__ import annotations
 
+import ctypes
 from dataclasses import dataclass
 from typing import Any, Callable, Union
 
@@ -89,53 +90,52 @@ class SpaceLayout:
         #: Bytes of one row of a batch (``nbytes`` rounded up to 8, at least 8).
         self.stride = max(ROW_ALIGN, -(-offset // ROW_ALIGN) * ROW_ALIGN)
         self._single = len(self.leaves) == 1 and self.leaves[0].path == ()
-        self._encode = self._make_encoder()
 
-    # -- one value <-> bytes (worker side and action encoding) -------------------------------
+    # -- one value <-> memory (worker side) ---------------------------------------------
 
-    def _make_encoder(self) -> Callable[[Any], bytes]:
-        if self._single:
-            leaf = self.leaves[0]
-            dtype, size = leaf.dtype, leaf.nbytes
-
-            def encode_single(value: Any) -> bytes:
-                if type(value) is np.ndarray and value.dtype == dtype:
-                    b = value.tobytes()
-                else:
-                    b = np.asarray(value, dtype=dtype).tobytes()
-                if len(b) != size:
-                    raise ValueError(
-                        f"value of shape {np.shape(value)} does not fit the space {leaf.space}"
-                    )
-                return b
-
-            return encode_single
-        buf = np.zeros(self.nbytes, np.uint8)
+    def writer(self, address: int) -> Callable[[Any], None]:
+        """A function that writes one value into the ``nbytes`` bytes at ``address`` (memory
+        lent by the caller for the duration of each call), casting each leaf to its dtype and
+        checking its size (not its shape: a value of the right size is reshaped), with one
+        copy."""
+        raw = np.ctypeslib.as_array((ctypes.c_uint8 * max(self.nbytes, 1)).from_address(address))
         views = [
             (
-                leaf.path,
-                buf[leaf.offset : leaf.offset + leaf.nbytes].view(leaf.dtype).reshape(leaf.shape),
+                leaf,
+                raw[leaf.offset : leaf.offset + leaf.nbytes].view(leaf.dtype).reshape(leaf.shape),
             )
             for leaf in self.leaves
         ]
 
-        def encode_tree(value: Any) -> bytes:
-            for path, view in views:
+        def put(leaf: Leaf, dst: np.ndarray, value: Any) -> None:
+            if type(value) is np.ndarray and value.shape == leaf.shape:
+                np.copyto(dst, value, casting="unsafe")
+                return
+            arr = np.asarray(value, dtype=leaf.dtype)
+            if arr.size != dst.size:
+                raise ValueError(
+                    f"value of shape {np.shape(value)} does not fit the space {leaf.space}"
+                )
+            dst[...] = arr.reshape(leaf.shape)
+
+        if self._single:
+            leaf, dst = views[0]
+            return lambda value: put(leaf, dst, value)
+
+        def write_tree(value: Any) -> None:
+            for leaf, dst in views:
                 v = value
-                for key in path:
+                for key in leaf.path:
                     v = v[key]
-                view[...] = v
-            return buf.tobytes()
+                put(leaf, dst, v)
 
-        return encode_tree
-
-    def encode(self, value: Any) -> bytes:
-        """The ``nbytes`` bytes of one value (checks each leaf's shape)."""
-        return self._encode(value)
+        return write_tree
 
     def decode(self, data: bytes) -> Any:
         """One value from its bytes: writable arrays (a ``Discrete`` leaf as a numpy int)."""
         buf = bytearray(data)
+        if self._single:
+            return self._leaf_value(buf, self.leaves[0])
         leaves = [self._leaf_value(buf, leaf) for leaf in self.leaves]
         return self._assemble(self.space, (), iter(leaves))
 

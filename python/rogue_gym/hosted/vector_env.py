@@ -30,11 +30,13 @@ from .._records import FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRU
 from ..errors import EnvFailedError
 from ..settings import FAILURE_POLICIES, PoolSettings, parse_autoreset_mode
 from .adapter import NO_SEED, decode_exception
+from .infos import InfoDecoder, vector_infos
 from .layout import SpaceLayout
 
 __all__ = ["PoolVectorEnv"]
 
-#: Room per env and step for an env's pickled info dicts, in bytes (``info_bytes``).
+#: Room per env and step for an env's info in the worker's block, in bytes (``info_bytes``);
+#: a longer info travels beside the block, in a private file.
 DEFAULT_INFO_BYTES = 4096
 #: How long a worker of hosted envs polls for the next command before it blocks, in µs
 #: (``worker_poll_us``). Between two steps the caller runs Python (decoding, the policy), and a
@@ -80,7 +82,8 @@ class PoolVectorEnv(VectorEnv):
             (:class:`rogue_gym.WorkerCrashedError`).
         step_timeout: seconds after which a worker that has not answered is treated as hung.
         max_restarts: worker restarts allowed over the pool's life.
-        info_bytes: room per env and step for the env's pickled info dicts.
+        info_bytes: room per env and step for the env's info in shared memory (typed rows of
+            numbers and arrays, or pickles); a longer info travels beside it, more slowly.
         batch_size: envs per async :meth:`recv` (default all; otherwise a multiple of the envs
             per worker, which needs ``num_workers`` to divide ``num_envs``).
         worker_command: program and leading args of a worker (default:
@@ -225,6 +228,7 @@ class PoolVectorEnv(VectorEnv):
         )
         self._act_rows = np.zeros((n, self._act_layout.nbytes), np.uint8)
         self._done = np.zeros(n, bool)
+        self._info_decoder = InfoDecoder()
         self._started = False
         self.closed = False
 
@@ -322,8 +326,11 @@ class PoolVectorEnv(VectorEnv):
         return self._observations(slot), rewards, terminated, truncated, self._infos(recs)
 
     def close_extras(self, **kwargs: Any) -> None:
-        """Stop the workers and remove the pool's shared-memory files (idempotent)."""
-        self._finalizer()
+        """Stop the workers and remove the pool's shared-memory files (idempotent; nothing to
+        do if the constructor failed before the pool existed)."""
+        finalizer = getattr(self, "_finalizer", None)
+        if finalizer is not None:
+            finalizer()
 
     # -- EnvPool-style async API -------------------------------------------------------------
 
@@ -385,12 +392,14 @@ class PoolVectorEnv(VectorEnv):
             infos["worker_restarted"] = restarted.copy()
             infos["_worker_restarted"] = restarted.copy()
         row_of = {int(e): r for r, e in enumerate(env_id)}
-        per_row = [
-            (row_of[env], self._env_info(env, _loads(data), False))
-            for *_, extras in blocks
-            for env, data in extras
-        ]
-        infos = _merge_infos(infos, per_row, len(env_id))
+        extras = [(row_of[env], data) for *_, block_extras in blocks for env, data in block_extras]
+        infos = vector_infos(
+            infos,
+            self._info_decoder,
+            extras,
+            len(env_id),
+            lambda row, entries: self._env_info(int(env_id[row]), entries, False),
+        )
         infos["env_id"] = env_id
         return obs, recs["reward"].astype(np.float64), terminated, truncated, infos
 
@@ -506,15 +515,19 @@ class PoolVectorEnv(VectorEnv):
         if restarted.any():
             infos["worker_restarted"] = restarted.copy()
             infos["_worker_restarted"] = restarted.copy()
-        extras = {env: _loads(data) for env, data in self._pool.take_extras()}
         final = (
             set(np.flatnonzero((flags & FLAG_FINAL_OBS) != 0).tolist())
             if self._final is not None
             else set()
         )
-        envs = sorted(set(extras) | final)
-        per_env = [(e, self._env_info(e, extras.get(e, []), e in final)) for e in envs]
-        return _merge_infos(infos, per_env, self.num_envs)
+        return vector_infos(
+            infos,
+            self._info_decoder,
+            self._pool.take_extras(),
+            self.num_envs,
+            lambda env, entries: self._env_info(env, entries, env in final),
+            final,
+        )
 
     def _env_info(
         self, env: int, entries: list[tuple[str, dict[str, Any]]], final: bool
@@ -534,81 +547,6 @@ class PoolVectorEnv(VectorEnv):
             info["final_obs"] = _copy_tree(_first(self._obs_layout.batch_views(row)))
             info["final_info"] = final_info
         return info
-
-
-def _merge_infos(
-    infos: dict[str, Any], per_row: list[tuple[int, dict[str, Any]]], n: int
-) -> dict[str, Any]:
-    """gymnasium's vector infos from per-row infos (``(row, info)``, rows of a batch of
-    ``n``): what ``VectorEnv._add_info`` builds env by env, with the scalar and array values of
-    a key gathered in one array (same dtypes and masks), and the rest (nested dicts,
-    ``final_obs``, other objects) added row by row by :func:`_add_row_info`."""
-    columns: dict[str, tuple[list[int], list[Any]]] = {}
-    for env, info in per_row:
-        rest: dict[str, Any] = {}
-        for key, value in info.items():
-            if key != "final_obs" and (
-                type(value) in (int, float, bool)
-                or isinstance(value, (np.number, np.bool_, np.ndarray))
-            ):
-                ids, values = columns.setdefault(key, ([], []))
-                ids.append(env)
-                values.append(value)
-            else:
-                rest[key] = value
-        if rest:
-            infos = _add_row_info(infos, rest, env, n)
-    for key, (ids, values) in columns.items():
-        first = values[0]
-        if isinstance(first, np.ndarray):
-            if any(not isinstance(v, np.ndarray) or v.shape != first.shape for v in values):
-                for env, v in zip(ids, values):
-                    infos = _add_row_info(infos, {key: v}, env, n)
-                continue
-            array = infos.get(key)
-            if array is None:
-                array = np.zeros((n, *first.shape), first.dtype)
-            array[ids] = np.stack(values)
-        else:
-            array = infos.get(key)
-            if array is None:
-                array = np.zeros(n, dtype=type(first))
-            array[ids] = values
-        infos[key] = array
-        _mark(infos, key, ids, n)
-    return infos
-
-
-def _add_row_info(infos: dict[str, Any], info: dict[str, Any], row: int, n: int) -> dict[str, Any]:
-    """Add one row's info to vector infos of ``n`` rows, as gymnasium's ``_add_info`` does
-    (``final_obs`` and other objects in object arrays, nested dicts recursively, a ``_key``
-    mask per key)."""
-    for key, value in info.items():
-        if isinstance(value, dict) and key != "final_obs":
-            array: Any = _add_row_info(infos.get(key, {}), value, row, n)
-        else:
-            array = infos.get(key)
-            if array is None:
-                if key != "final_obs" and (
-                    type(value) in (int, float, bool) or isinstance(value, np.number)
-                ):
-                    array = np.zeros(n, dtype=type(value))
-                elif key != "final_obs" and isinstance(value, np.ndarray):
-                    array = np.zeros((n, *value.shape), dtype=value.dtype)
-                else:
-                    array = np.full(n, None, dtype=object)
-            array[row] = value
-        infos[key] = array
-        _mark(infos, key, row, n)
-    return infos
-
-
-def _mark(infos: dict[str, Any], key: str, rows: Any, n: int) -> None:
-    """Set the ``_key`` mask of vector infos of ``n`` rows at ``rows``."""
-    mask = infos.get(f"_{key}")
-    if mask is None:
-        mask = infos[f"_{key}"] = np.zeros(n, np.bool_)
-    mask[rows] = True
 
 
 def _env_exception(err: BaseException) -> BaseException:
@@ -644,10 +582,6 @@ def _reraise(err: EnvFailedError) -> NoReturn:
             if hasattr(exc, "add_note"):
                 exc.add_note(f"also failed in the same call: {type(o).__name__}: {o}")
     raise exc from None
-
-
-def _loads(data: bytes) -> Any:
-    return pickle.loads(data)
 
 
 def _first(tree: Any) -> Any:

@@ -1,0 +1,457 @@
+#!/usr/bin/env python3
+"""Third-party gymnasium envs through the pool and the usual vector envs, side by side.
+
+Envs (nobody here wrote them):
+
+===============  ===========================================================================
+``pong``         ``ALE/Pong-v5`` as registered (210x160x3 frames, frameskip 4)
+``pong-pre``     the usual training set-up: ``ALE/Pong-v5`` with ``frameskip=1``,
+                 ``AtariPreprocessing`` (84x84 gray, frame skip 4) and a 4-frame stack
+``nethack``      NLE's ``NetHackScore-v0``
+``halfcheetah``  MuJoCo ``HalfCheetah-v5`` (a continuous action, four per-step info numbers)
+``minigrid``     ``MiniGrid-DoorKey-8x8-v0`` with ``ImgObsWrapper``
+``crafter``      Crafter (``crafter.Env``) behind a small gymnasium adapter; its info holds
+                 nested dicts and a 64x64 map (about 5 KB pickled)
+``cartpole``     ``CartPole-v1`` (the cheap pure-Python anchor)
+===============  ===========================================================================
+
+Backends: ``pool`` (``rogue_gym.PoolVectorEnv``), ``gym-sync`` (``SyncVectorEnv``),
+``gym-async`` (``AsyncVectorEnv(shared_memory=True)``, one process per env), ``sb3-subproc``
+(``SubprocVecEnv``, forkserver, one process per env), ``envpool`` (EnvPool's C++ pool, Pong
+and HalfCheetah only) and ``ale-vector`` (ale-py's C++ ``AtariVectorEnv``, Pong only). EnvPool
+and ale-py's vector env are asked for the same frames as the Python set-up (raw 210x160x3 for
+``pong``; 84x84 gray, 4-stack for ``pong-pre``).
+
+Protocol: every cell (env x backend x num_envs x repetition) runs in a fresh child process;
+construction and the first reset are excluded; after a warm-up, ``step`` is called with
+actions sampled in advance from the action space for a fixed wall-clock window. The order
+of cells is shuffled per repetition and the median over repetitions is reported.
+``OMP_NUM_THREADS=1``; the pool and the C++ pools use ``--workers`` workers or threads.
+
+Set-up (once; installs the envs into ``.venv-bench``, not into the test set-up's ``.venv``)::
+
+    bash benchmarks/setup-real-envs.sh
+
+Usage::
+
+    .venv-bench/bin/python benchmarks/real_envs.py                      # 64 envs, ~25 min
+    .venv-bench/bin/python benchmarks/real_envs.py --num-envs 16 64 256  # the sweep
+    .venv-bench/bin/python benchmarks/real_envs.py --envs pong --backends pool gym-sync
+    .venv-bench/bin/python benchmarks/real_envs.py --from-json benchmarks/results/real_envs/real_envs.json
+
+Writes ``real_envs.md``, ``real_envs.json`` and ``real_envs.png`` under ``--out`` (default
+``benchmarks/results/real_envs``). A backend that is not installed, or that does not offer an
+env, is listed as skipped with the reason.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import random
+import statistics
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable, ClassVar, Optional
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from hosted_throughput import run_isolated
+
+ENVS = ["pong", "pong-pre", "nethack", "halfcheetah", "minigrid", "crafter", "cartpole"]
+BACKENDS = ["pool", "gym-sync", "gym-async", "sb3-subproc", "envpool", "ale-vector"]
+#: Backends with one process per env (the worker count does not apply).
+PER_ENV_PROCESS = ("gym-async", "sb3-subproc")
+
+
+def _crafter_env() -> Any:
+    """Crafter (old gym API) as a gymnasium env."""
+    import crafter
+    import gymnasium as gym
+    import numpy as np
+    from gymnasium import spaces
+
+    class Crafter(gym.Env):
+        observation_space = spaces.Box(0, 255, (64, 64, 3), np.uint8)
+        action_space = spaces.Discrete(17)
+        metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
+
+        def __init__(self) -> None:
+            self.env: Any = None
+
+        def reset(self, *, seed: Optional[int] = None, options: Any = None) -> Any:
+            super().reset(seed=seed)
+            if self.env is None or seed is not None:
+                self.env = crafter.Env(seed=int(self.np_random.integers(2**31)))
+            return self.env.reset(), {}
+
+        def step(self, action: Any) -> Any:
+            obs, reward, done, info = self.env.step(int(action))
+            # Crafter ends an episode by time (10000 steps) or by death (health 0).
+            dead = info["inventory"]["health"] <= 0
+            return obs, float(reward), bool(done and dead), bool(done and not dead), info
+
+    return Crafter()
+
+
+def env_fn(env: str) -> Callable[[], Any]:
+    """A callable building one env (picklable by cloudpickle)."""
+    import gymnasium as gym
+
+    if env == "pong":
+
+        def pong() -> Any:
+            import ale_py
+
+            gym.register_envs(ale_py)
+            return gym.make("ALE/Pong-v5")
+
+        return pong
+    if env == "pong-pre":
+
+        def pong_pre() -> Any:
+            import ale_py
+
+            gym.register_envs(ale_py)
+            e = gym.make("ALE/Pong-v5", frameskip=1)
+            e = gym.wrappers.AtariPreprocessing(e, frame_skip=4, screen_size=84, noop_max=30)
+            return gym.wrappers.FrameStackObservation(e, 4)
+
+        return pong_pre
+    if env == "nethack":
+
+        def nethack() -> Any:
+            import nle  # noqa: F401  (registers the envs)
+
+            return gym.make("NetHackScore-v0")
+
+        return nethack
+    if env == "halfcheetah":
+        return lambda: gym.make("HalfCheetah-v5")
+    if env == "minigrid":
+
+        def minigrid() -> Any:
+            import minigrid as mg
+            from minigrid.wrappers import ImgObsWrapper
+
+            mg.register_minigrid_envs()
+            return ImgObsWrapper(gym.make("MiniGrid-DoorKey-8x8-v0"))
+
+        return minigrid
+    if env == "crafter":
+        return _crafter_env
+    if env == "cartpole":
+        return lambda: gym.make("CartPole-v1")
+    raise ValueError(f"unknown env {env}")
+
+
+def _envpool(env: str, n: int, workers: int) -> Any:
+    import envpool
+
+    common = {"num_envs": n, "num_threads": workers, "seed": 0}
+    if env == "pong":
+        raw = {"img_height": 210, "img_width": 160, "gray_scale": False, "stack_num": 1}
+        raw |= {"episodic_life": False, "reward_clip": False, "noop_max": 1}
+        raw |= {"repeat_action_probability": 0.25, "use_fire_reset": False}
+        return envpool.make_gymnasium("Pong-v5", **common, **raw)
+    if env == "pong-pre":
+        pre = {"episodic_life": False, "reward_clip": False, "repeat_action_probability": 0.25}
+        return envpool.make_gymnasium("Pong-v5", **common, **pre, use_fire_reset=False)
+    if env == "halfcheetah":
+        return envpool.make_gymnasium("HalfCheetah-v4", **common)
+    raise LookupError(f"envpool has no {env} here")
+
+
+def _ale_vector(env: str, n: int, workers: int) -> Any:
+    from ale_py.vector_env import AtariVectorEnv
+
+    common = {"num_envs": n, "num_threads": workers, "repeat_action_probability": 0.25}
+    common |= {"reward_clipping": False, "use_fire_reset": False}
+    if env == "pong":
+        raw = {"img_height": 210, "img_width": 160, "grayscale": False, "stack_num": 1}
+        return AtariVectorEnv("pong", **common, **raw, maxpool=False, noop_max=0)
+    if env == "pong-pre":
+        return AtariVectorEnv("pong", **common)
+    raise LookupError(f"ale-py's vector env runs Atari only, not {env}")
+
+
+def build(backend: str, env: str, n: int, workers: int) -> Any:
+    """The vector env, reset (everything before the timed window)."""
+    if backend == "envpool":
+        v = _envpool(env, n, workers)
+        v.reset()
+        return v
+    if backend == "ale-vector":
+        v = _ale_vector(env, n, workers)
+        v.reset(seed=0)
+        return v
+    fn = env_fn(env)
+    if backend == "pool":
+        import rogue_gym
+
+        v = rogue_gym.PoolVectorEnv([fn] * n, num_workers=workers)
+    elif backend == "gym-sync":
+        import gymnasium as gym
+
+        v = gym.vector.SyncVectorEnv([fn] * n)
+    elif backend == "gym-async":
+        import gymnasium as gym
+
+        v = gym.vector.AsyncVectorEnv([fn] * n, shared_memory=True)
+    elif backend == "sb3-subproc":
+        import multiprocessing as mp
+
+        from stable_baselines3.common.vec_env import SubprocVecEnv
+
+        mp.set_forkserver_preload(["stable_baselines3.common.vec_env.subproc_vec_env", "gymnasium"])
+        v = SubprocVecEnv([fn] * n, start_method="forkserver")
+        v.seed(0)
+        v.reset()
+        return v
+    else:
+        raise ValueError(f"unknown backend {backend}")
+    v.reset(seed=0)
+    return v
+
+
+def run_cell(cell: dict[str, Any]) -> dict[str, Any]:
+    n, env, backend = int(cell["num_envs"]), cell["env"], cell["backend"]
+    v = build(backend, env, n, int(cell["workers"]))
+    space = v.action_space
+    space.seed(12345)
+    acts = [space.sample() for _ in range(32)]
+    step = v.step
+    try:
+        for i in range(int(cell["warmup"])):
+            step(acts[i % 32])
+        i, start = 0, time.perf_counter()
+        deadline = start + float(cell["seconds"])
+        cpu0 = time.process_time()
+        while time.perf_counter() < deadline or i < 3:
+            step(acts[i % 32])
+            i += 1
+        wall = time.perf_counter() - start
+        caller_cpu = time.process_time() - cpu0
+    finally:
+        v.close()
+    return {**cell, "steps_per_s": i * n / wall, "batches": i, "caller_cpu": caller_cpu / wall}
+
+
+def cells(args: argparse.Namespace) -> list[dict[str, Any]]:
+    out = []
+    for env in args.envs:
+        for n in args.num_envs:
+            for backend in args.backends:
+                if backend == "envpool" and env not in ("pong", "pong-pre", "halfcheetah"):
+                    continue
+                if backend == "ale-vector" and env not in ("pong", "pong-pre"):
+                    continue
+                if backend in PER_ENV_PROCESS and n > args.max_processes:
+                    continue
+                workers = 1 if backend == "gym-sync" else args.workers
+                out.append(
+                    {
+                        "env": env,
+                        "backend": backend,
+                        "num_envs": n,
+                        "workers": workers,
+                        "seconds": args.seconds,
+                        "warmup": args.warmup,
+                    }
+                )
+    return out
+
+
+Key = tuple[str, str, int]
+
+
+def key(c: dict[str, Any]) -> Key:
+    return (c["env"], c["backend"], int(c["num_envs"]))
+
+
+def main(argv: Optional[list[str]] = None) -> None:
+    p = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n")[0])
+    p.add_argument("--envs", nargs="+", default=ENVS, choices=ENVS)
+    p.add_argument("--backends", nargs="+", default=BACKENDS, choices=BACKENDS)
+    p.add_argument("--num-envs", nargs="+", type=int, default=[64])
+    p.add_argument("--workers", type=int, default=2, help="pool workers, C++ pool threads")
+    p.add_argument("--reps", type=int, default=3)
+    p.add_argument("--seconds", type=float, default=4.0)
+    p.add_argument("--warmup", type=int, default=10)
+    p.add_argument(
+        "--max-processes",
+        type=int,
+        default=64,
+        help="skip one-process-per-env backends above this many envs",
+    )
+    p.add_argument(
+        "--timeout", type=float, default=240.0, help="seconds per cell, start-up included"
+    )
+    p.add_argument("--out", default=str(Path(__file__).parent / "results" / "real_envs"))
+    p.add_argument("--cell", help=argparse.SUPPRESS)
+    p.add_argument("--from-json", help="rewrite the table and plot from a results JSON")
+    args = p.parse_args(argv)
+    if args.cell:
+        print(json.dumps(run_cell(json.loads(args.cell))))
+        return
+    if args.from_json:
+        raw = json.loads(Path(args.from_json).read_text())
+        for name in ("reps", "seconds", "num_envs", "workers"):
+            setattr(args, name, raw["args"][name])
+        runs = {tuple(r["cell"]): r["runs"] for r in raw["runs"]}
+        failed = {tuple(r["cell"]): r["reason"] for r in raw["failed"]}
+        write(args, runs, failed)
+        return
+
+    todo = cells(args)
+    runs: dict[Key, list[dict[str, Any]]] = {}
+    failed: dict[Key, str] = {}
+    total, done = len(todo) * args.reps, 0
+    for rep in range(args.reps):
+        random.Random(rep).shuffle(todo)
+        for cell in todo:
+            done += 1
+            k = key(cell)
+            if k in failed:
+                continue
+            code, stdout, stderr = run_isolated(
+                [sys.executable, __file__, "--cell", json.dumps(cell)],
+                args.timeout,
+                dict(os.environ),
+            )
+            if code is None:
+                failed[k] = f"timed out after {args.timeout:.0f} s"
+            elif code != 0:
+                lines = stderr.strip().splitlines()
+                failed[k] = lines[-1][:200] if lines else f"exit code {code}"
+            else:
+                runs.setdefault(k, []).append(json.loads(stdout.strip().splitlines()[-1]))
+            shown = (
+                f"{runs[k][-1]['steps_per_s']:>10,.0f} steps/s"
+                if k not in failed
+                else f"skipped: {failed[k]}"
+            )
+            print(f"[{done}/{total}] {k[0]:11s} {k[1]:11s} n={k[2]:<4d} {shown}", flush=True)
+    write(args, runs, failed)
+
+
+def _median(rs: list[dict[str, Any]], field: str = "steps_per_s") -> float:
+    return statistics.median(r[field] for r in rs)
+
+
+def write(args: argparse.Namespace, runs: dict[Key, list[dict[str, Any]]], failed: dict) -> None:
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    med = {k: _median(v) for k, v in runs.items()}
+    lines = [
+        "# Third-party envs: steps/s by backend",
+        "",
+        f"Machine: {platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}. "
+        f"Median of {args.reps} runs of {args.seconds:.0f} s each; random actions sampled in "
+        f"advance; one fresh process per run. The pool and the C++ pools: {args.workers} "
+        "workers or threads; SyncVectorEnv steps in the caller; AsyncVectorEnv and "
+        "SubprocVecEnv start one process per env.",
+        "",
+        "| env | num_envs | backend | steps/s (median) | min-max | caller CPU | pool / this |",
+        "|---|---:|---|---:|---:|---:|---:|",
+    ]
+    for k in sorted(set(runs) | set(failed)):
+        env, backend, n = k
+        if k in failed:
+            lines.append(f"| {env} | {n} | {backend} | skipped: {failed[k]} | | | |")
+            continue
+        v = [r["steps_per_s"] for r in runs[k]]
+        pool = med.get((env, "pool", n))
+        ratio = f"{pool / med[k]:.2f}x" if pool and backend != "pool" else ""
+        cpu = _median(runs[k], "caller_cpu")
+        lines.append(
+            f"| {env} | {n} | {backend} | {med[k]:,.0f} | {min(v):,.0f}-{max(v):,.0f} | {cpu:.0%} | {ratio} |"
+        )
+    lines += ["", "## The pool against each backend (ratio of medians)", ""]
+    others = [b for b in BACKENDS if b != "pool"]
+    for n in args.num_envs:
+        lines += [f"{n} envs:", "", "| env | " + " | ".join(others) + " |"]
+        lines.append("|---|" + "---:|" * len(others))
+        for env in ENVS:
+            pool = med.get((env, "pool", n))
+            if pool is None:
+                continue
+            cols = [f"{pool / med[(env, b, n)]:.2f}x" if (env, b, n) in med else "" for b in others]
+            lines.append(f"| {env} | " + " | ".join(cols) + " |")
+        lines.append("")
+    (out / "real_envs.md").write_text("\n".join(lines) + "\n")
+    raw = {
+        "args": {k: v for k, v in vars(args).items() if k not in ("cell", "from_json")},
+        "machine": {"cpus": os.cpu_count(), "python": platform.python_version()},
+        "runs": [{"cell": list(k), "runs": v} for k, v in runs.items()],
+        "failed": [{"cell": list(k), "reason": r} for k, r in failed.items()],
+    }
+    (out / "real_envs.json").write_text(json.dumps(raw, indent=1) + "\n")
+    plot(med, out / "real_envs.png")
+    print("\n".join(lines))
+
+
+COLORS = {
+    "pool": "tab:red",
+    "gym-sync": "tab:blue",
+    "gym-async": "tab:green",
+    "sb3-subproc": "tab:purple",
+    "envpool": "tab:orange",
+    "ale-vector": "tab:brown",
+}
+
+
+def plot(med: dict[Key, float], path: Path) -> None:
+    """Steps/s per backend, one panel per env (bars for one ``num_envs``, lines for a sweep);
+    skipped without matplotlib."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("matplotlib is not installed: no plot")
+        return
+    envs = [e for e in ENVS if any(k[0] == e for k in med)]
+    if not envs:
+        return
+    sizes = sorted({k[2] for k in med})
+    cols = min(4, len(envs))
+    rows = -(-len(envs) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.4 * rows), squeeze=False)
+    for ax, env in zip(axes.flat, envs):
+        for backend in BACKENDS:
+            pts = [(n, med[(env, backend, n)]) for n in sizes if (env, backend, n) in med]
+            if not pts:
+                continue
+            if len(sizes) > 1:
+                ax.plot(
+                    *zip(*pts),
+                    marker="o",
+                    color=COLORS[backend],
+                    label=backend,
+                    linewidth=2.5 if backend == "pool" else 1.2,
+                )
+            else:
+                ax.bar(backend, pts[0][1], color=COLORS[backend])
+        if len(sizes) > 1:
+            ax.set_xscale("log", base=2)
+            ax.set_xlabel("num_envs")
+            ax.legend(fontsize=7)
+        else:
+            ax.tick_params(axis="x", labelsize=7, rotation=30)
+        ax.set_yscale("log")
+        ax.set_ylabel("steps/s (median)")
+        ax.set_title(env)
+    for ax in list(axes.flat)[len(envs) :]:
+        ax.axis("off")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,360 @@
+"""Info dicts across the pool, and gymnasium's vector infos built from them.
+
+Worker side (:class:`InfoEncoder`): an env's info dict becomes bytes. An info whose values are
+numbers (``int``, ``float``, ``bool``, numpy scalars) and numpy arrays of numbers, in nested
+dicts of string keys, is a *typed row*: a header naming its structure, the structure itself
+(a small pickle, so that the caller can decode any row on first sight), then the values' raw
+bytes. The structure is laid out once per distinct set of keys, types, dtypes and shapes, and
+again whenever it changes. Anything else (strings, lists, objects) is pickled, as a list of
+``("reset" | "step", info)`` entries.
+
+Caller side (:func:`vector_infos`): the rows of one call are grouped by structure, and each
+group becomes numpy columns in one ``np.frombuffer`` over its rows, so an info costs no
+per-env Python work. The result is what gymnasium's ``VectorEnv._add_info`` builds env by
+env: the same keys, dtypes, ``_key`` masks and nesting.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import pickle
+import struct
+from collections.abc import Iterable
+from typing import Any, Callable, Optional
+
+import numpy as np
+
+__all__ = ["InfoDecoder", "InfoEncoder", "add_row_info", "vector_infos"]
+
+#: Marks a typed row (a pickle starts with 0x80).
+MAGIC = b"RGi1"
+#: ``magic, kind (0 reset, 1 step), structure hash, structure length``; 24 bytes.
+_HEADER = struct.Struct("<4sB3xQI4x")
+HEADER_BYTES = _HEADER.size
+KINDS = ("reset", "step")
+#: At most this many structures are remembered per env (an env whose shapes never repeat
+#: falls back to pickles rather than growing without bound).
+MAX_STRUCTURES = 64
+
+#: struct format characters of numpy scalar kinds and sizes.
+_STRUCT_CHARS = {
+    ("i", 1): "b",
+    ("i", 2): "h",
+    ("i", 4): "i",
+    ("i", 8): "q",
+    ("u", 1): "B",
+    ("u", 2): "H",
+    ("u", 4): "I",
+    ("u", 8): "Q",
+    ("f", 2): "e",
+    ("f", 4): "f",
+    ("f", 8): "d",
+    ("b", 1): "?",
+}
+#: Array dtypes that travel as raw bytes.
+_ARRAY_KINDS = "biufc"
+
+# A structure is a tuple of ``(key, node)``; a node is a nested structure (a dict), or a leaf
+# ``("s", type name or dtype string)`` (a scalar) or ``("a", dtype string, shape)`` (an array).
+Structure = tuple[tuple[str, Any], ...]
+_PY_SCALARS: dict[type, tuple[str, str]] = {
+    int: ("int", "q"),
+    float: ("float", "d"),
+    bool: ("bool", "?"),
+}
+
+
+def _signature(info: dict[str, Any]) -> tuple[Any, ...]:
+    """What must match for two infos to share a layout (keys in order, value types, array
+    dtypes and shapes)."""
+    out: list[Any] = []
+    for key, value in info.items():
+        t = type(value)
+        if t is np.ndarray:
+            out.append((key, value.dtype, value.shape))
+        elif t is dict:
+            out.append((key, _signature(value)))
+        else:
+            out.append((key, t))
+    return tuple(out)
+
+
+class _Layout:
+    """The typed-row layout of one structure (worker side)."""
+
+    def __init__(self, info: dict[str, Any]) -> None:
+        scalars: list[str] = []
+        arrays = 0
+
+        def describe(d: dict[str, Any]) -> Structure:
+            nonlocal arrays
+            nodes: list[tuple[str, Any]] = []
+            for key, value in d.items():
+                if type(key) is not str:
+                    raise TypeError("non-string key")
+                t = type(value)
+                if t is dict:
+                    nodes.append((key, describe(value)))
+                elif t in _PY_SCALARS:
+                    name, char = _PY_SCALARS[t]
+                    nodes.append((key, ("s", name)))
+                    scalars.append(char)
+                elif isinstance(value, np.generic) and issubclass(t, np.number):
+                    dt = np.dtype(t)
+                    code = _STRUCT_CHARS.get((dt.kind, dt.itemsize))
+                    if code is None:
+                        raise TypeError(f"no struct code for {dt}")
+                    nodes.append((key, ("s", dt.str)))
+                    scalars.append(code)
+                elif t is np.ndarray and value.dtype.kind in _ARRAY_KINDS:
+                    nodes.append((key, ("a", value.dtype.str, value.shape)))
+                    arrays += 1
+                else:
+                    raise TypeError(f"{t.__name__} is not typed")
+            return tuple(nodes)
+
+        self.structure = describe(info)
+        self.has_arrays = arrays > 0
+        self.pack = struct.Struct("<" + "".join(scalars)).pack
+        desc = pickle.dumps(self.structure, protocol=4)
+        digest = int.from_bytes(hashlib.blake2b(desc, digest_size=8).digest(), "little")
+        pad = b"\0" * (-len(desc) % 8)
+        self.prefixes = [_HEADER.pack(MAGIC, k, digest, len(desc)) + desc + pad for k in (0, 1)]
+
+    def encode(self, info: dict[str, Any], kind: int) -> bytes:
+        if not self.has_arrays:
+            return self.prefixes[kind] + self.pack(*_flat_scalars(info))
+        scalars: list[Any] = []
+        arrays: list[bytes] = []
+        _split(info, scalars, arrays)
+        return b"".join([self.prefixes[kind], self.pack(*scalars), *arrays])
+
+
+def _flat_scalars(info: dict[str, Any]) -> Iterable[Any]:
+    for value in info.values():
+        if type(value) is dict:
+            yield from _flat_scalars(value)
+        else:
+            yield value
+
+
+def _split(info: dict[str, Any], scalars: list[Any], arrays: list[bytes]) -> None:
+    for value in info.values():
+        t = type(value)
+        if t is dict:
+            _split(value, scalars, arrays)
+        elif t is np.ndarray:
+            arrays.append(value.tobytes())
+        else:
+            scalars.append(value)
+
+
+class InfoEncoder:
+    """One env's info dicts as bytes (see the module docs); remembers its layouts."""
+
+    def __init__(self) -> None:
+        self._layouts: dict[tuple[Any, ...], Optional[_Layout]] = {}
+
+    def encode(self, entries: list[tuple[str, dict[str, Any]]]) -> bytes:
+        """The bytes of one call's entries: a typed row for a single typed info, else the
+        pickled entries."""
+        if len(entries) == 1:
+            kind, info = entries[0]
+            try:
+                sig = _signature(info)
+                layout = self._layouts.get(sig, ...)
+                if layout is ...:
+                    try:
+                        layout = _Layout(info)
+                    except TypeError:
+                        layout = None
+                    if len(self._layouts) >= MAX_STRUCTURES:
+                        self._layouts.clear()
+                    self._layouts[sig] = layout
+                if layout is not None:
+                    return layout.encode(info, KINDS.index(kind))
+            except (struct.error, OverflowError, TypeError):
+                pass  # e.g. an int beyond int64: pickled as it is
+        return pickle.dumps(entries, protocol=pickle.HIGHEST_PROTOCOL)
+
+
+class _Decoded:
+    """A typed row's layout on the caller's side: one numpy record per row."""
+
+    def __init__(self, structure: Structure, offset: int) -> None:
+        self.structure = structure
+        scalars: list[tuple[tuple[str, ...], np.dtype, Callable[[Any], Any]]] = []
+        arrays: list[tuple[tuple[str, ...], np.dtype, tuple[int, ...]]] = []
+
+        def visit(nodes: Structure, path: tuple[str, ...]) -> None:
+            for key, node in nodes:
+                if node and node[0] == "s" and isinstance(node[1], str):
+                    name = node[1]
+                    if name in ("int", "float", "bool"):
+                        t: Any = {"int": int, "float": float, "bool": bool}[name]
+                        scalars.append(((*path, key), np.dtype(t), t))
+                    else:
+                        dt = np.dtype(name)
+                        scalars.append(((*path, key), dt, dt.type))
+                elif node and node[0] == "a" and isinstance(node[1], str):
+                    arrays.append(((*path, key), np.dtype(node[1]), tuple(node[2])))
+                else:
+                    visit(node, (*path, key))
+
+        visit(structure, ())
+        names: list[str] = []
+        formats: list[Any] = []
+        offsets: list[int] = []
+        #: path -> (field name, vector dtype, shape, make a single value)
+        self.leaves: dict[tuple[str, ...], tuple[str, np.dtype, tuple[int, ...], Any]] = {}
+        for path, dt, make in scalars:
+            name = f"f{len(names)}"
+            names.append(name)
+            formats.append(dt.newbyteorder("<"))
+            offsets.append(offset)
+            offset += dt.itemsize
+            self.leaves[path] = (name, dt, (), make)
+        for path, dt, shape in arrays:
+            name = f"f{len(names)}"
+            names.append(name)
+            formats.append((dt, shape) if shape else dt)
+            offsets.append(offset)
+            offset += dt.itemsize * int(np.prod(shape, dtype=np.int64))
+            self.leaves[path] = (name, dt, shape, None)
+        self.dtype = np.dtype(
+            {"names": names, "formats": formats, "offsets": offsets, "itemsize": max(offset, 1)}
+        )
+        self.itemsize = offset
+
+    def put(self, infos: dict[str, Any], records: np.ndarray, rows: np.ndarray, n: int) -> None:
+        """Add the records of ``rows`` (of a batch of ``n``) to vector infos."""
+
+        def visit(target: dict[str, Any], nodes: Structure, path: tuple[str, ...]) -> None:
+            for key, node in nodes:
+                leaf = self.leaves.get((*path, key))
+                if leaf is None:
+                    sub = target.get(key)
+                    if not isinstance(sub, dict):
+                        sub = target[key] = {}
+                    visit(sub, node, (*path, key))
+                else:
+                    name, dt, shape, _ = leaf
+                    array = target.get(key)
+                    if array is None:
+                        array = target[key] = np.zeros((n, *shape), dt)
+                    array[rows] = records[name]
+                mask = target.get(f"_{key}")
+                if mask is None:
+                    mask = target[f"_{key}"] = np.zeros(n, np.bool_)
+                mask[rows] = True
+
+        visit(infos, self.structure, ())
+
+    def one(self, data: bytes) -> dict[str, Any]:
+        """One row as the env's own info dict (same value types)."""
+        record = np.frombuffer(data, self.dtype, 1)[0]
+
+        def build(nodes: Structure, path: tuple[str, ...]) -> dict[str, Any]:
+            out: dict[str, Any] = {}
+            for key, node in nodes:
+                leaf = self.leaves.get((*path, key))
+                if leaf is None:
+                    out[key] = build(node, (*path, key))
+                else:
+                    name, _, _, make = leaf
+                    value = record[name]
+                    out[key] = make(value) if make is not None else np.array(value)
+            return out
+
+        return build(self.structure, ())
+
+
+class InfoDecoder:
+    """Decodes the info bytes of many envs (caller side); remembers the layouts it saw."""
+
+    def __init__(self) -> None:
+        self._layouts: dict[bytes, _Decoded] = {}
+
+    def _layout(self, data: bytes) -> _Decoded:
+        head = data[:HEADER_BYTES]
+        layout = self._layouts.get(head[8:16])
+        if layout is None:
+            _, _, _, length = _HEADER.unpack(head)
+            structure = pickle.loads(data[HEADER_BYTES : HEADER_BYTES + length])
+            layout = _Decoded(structure, HEADER_BYTES + length + (-length % 8))
+            self._layouts[head[8:16]] = layout
+        return layout
+
+    def entries(self, data: bytes) -> list[tuple[str, dict[str, Any]]]:
+        """One env's ``("reset" | "step", info)`` entries."""
+        if data[:4] != MAGIC:
+            return pickle.loads(data)
+        return [(KINDS[data[4]], self._layout(data).one(data))]
+
+    def put_typed(self, infos: dict[str, Any], rows: list[tuple[int, bytes]], n: int) -> bool:
+        """Add typed rows to vector infos, a group of rows of the same structure at a time;
+        ``False`` (nothing added) if any row is not typed."""
+        groups: dict[bytes, list[tuple[int, bytes]]] = {}
+        for row, data in rows:
+            if data[:4] != MAGIC:
+                return False
+            groups.setdefault(data[8:16], []).append((row, data))
+        # The group holding the lowest row of a key decides its dtype, as env order does in
+        # gymnasium: groups are taken by their lowest row.
+        for group in sorted(groups.values(), key=lambda g: g[0][0]):
+            layout = self._layout(group[0][1])
+            records = np.frombuffer(b"".join(d for _, d in group), layout.dtype)
+            ids = np.fromiter((r for r, _ in group), np.intp, len(group))
+            layout.put(infos, records, ids, n)
+        return True
+
+
+def add_row_info(infos: dict[str, Any], info: dict[str, Any], row: int, n: int) -> dict[str, Any]:
+    """Add one row's info to vector infos of ``n`` rows, as gymnasium's ``_add_info`` does
+    (``final_obs`` and other objects in object arrays, nested dicts recursively, a ``_key``
+    mask per key)."""
+    for key, value in info.items():
+        if isinstance(value, dict) and key != "final_obs":
+            array: Any = add_row_info(infos.get(key, {}), value, row, n)
+        else:
+            array = infos.get(key)
+            if array is None:
+                if key != "final_obs" and (
+                    type(value) in (int, float, bool) or isinstance(value, np.number)
+                ):
+                    array = np.zeros(n, dtype=type(value))
+                elif key != "final_obs" and isinstance(value, np.ndarray):
+                    array = np.zeros((n, *value.shape), dtype=value.dtype)
+                else:
+                    array = np.full(n, None, dtype=object)
+            array[row] = value
+        infos[key] = array
+        mask = infos.get(f"_{key}")
+        if mask is None:
+            mask = infos[f"_{key}"] = np.zeros(n, np.bool_)
+        mask[row] = True
+    return infos
+
+
+def vector_infos(
+    infos: dict[str, Any],
+    decoder: InfoDecoder,
+    extras: list[tuple[int, bytes]],
+    n: int,
+    env_info: Callable[[int, list[tuple[str, dict[str, Any]]]], dict[str, Any]],
+    special: Iterable[int] = (),
+) -> dict[str, Any]:
+    """gymnasium's vector infos of one call: ``extras`` are ``(row, info bytes)`` of a batch
+    of ``n`` rows. Typed rows go in as columns; when some row is pickled, or is ``special``
+    (its info needs ``env_info``'s per-env treatment, e.g. a SAME_STEP final observation),
+    every row goes in one by one, in row order, through ``env_info(row, entries)``."""
+    special = set(special)
+    if not special and decoder.put_typed(infos, extras, n):
+        return infos
+    by_row = dict(extras)
+    for row in sorted(set(by_row) | special):
+        data = by_row.get(row)
+        info = env_info(row, decoder.entries(data) if data is not None else [])
+        if info:
+            infos = add_row_info(infos, info, row, n)
+    return infos
