@@ -38,6 +38,7 @@ Usage::
     .venv-bench/bin/python benchmarks/real_envs.py --num-envs 16 64 256  # the sweep
     .venv-bench/bin/python benchmarks/real_envs.py --envs pong --backends pool gym-sync
     .venv-bench/bin/python benchmarks/real_envs.py --from-json benchmarks/results/real_envs/real_envs.json
+    .venv-bench/bin/python benchmarks/real_envs.py --profile halfcheetah --seconds 6  # py-spy
 
 Writes ``real_envs.md``, ``real_envs.json`` and ``real_envs.png`` under ``--out`` (default
 ``benchmarks/results/real_envs``). A backend that is not installed, or that does not offer an
@@ -241,6 +242,75 @@ def run_cell(cell: dict[str, Any]) -> dict[str, Any]:
     return {**cell, "steps_per_s": i * n / wall, "batches": i, "caller_cpu": caller_cpu / wall}
 
 
+#: Where a sampled frame's time goes, by the innermost frame's name (first match wins).
+PROFILE_GROUPS = [
+    ("polling (sched_yield, clock)", ("sched_yield", "vdso", "clock_gettime")),
+    ("transport (notify, wake-ups)", ("sendto", "recvfrom", "epoll", "futex", "poll (")),
+    ("rogue_gym: infos", ("rogue_gym/hosted/infos.py",)),
+    ("rogue_gym: observations, actions", ("rogue_gym/hosted/layout.py",)),
+    ("rogue_gym: adapter and front end", ("rogue_gym/",)),
+    ("copies (memcpy)", ("memcpy", "memmove")),
+]
+
+
+def profile(env: str, workers: int, seconds: float, out: Path) -> None:
+    """Sample the caller and worker 0 of a pool cell with py-spy (native frames included) and
+    print where their time goes; the raw samples go to ``out``."""
+    import shutil
+    import subprocess
+
+    spy = shutil.which("py-spy") or str(Path(sys.executable).parent / "py-spy")
+    if not Path(spy).exists():
+        raise SystemExit("py-spy is not installed (bash benchmarks/setup-real-envs.sh installs it)")
+    cell = {"env": env, "backend": "pool", "num_envs": 64, "workers": workers}
+    cell |= {"seconds": seconds + 30, "warmup": 10}
+    proc = subprocess.Popen([sys.executable, __file__, "--cell", json.dumps(cell)])
+    try:
+        deadline = time.monotonic() + 120
+        workers_of: list[str] = []
+        while not workers_of and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(1)
+            ps = subprocess.run(["pgrep", "-P", str(proc.pid)], capture_output=True, text=True)
+            workers_of = ps.stdout.split()
+        if not workers_of:
+            raise SystemExit(f"no worker of the {env} pool appeared")
+        time.sleep(10)  # past construction and warm-up
+        out.mkdir(parents=True, exist_ok=True)
+        spies = [
+            subprocess.Popen(
+                [
+                    *(spy, "record", "-p", pid, "-d", str(int(seconds)), "-r", "200"),
+                    *("--native", "-f", "raw", "-o", str(out / f"{env}-{who}.txt")),
+                ],
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+            )
+            for who, pid in (("caller", str(proc.pid)), ("worker", workers_of[0]))
+        ]
+        for p in spies:
+            p.wait(timeout=seconds + 60)
+    finally:
+        proc.kill()
+        proc.wait()
+    for who in ("caller", "worker"):
+        groups: dict[str, int] = {}
+        total = 0
+        for line in (out / f"{env}-{who}.txt").read_text().splitlines():
+            stack, _, count = line.rpartition(" ")
+            inner = stack.split(";")
+            frame = inner[-1]
+            n = int(count)
+            total += n
+            group = next((g for g, keys in PROFILE_GROUPS if any(k in frame for k in keys)), None)
+            if group is None:
+                in_ours = any("rogue_gym/" in f for f in inner[-3:])
+                group = "rogue_gym: adapter and front end" if in_ours else "the env and the rest"
+            groups[group] = groups.get(group, 0) + n
+        print(f"\n{env}, {who} ({total} samples):")
+        for g, n in sorted(groups.items(), key=lambda x: -x[1]):
+            print(f"  {n / max(total, 1):6.1%}  {g}")
+
+
 def cells(args: argparse.Namespace) -> list[dict[str, Any]]:
     out = []
     for env in args.envs:
@@ -292,11 +362,19 @@ def main(argv: Optional[list[str]] = None) -> None:
         "--timeout", type=float, default=240.0, help="seconds per cell, start-up included"
     )
     p.add_argument("--out", default=str(Path(__file__).parent / "results" / "real_envs"))
+    p.add_argument(
+        "--profile",
+        choices=ENVS,
+        help="instead of timing: sample the pool's caller and a worker on this env (py-spy)",
+    )
     p.add_argument("--cell", help=argparse.SUPPRESS)
     p.add_argument("--from-json", help="rewrite the table and plot from a results JSON")
     args = p.parse_args(argv)
     if args.cell:
         print(json.dumps(run_cell(json.loads(args.cell))))
+        return
+    if args.profile:
+        profile(args.profile, args.workers, args.seconds, Path(args.out) / "profiles")
         return
     if args.from_json:
         raw = json.loads(Path(args.from_json).read_text())

@@ -18,7 +18,7 @@ PY="${PYTHON:-python3}"
 [ -x .venv-bench/bin/python ] || "$PY" -m venv .venv-bench
 VPY="$ROOT/.venv-bench/bin/python"
 "$VPY" -m pip install -q --disable-pip-version-check --retries 10 --timeout 60 \
-    "gymnasium==1.2.0" cloudpickle numpy opencv-python-headless "ale-py>=0.10" mujoco minigrid nle crafter envpool
+    "gymnasium==1.2.0" cloudpickle numpy opencv-python-headless "ale-py>=0.10" mujoco minigrid nle crafter envpool py-spy
 SITE=$("$VPY" -c "import sysconfig; print(sysconfig.get_paths()['purelib'])")
 DEV_SITE=$(.venv/bin/python -c "import sysconfig; print(sysconfig.get_paths()['purelib'])")
 printf '%s\n%s\n' "$ROOT/python" "$DEV_SITE" > "$SITE/zz-rogue-gym-dev.pth"

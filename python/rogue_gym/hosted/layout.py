@@ -11,6 +11,7 @@ batch is a zero-copy strided view of it. Nothing is pickled.
 from __future__ import annotations
 
 import ctypes
+import functools
 from dataclasses import dataclass
 from typing import Any, Callable, Union
 
@@ -40,9 +41,15 @@ class Leaf:
     #: The leaf's own space (for bounds checks and messages).
     space: spaces.Space
 
-    @property
+    @functools.cached_property
+    def count(self) -> int:
+        """Elements of the leaf's array."""
+        return int(np.prod(self.shape, dtype=np.int64))
+
+    @functools.cached_property
     def nbytes(self) -> int:
-        return int(np.prod(self.shape, dtype=np.int64)) * self.dtype.itemsize
+        """Bytes of the leaf's array."""
+        return self.count * self.dtype.itemsize
 
 
 def _leaf_array(space: spaces.Space) -> tuple[np.dtype, tuple[int, ...]]:
@@ -141,8 +148,7 @@ class SpaceLayout:
 
     @staticmethod
     def _leaf_value(buf: bytearray, leaf: Leaf) -> Any:
-        count = int(np.prod(leaf.shape, dtype=np.int64))
-        arr = np.frombuffer(buf, leaf.dtype, count, leaf.offset).reshape(leaf.shape)
+        arr = np.frombuffer(buf, leaf.dtype, leaf.count, leaf.offset).reshape(leaf.shape)
         return arr[()] if leaf.shape == () else arr
 
     def _assemble(self, space: spaces.Space, path: Path, leaves: Any) -> Any:
