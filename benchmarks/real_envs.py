@@ -163,7 +163,7 @@ def _envpool(env: str, n: int, workers: int) -> Any:
         pre = {"episodic_life": False, "reward_clip": False, "repeat_action_probability": 0.25}
         return envpool.make_gymnasium("Pong-v5", **common, **pre, use_fire_reset=False)
     if env == "halfcheetah":
-        return envpool.make_gymnasium("HalfCheetah-v4", **common)
+        return envpool.make_gymnasium("HalfCheetah-v5", **common)
     raise LookupError(f"envpool has no {env} here")
 
 
@@ -221,10 +221,16 @@ def build(backend: str, env: str, n: int, workers: int) -> Any:
 
 def run_cell(cell: dict[str, Any]) -> dict[str, Any]:
     n, env, backend = int(cell["num_envs"]), cell["env"], cell["backend"]
+    import numpy as np
+
     v = build(backend, env, n, int(cell["workers"]))
     space = v.action_space
     space.seed(12345)
-    acts = [space.sample() for _ in range(32)]
+    if backend in ("envpool", "sb3-subproc"):  # their action_space is one env's
+        dtype = np.int32 if backend == "envpool" and space.dtype.kind == "i" else space.dtype
+        acts = [np.stack([space.sample() for _ in range(n)]).astype(dtype) for _ in range(32)]
+    else:
+        acts = [space.sample() for _ in range(32)]
     step = v.step
     try:
         for i in range(int(cell["warmup"])):
