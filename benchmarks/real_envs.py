@@ -248,20 +248,21 @@ def run_cell(cell: dict[str, Any]) -> dict[str, Any]:
     return {**cell, "steps_per_s": i * n / wall, "batches": i, "caller_cpu": caller_cpu / wall}
 
 
-#: Where a sampled frame's time goes, by the innermost frame's name (first match wins).
+#: Where a sample's time goes, by its innermost Python frame (first match wins). The pool's
+#: Rust code runs under the worker's module frame and under the caller's native calls.
 PROFILE_GROUPS = [
-    ("polling (sched_yield, clock)", ("sched_yield", "vdso", "clock_gettime")),
-    ("transport (notify, wake-ups)", ("sendto", "recvfrom", "epoll", "futex", "poll (")),
+    ("the pool's Rust loop (waiting, polling, transport)", ("rogue_gym/worker.py",)),
+    ("waiting for the workers (native call)", ("<lambda> (rogue_gym/hosted/vector_env.py",)),
     ("rogue_gym: infos", ("rogue_gym/hosted/infos.py",)),
     ("rogue_gym: observations, actions", ("rogue_gym/hosted/layout.py",)),
     ("rogue_gym: adapter and front end", ("rogue_gym/",)),
-    ("copies (memcpy)", ("memcpy", "memmove")),
+    ("the benchmark loop", ("real_envs.py",)),
 ]
 
 
 def profile(env: str, workers: int, seconds: float, out: Path) -> None:
-    """Sample the caller and worker 0 of a pool cell with py-spy (native frames included) and
-    print where their time goes; the raw samples go to ``out``."""
+    """Sample the caller and worker 0 of a pool cell with py-spy and print where their time
+    goes (idle time, blocked in the kernel, excluded); the raw samples go to ``out``."""
     import shutil
     import subprocess
 
@@ -286,7 +287,7 @@ def profile(env: str, workers: int, seconds: float, out: Path) -> None:
             subprocess.Popen(
                 [
                     *(spy, "record", "-p", pid, "-d", str(int(seconds)), "-r", "200"),
-                    *("--native", "-f", "raw", "-o", str(out / f"{env}-{who}.txt")),
+                    *("-f", "raw", "-o", str(out / f"{env}-{who}.txt")),
                 ],
                 stdout=subprocess.DEVNULL,
                 stderr=subprocess.DEVNULL,
@@ -524,11 +525,11 @@ def plot(med: dict[Key, float], path: Path) -> None:
                 ax.bar(backend, pts[0][1], color=COLORS[backend])
         if len(sizes) > 1:
             ax.set_xscale("log", base=2)
+            ax.set_yscale("log")
             ax.set_xlabel("num_envs")
             ax.legend(fontsize=7)
-        else:
+        else:  # bars from zero, so that their heights compare
             ax.tick_params(axis="x", labelsize=7, rotation=30)
-        ax.set_yscale("log")
         ax.set_ylabel("steps/s (median)")
         ax.set_title(env)
     for ax in list(axes.flat)[len(envs) :]:
