@@ -228,6 +228,47 @@ def run_isolated(cmd: list[str], timeout: float, env: dict[str, str]) -> tuple[A
     return code, out, err
 
 
+def run_cells(
+    script: str,
+    todo: list[dict[str, Any]],
+    key: Callable[[dict[str, Any]], tuple[Any, ...]],
+    reps: int,
+    timeout: float,
+    env: dict[str, str],
+) -> tuple[dict[Any, list[dict[str, Any]]], dict[Any, str]]:
+    """Run every cell ``reps`` times, each in a fresh ``script --cell JSON`` process (see
+    :func:`run_isolated`), the order shuffled per repetition, printing each result. Returns
+    the results of each cell key (the JSON line each run printed) and the reason of each cell
+    that failed or timed out (not run again)."""
+    runs: dict[Any, list[dict[str, Any]]] = {}
+    failed: dict[Any, str] = {}
+    total, done = len(todo) * reps, 0
+    for rep in range(reps):
+        random.Random(rep).shuffle(todo)
+        for cell in todo:
+            done += 1
+            k = key(cell)
+            if k in failed:
+                continue
+            code, stdout, stderr = run_isolated(
+                [sys.executable, script, "--cell", json.dumps(cell)], timeout, env
+            )
+            if code is None:
+                failed[k] = f"timed out after {timeout:.0f} s"
+            elif code != 0:
+                lines = stderr.strip().splitlines()
+                failed[k] = lines[-1][:200] if lines else f"exit code {code}"
+            else:
+                runs.setdefault(k, []).append(json.loads(stdout.strip().splitlines()[-1]))
+            shown = (
+                f"{runs[k][-1]['steps_per_s']:>12,.0f} steps/s"
+                if k not in failed
+                else f"skipped: {failed[k]}"
+            )
+            print(f"[{done}/{total}] {' '.join(map(str, k)):40s} {shown}", flush=True)
+    return runs, failed
+
+
 def key(c: dict[str, Any]) -> tuple[str, str, int, int]:
     return (c["env"], c["backend"], int(c["num_envs"]), int(c["workers"]))
 
@@ -265,41 +306,8 @@ def main(argv: Optional[list[str]] = None) -> None:
     env = dict(os.environ)
     if args.puffer_path:
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [args.puffer_path, env.get("PYTHONPATH")]))
-    results: dict[tuple[str, str, int, int], list[float]] = {}
-    failed: dict[tuple[str, str, int, int], str] = {}
-    total = len(todo) * args.reps
-    done = 0
-    for rep in range(args.reps):
-        random.Random(rep).shuffle(todo)
-        for cell in todo:
-            done += 1
-            k = key(cell)
-            if k in failed:
-                continue
-            code, stdout, stderr = run_isolated(
-                [sys.executable, __file__, "--cell", json.dumps(cell)], args.timeout, env
-            )
-            if code is None:
-                failed[k] = f"timed out after {args.timeout:.0f} s"
-            elif code != 0:
-                failed[k] = (
-                    stderr.strip().splitlines()[-1] if stderr.strip() else f"exit code {code}"
-                )
-            else:
-                results.setdefault(k, []).append(
-                    json.loads(stdout.strip().splitlines()[-1])["steps_per_s"]
-                )
-            got = results.get(k, [])
-            shown = (
-                f"{got[-1]:>12,.0f} steps/s"
-                if got and k not in failed
-                else f"skipped: {failed.get(k, '')}"
-            )
-            print(
-                f"[{done}/{total}] {k[0]:9s} {k[1]:13s} n={k[2]:<4d} w={k[3]:<2d} {shown}",
-                flush=True,
-            )
-
+    runs, failed = run_cells(__file__, todo, key, args.reps, args.timeout, env)
+    results = {k: [r["steps_per_s"] for r in v] for k, v in runs.items()}
     write(args, results, failed)
 
 

@@ -39,6 +39,7 @@ Usage::
     .venv-bench/bin/python benchmarks/real_envs.py --envs pong --backends pool gym-sync
     .venv-bench/bin/python benchmarks/real_envs.py --from-json benchmarks/results/real_envs/real_envs.json
     .venv-bench/bin/python benchmarks/real_envs.py --profile halfcheetah --seconds 6  # py-spy
+    .venv-bench/bin/python benchmarks/real_envs.py --parity 200   # same outputs as SyncVectorEnv?
 
 Writes ``real_envs.md``, ``real_envs.json`` and ``real_envs.png`` under ``--out`` (default
 ``benchmarks/results/real_envs``). A backend that is not installed, or that does not offer an
@@ -51,7 +52,6 @@ import argparse
 import json
 import os
 import platform
-import random
 import statistics
 import sys
 import time
@@ -61,7 +61,7 @@ from typing import Any, Callable, ClassVar, Optional
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from hosted_throughput import run_isolated
+from hosted_throughput import run_cells
 
 ENVS = ["pong", "pong-pre", "nethack", "halfcheetah", "minigrid", "crafter", "cartpole"]
 BACKENDS = ["pool", "gym-sync", "gym-async", "sb3-subproc", "envpool", "ale-vector"]
@@ -318,6 +318,63 @@ def profile(env: str, workers: int, seconds: float, out: Path) -> None:
             print(f"  {n / max(total, 1):6.1%}  {g}")
 
 
+def _first_difference(a: Any, b: Any, where: str = "") -> Optional[str]:
+    """Where two trees of arrays differ (keys, shapes, dtypes or values; NaN equals NaN), or
+    ``None``."""
+    import numpy as np
+
+    if isinstance(a, dict) or isinstance(b, dict):
+        if not (isinstance(a, dict) and isinstance(b, dict)) or sorted(a) != sorted(b):
+            return f"{where}: keys {sorted(a) if isinstance(a, dict) else a!r} vs {sorted(b) if isinstance(b, dict) else b!r}"
+        for k in a:
+            d = _first_difference(a[k], b[k], f"{where}[{k!r}]")
+            if d:
+                return d
+        return None
+    if isinstance(a, tuple):
+        for i, (x, y) in enumerate(zip(a, b)):
+            d = _first_difference(x, y, f"{where}[{i}]")
+            if d:
+                return d
+        return None
+    x, y = np.asarray(a), np.asarray(b)
+    if x.dtype == object or y.dtype == object:
+        same = x.shape == y.shape and all(
+            _first_difference(u, v) is None for u, v in zip(x.ravel(), y.ravel())
+        )
+        return None if same else f"{where}: object arrays differ"
+    if x.shape != y.shape or x.dtype != y.dtype:
+        return f"{where}: {x.dtype}{x.shape} vs {y.dtype}{y.shape}"
+    if not np.array_equal(x, y, equal_nan=x.dtype.kind in "fc"):
+        return f"{where}: values differ"
+    return None
+
+
+def parity(env: str, steps: int, num_envs: int = 5) -> str:
+    """Step the pool and SyncVectorEnv with the same seeds and actions; the first difference
+    of observations, rewards, flags or infos, or "equal"."""
+    import gymnasium as gym
+    import rogue_gym
+
+    fn = env_fn(env)
+    ours = rogue_gym.PoolVectorEnv([fn] * num_envs, num_workers=2)
+    ref = gym.vector.SyncVectorEnv([fn] * num_envs)
+    try:
+        d = _first_difference(ours.reset(seed=0), ref.reset(seed=0), "reset")
+        if d:
+            return d
+        ref.action_space.seed(0)
+        for t in range(steps):
+            actions = ref.action_space.sample()
+            d = _first_difference(ours.step(actions), ref.step(actions), f"step {t}")
+            if d:
+                return d
+        return "equal"
+    finally:
+        ours.close()
+        ref.close()
+
+
 def cells(args: argparse.Namespace) -> list[dict[str, Any]]:
     out = []
     for env in args.envs:
@@ -374,11 +431,21 @@ def main(argv: Optional[list[str]] = None) -> None:
         choices=ENVS,
         help="instead of timing: sample the pool's caller and a worker on this env (py-spy)",
     )
+    p.add_argument(
+        "--parity",
+        type=int,
+        metavar="STEPS",
+        help="instead of timing: compare the pool with SyncVectorEnv (5 envs) for STEPS steps",
+    )
     p.add_argument("--cell", help=argparse.SUPPRESS)
     p.add_argument("--from-json", help="rewrite the table and plot from a results JSON")
     args = p.parse_args(argv)
     if args.cell:
         print(json.dumps(run_cell(json.loads(args.cell))))
+        return
+    if args.parity:
+        for env in args.envs:
+            print(f"{env:12s} {parity(env, args.parity)}", flush=True)
         return
     if args.profile:
         profile(args.profile, args.workers, args.seconds, Path(args.out) / "profiles")
@@ -392,35 +459,7 @@ def main(argv: Optional[list[str]] = None) -> None:
         write(args, runs, failed)
         return
 
-    todo = cells(args)
-    runs: dict[Key, list[dict[str, Any]]] = {}
-    failed: dict[Key, str] = {}
-    total, done = len(todo) * args.reps, 0
-    for rep in range(args.reps):
-        random.Random(rep).shuffle(todo)
-        for cell in todo:
-            done += 1
-            k = key(cell)
-            if k in failed:
-                continue
-            code, stdout, stderr = run_isolated(
-                [sys.executable, __file__, "--cell", json.dumps(cell)],
-                args.timeout,
-                dict(os.environ),
-            )
-            if code is None:
-                failed[k] = f"timed out after {args.timeout:.0f} s"
-            elif code != 0:
-                lines = stderr.strip().splitlines()
-                failed[k] = lines[-1][:200] if lines else f"exit code {code}"
-            else:
-                runs.setdefault(k, []).append(json.loads(stdout.strip().splitlines()[-1]))
-            shown = (
-                f"{runs[k][-1]['steps_per_s']:>10,.0f} steps/s"
-                if k not in failed
-                else f"skipped: {failed[k]}"
-            )
-            print(f"[{done}/{total}] {k[0]:11s} {k[1]:11s} n={k[2]:<4d} {shown}", flush=True)
+    runs, failed = run_cells(__file__, cells(args), key, args.reps, args.timeout, dict(os.environ))
     write(args, runs, failed)
 
 

@@ -144,6 +144,12 @@ class RandomPolicy:
         return self._rng.integers(0, self.num_actions, size=len(obs), dtype=np.int64)
 
 
+#: What loads ``checkpoint:PATH`` policies (a saved network of ``rogue_gym.train``, needs
+#: torch: ``RUN/models/frames-N.pt``), by name: the trainer builds on this evaluator, not the
+#: other way round.
+CHECKPOINT_LOADER = ("rogue_gym.train.posthoc", "checkpoint_policy")
+
+
 def load_policy(spec: str) -> Policy:
     """Resolve ``random``, ``module:attr`` or ``path/to/file.py:attr`` into a policy callable.
 
@@ -152,10 +158,9 @@ def load_policy(spec: str) -> Policy:
     if spec == "random":
         return RandomPolicy()
     if spec.startswith("checkpoint:"):
-        # A saved network of rogue_gym.train (needs torch): RUN/models/frames-N.pt.
-        from .train.posthoc import checkpoint_policy
-
-        return checkpoint_policy(Path(spec.split(":", 1)[1]))
+        module, name = CHECKPOINT_LOADER
+        loader = getattr(importlib.import_module(module), name)
+        return loader(Path(spec.split(":", 1)[1]))
     if ":" not in spec:
         raise ValueError(f"--policy must be 'random' or 'module:attr', got {spec!r}")
     mod_name, attr = spec.rsplit(":", 1)

@@ -89,6 +89,15 @@ fn interrupt_check(slot: Arc<Mutex<Option<PyErr>>>) -> InterruptCheck {
 }
 
 impl PyPool {
+    /// Read something of the open pool (the type's default once it is closed).
+    fn peek<R: Default>(&self, f: impl FnOnce(&Pool) -> R) -> PyResult<R> {
+        let guard = self
+            .pool
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        Ok(guard.as_ref().map(f).unwrap_or_default())
+    }
+
     fn with_pool<R: Send>(
         &self,
         py: Python<'_>,
@@ -542,44 +551,22 @@ impl PyPool {
 
     /// Current worker process ids (index = worker).
     fn worker_pids(&self) -> PyResult<Vec<u32>> {
-        let guard = self
-            .pool
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
-        Ok(guard.as_ref().map(Pool::worker_pids).unwrap_or_default())
+        self.peek(Pool::worker_pids)
     }
 
     /// Worker restarts so far.
     fn restarts(&self) -> PyResult<u32> {
-        let guard = self
-            .pool
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
-        Ok(guard.as_ref().map(Pool::restarts).unwrap_or(0))
+        self.peek(Pool::restarts)
     }
 
     /// The runtime directory that holds the pool's directories (`""` once closed).
     fn runtime_dir(&self) -> PyResult<String> {
-        let guard = self
-            .pool
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
-        Ok(guard
-            .as_ref()
-            .map(|p| p.id().base().display().to_string())
-            .unwrap_or_default())
+        self.peek(|p| p.id().base().display().to_string())
     }
 
     /// The pool's name (the prefix of its shared-memory files).
     fn name(&self) -> PyResult<String> {
-        let guard = self
-            .pool
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
-        Ok(guard
-            .as_ref()
-            .map(|p| p.id().name().to_string())
-            .unwrap_or_default())
+        self.peek(|p| p.id().name().to_string())
     }
 
     /// Stop the workers and remove the pool's files (idempotent; GIL released).

@@ -10,10 +10,24 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_rogue-gym"))
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("rogue-gym-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// A test's own scratch directory, removed when the test ends (passed or failed).
+struct Scratch(PathBuf);
+
+impl Scratch {
+    fn new(test: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("rogue-gym-cli-{}-{test}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        Scratch(dir)
+    }
+    fn file(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
 }
 
 fn text(o: &Output) -> (String, String) {
@@ -25,7 +39,8 @@ fn text(o: &Output) -> (String, String) {
 
 #[test]
 fn bad_config_is_reported_with_the_key() {
-    let path = tmp("bad.json");
+    let scratch = Scratch::new("bad_config");
+    let path = scratch.file("bad.json");
     std::fs::write(&path, r#"{"widht": 80}"#).unwrap();
     for sub in ["play", "bench"] {
         let o = bin().args([sub, "--config"]).arg(&path).output().unwrap();
@@ -106,7 +121,8 @@ fn replay_reproduces_the_final_state() {
         "max_steps": 400,
         "actions": keys.chars().map(|c| c.to_string()).collect::<Vec<_>>(),
     });
-    let path = tmp("log.json");
+    let scratch = Scratch::new("replay");
+    let path = scratch.file("log.json");
     std::fs::write(&path, log.to_string()).unwrap();
     let o = bin()
         .arg("replay")
@@ -135,7 +151,8 @@ fn replay_reproduces_the_final_state() {
 
 #[test]
 fn replay_rejects_bad_logs() {
-    let path = tmp("badlog.json");
+    let scratch = Scratch::new("bad_logs");
+    let path = scratch.file("badlog.json");
     std::fs::write(
         &path,
         r#"{"config": {"widht": 3}, "seed": 1, "actions": []}"#,
@@ -249,7 +266,8 @@ fn dump_with_original_seeding_writes_the_originals_oracle() {
         .map(|l| serde_json::from_str(l).unwrap())
         .collect();
     // The config the oracle was dumped with (its README), plus our seeding switch.
-    let config = tmp("original-seeding.json");
+    let scratch = Scratch::new("dump_original");
+    let config = scratch.file("original-seeding.json");
     std::fs::write(
         &config,
         r#"{"width":32,"height":16,"hide_dungeon":true,"seeding":"original",
