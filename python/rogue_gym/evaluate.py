@@ -158,8 +158,8 @@ def load_policy(spec: str) -> Policy:
     if spec == "random":
         return RandomPolicy()
     if spec.startswith("checkpoint:"):
-        module, name = CHECKPOINT_LOADER
-        loader = getattr(importlib.import_module(module), name)
+        loader_module, loader_name = CHECKPOINT_LOADER
+        loader = getattr(importlib.import_module(loader_module), loader_name)
         return loader(Path(spec.split(":", 1)[1]))
     if ":" not in spec:
         raise ValueError(f"--policy must be 'random' or 'module:attr', got {spec!r}")
