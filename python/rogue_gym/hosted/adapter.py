@@ -178,13 +178,15 @@ class HostedEnv:
     def _write_obs(self, obs: Any, address: int) -> None:
         """Write an observation straight into the pool's memory at ``address`` (the
         destination the worker lends for this call: the observation's row of a batch slot)."""
-        writer = self._writers.get(address)
-        if writer is None:
-            if len(self._writers) >= MAX_WRITERS:
-                self._writers.clear()
-            writer = self._writers[address] = self._obs.writer(address)
+        writer = self._writers.get(address) or self._writer(address)
         writer(obs)
         self._last = obs
+
+    def _writer(self, address: int) -> Any:
+        if len(self._writers) >= MAX_WRITERS:
+            self._writers.clear()
+        writer = self._writers[address] = self._obs.writer(address)
+        return writer
 
     def reset(self, seed: int, episode: int, fresh: bool, address: int) -> Optional[bytes]:
         """Start an episode and write its first observation at ``address``: seeded with
@@ -216,10 +218,14 @@ class HostedEnv:
         try:
             action = self._act.decode(action) if self._discrete is None else self._discrete[action]
             obs, reward, terminated, truncated, info = self.env.step(action)
-            self._write_obs(obs, address)
-            self._infos = [("step", info)] if info else []
-            data = self._info_encoder.encode(self._infos) if info else None
-            return float(reward), bool(terminated), bool(truncated), data
+            (self._writers.get(address) or self._writer(address))(obs)
+            self._last = obs
+            if info:
+                self._infos = [("step", info)]
+                data = self._info_encoder.encode(self._infos)
+                return float(reward), bool(terminated), bool(truncated), data
+            self._infos = []
+            return float(reward), bool(terminated), bool(truncated), None
         except BaseException as exc:
             raise EncodedEnvError(encode_exception(exc)) from exc
 

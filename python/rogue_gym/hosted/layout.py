@@ -127,7 +127,15 @@ class SpaceLayout:
 
         if self._single:
             leaf, dst = views[0]
-            return lambda value: put(leaf, dst, value)
+            shape = leaf.shape
+
+            def write_single(value: Any) -> None:
+                if type(value) is np.ndarray and value.shape == shape:
+                    dst[...] = value  # the common case, kept short: it runs every env step
+                else:
+                    put(leaf, dst, value)
+
+            return write_single
 
         def write_tree(value: Any) -> None:
             for leaf, dst in views:
