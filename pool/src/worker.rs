@@ -175,8 +175,6 @@ pub(crate) struct SlotCtx<'a> {
     /// `EnvSpec::action_bytes` (0: action indices).
     pub(crate) action_bytes: usize,
     pub(crate) n_info: usize,
-    /// Whether the env has extra info (`EnvSpec::extra_bytes` > 0).
-    pub(crate) extra_info: bool,
 }
 
 /// Where one env writes its answer to a command (parts of the block being filled).
@@ -306,7 +304,8 @@ pub(crate) fn apply(
             }
         }
     }
-    if ctx.extra_info {
+    if !extra.is_empty() {
+        // The env has extra info (`EnvSpec::extra_bytes` > 0, so it has room).
         info.clear();
         s.env
             .extra_info(info)
@@ -465,7 +464,6 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
             num_actions: spec.num_actions,
             action_bytes: spec.action_bytes,
             n_info,
-            extra_info: spec.extra_bytes > 0,
         };
         if target > BATCH_SLOTS {
             return Err(WorkerError::Msg(format!("bad observation target {target}")));
@@ -582,7 +580,6 @@ mod tests {
             num_actions: 5,
             action_bytes: 0,
             n_info: 2,
-            extra_info: false,
         }
     }
 

@@ -57,11 +57,13 @@ _ARRAY_KINDS = "biufc"
 # A structure is a tuple of ``(key, node)``; a node is a nested structure (a dict), or a leaf
 # ``("s", type name or dtype string)`` (a scalar) or ``("a", dtype string, shape)`` (an array).
 Structure = tuple[tuple[str, Any], ...]
+#: Python scalar types of typed rows: their name in a structure and their struct code.
 _PY_SCALARS: dict[type, tuple[str, str]] = {
     int: ("int", "q"),
     float: ("float", "d"),
     bool: ("bool", "?"),
 }
+_PY_SCALAR_OF_NAME = {name: t for t, (name, _) in _PY_SCALARS.items()}
 
 
 def _signature(info: dict[str, Any]) -> tuple[Any, ...]:
@@ -190,8 +192,8 @@ class _Decoded:
             for key, node in nodes:
                 if node and node[0] == "s" and isinstance(node[1], str):
                     name = node[1]
-                    if name in ("int", "float", "bool"):
-                        t: Any = {"int": int, "float": float, "bool": bool}[name]
+                    t: Any = _PY_SCALAR_OF_NAME.get(name)
+                    if t is not None:
                         scalars.append(((*path, key), np.dtype(t), t))
                     else:
                         dt = np.dtype(name)
@@ -224,7 +226,6 @@ class _Decoded:
         self.dtype = np.dtype(
             {"names": names, "formats": formats, "offsets": offsets, "itemsize": max(offset, 1)}
         )
-        self.itemsize = offset
 
     def put(self, infos: dict[str, Any], records: np.ndarray, rows: np.ndarray, n: int) -> None:
         """Add the records of ``rows`` (of a batch of ``n``) to vector infos."""
@@ -243,10 +244,7 @@ class _Decoded:
                     if array is None:
                         array = target[key] = np.zeros((n, *shape), dt)
                     array[rows] = records[name]
-                mask = target.get(f"_{key}")
-                if mask is None:
-                    mask = target[f"_{key}"] = np.zeros(n, np.bool_)
-                mask[rows] = True
+                _mark(target, key, rows, n)
 
         visit(infos, self.structure, ())
 
@@ -329,11 +327,16 @@ def add_row_info(infos: dict[str, Any], info: dict[str, Any], row: int, n: int) 
                     array = np.full(n, None, dtype=object)
             array[row] = value
         infos[key] = array
-        mask = infos.get(f"_{key}")
-        if mask is None:
-            mask = infos[f"_{key}"] = np.zeros(n, np.bool_)
-        mask[row] = True
+        _mark(infos, key, row, n)
     return infos
+
+
+def _mark(infos: dict[str, Any], key: str, rows: Any, n: int) -> None:
+    """Set the ``_key`` mask of vector infos of ``n`` rows at ``rows``."""
+    mask = infos.get(f"_{key}")
+    if mask is None:
+        mask = infos[f"_{key}"] = np.zeros(n, np.bool_)
+    mask[rows] = True
 
 
 def vector_infos(
