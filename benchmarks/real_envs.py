@@ -18,7 +18,9 @@ Envs (nobody here wrote them):
 Backends: ``pool`` (``rogue_gym.PoolVectorEnv``), ``gym-sync`` (``SyncVectorEnv``),
 ``gym-async`` (``AsyncVectorEnv(shared_memory=True)``, one process per env), ``sb3-subproc``
 (``SubprocVecEnv``, forkserver, one process per env), ``envpool`` (EnvPool's C++ pool, Pong
-and HalfCheetah only) and ``ale-vector`` (ale-py's C++ ``AtariVectorEnv``, Pong only). EnvPool
+and HalfCheetah only), ``ale-vector`` (ale-py's C++ ``AtariVectorEnv``, Pong only) and
+``pool-vector`` (the pool hosting one ale-py ``AtariVectorEnv`` of one thread per worker
+block, ``PoolVectorEnv.from_vector_env``, Pong only). EnvPool
 and ale-py's vector env are asked for the same frames as the Python set-up (raw 210x160x3 for
 ``pong``; 84x84 gray, 4-stack for ``pong-pre``).
 
@@ -49,6 +51,7 @@ env, is listed as skipped with the reason.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import platform
@@ -64,7 +67,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from hosted_throughput import run_cells
 
 ENVS = ["pong", "pong-pre", "nethack", "halfcheetah", "minigrid", "crafter", "cartpole"]
-BACKENDS = ["pool", "gym-sync", "gym-async", "sb3-subproc", "envpool", "ale-vector"]
+BACKENDS = ["pool", "gym-sync", "gym-async", "sb3-subproc", "envpool", "ale-vector", "pool-vector"]
+#: Backends that run ale-py's C++ vector env (Pong only).
+ALE_BACKENDS = ("ale-vector", "pool-vector")
 #: Backends with one process per env (the worker count does not apply).
 PER_ENV_PROCESS = ("gym-async", "sb3-subproc")
 
@@ -188,6 +193,13 @@ def build(backend: str, env: str, n: int, workers: int) -> Any:
         return v
     if backend == "ale-vector":
         v = _ale_vector(env, n, workers)
+        v.reset(seed=0)
+        return v
+    if backend == "pool-vector":
+        import rogue_gym
+
+        block = functools.partial(_ale_vector, env, workers=1)
+        v = rogue_gym.PoolVectorEnv.from_vector_env(block, n, num_workers=workers)
         v.reset(seed=0)
         return v
     fn = env_fn(env)
@@ -382,7 +394,7 @@ def cells(args: argparse.Namespace) -> list[dict[str, Any]]:
             for backend in args.backends:
                 if backend == "envpool" and env not in ("pong", "pong-pre", "halfcheetah"):
                     continue
-                if backend == "ale-vector" and env not in ("pong", "pong-pre"):
+                if backend in ALE_BACKENDS and env not in ("pong", "pong-pre"):
                     continue
                 if backend in PER_ENV_PROCESS and n > args.max_processes:
                     continue
@@ -526,6 +538,7 @@ COLORS = {
     "sb3-subproc": "tab:purple",
     "envpool": "tab:orange",
     "ale-vector": "tab:brown",
+    "pool-vector": "tab:pink",
 }
 
 

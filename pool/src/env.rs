@@ -167,6 +167,47 @@ pub trait Env {
     }
 }
 
+/// A worker's whole block of envs behind one object: an env kind that hosts a vector env (one
+/// per worker, e.g. ale-py's C++ `AtariVectorEnv`) and steps every env of the block in one
+/// call. The worker keeps each env's episode bookkeeping (episode, seed, return, length) as it
+/// does for single [`Env`]s; the block resets and steps, and must autoreset as the pool does
+/// (`NEXT_STEP`: the step after an env's episode ended resets it and ignores its action).
+/// Observations are written in place: row `j` of `obs` (each [`EnvSpec::obs_bytes`] long) is
+/// env `j`'s.
+pub trait EnvBlock {
+    /// The spec of every env of the block; must not change over the block's life.
+    fn spec(&self) -> EnvSpec;
+    /// Reset the envs with `mask[j]` set, env `j` for its episode `episodes[j]` from
+    /// `seeds[j]` (as [`Env::reset_episode`] reads them), and write every env's observation:
+    /// the others' current one again.
+    fn reset(
+        &mut self,
+        mask: &[bool],
+        seeds: &[u64],
+        episodes: &[u64],
+        obs: &mut [u8],
+    ) -> Result<(), EnvError>;
+    /// Step every env: env `j`'s action is `actions[j * w..(j + 1) * w]` (`w` =
+    /// [`EnvSpec::action_words`]: an index already checked against `num_actions`, or
+    /// [`EnvSpec::action_bytes`] raw bytes), its outcome goes to `out[j]`.
+    fn step(
+        &mut self,
+        actions: &[u64],
+        obs: &mut [u8],
+        out: &mut [StepOutcome],
+    ) -> Result<(), EnvError>;
+    /// Append env `j`'s extra info of the last command to `out` (see [`Env::extra_info`]).
+    fn extra_info(&mut self, j: usize, out: &mut Vec<u8>) -> Result<(), EnvError> {
+        let _ = (j, out);
+        Ok(())
+    }
+    /// Answer a call for env `j` (see [`Env::call`]).
+    fn call(&mut self, j: usize, request: &[u8]) -> Result<Vec<u8>, EnvError> {
+        let _ = (j, request);
+        Err(EnvError::new("this env kind takes no calls"))
+    }
+}
+
 /// View an f32 observation buffer as `&mut [f32]`; errors if misaligned or of odd length.
 pub fn bytes_as_f32_mut(obs: &mut [u8]) -> Result<&mut [f32], EnvError> {
     // SAFETY: every bit pattern is a valid f32; align_to_mut handles alignment.

@@ -44,10 +44,10 @@ pub mod worker;
 
 pub use batch::{Batch, BatchOutput, Block};
 pub use config::{AutoresetMode, FailurePolicy, PoolConfig, WorkerCommand};
-pub use env::{Dtype, Env, EnvError, EnvSpec, MAX_INFO, StepOutcome};
+pub use env::{Dtype, Env, EnvBlock, EnvError, EnvSpec, MAX_INFO, StepOutcome};
 pub use error::{FailureCause, PoolError, WorkerFailure};
 pub use kinds::test_env::TestEnv;
-pub use registry::{EnvCtor, EnvRegistry};
+pub use registry::{BlockCtor, Built, EnvCtor, EnvRegistry};
 pub use rogue_gym_ipc::WaitPolicy;
 pub use seeds::{SeedPolicy, SeedSchedule, SeedSet, Shard};
 pub use supervisor::{Actions, InterruptCheck, Pool, validate_actions};

@@ -14,7 +14,7 @@ use rogue_gym_ipc::{
 
 use crate::config::AutoresetMode;
 use crate::env::{Env, MAX_INFO};
-use crate::registry::EnvRegistry;
+use crate::registry::{Built, EnvRegistry};
 use crate::seeds::SeedSchedule;
 use crate::wire::layout::{
     BlockLayout, EnvRecord, FLAG_EXTRA_APART, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED,
@@ -25,6 +25,9 @@ use crate::wire::{
     CMD_CLOSE, CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE, RELOAD_SEEDS, TARGET_SHIFT,
     WorkerConfig, calls, env_fault_path, extra_apart_path, slot_bytes,
 };
+
+mod block;
+use block::BlockHost;
 
 #[derive(Debug, thiserror::Error)]
 enum WorkerError {
@@ -140,9 +143,10 @@ fn read_config(path: &std::path::Path) -> Result<WorkerConfig, String> {
     serde_json::from_slice(&data).map_err(|e| format!("bad worker config: {e}"))
 }
 
-/// One env of a worker with its episode bookkeeping.
-pub(crate) struct Slot {
-    pub(crate) env: Box<dyn Env>,
+/// One env of a worker with its episode bookkeeping (`E = ()` for the envs of an
+/// [`crate::EnvBlock`], which owns them).
+pub(crate) struct Slot<E = Box<dyn Env>> {
+    pub(crate) env: E,
     /// Global env id.
     pub(crate) global: u64,
     pub(crate) episode: u64,
@@ -152,8 +156,8 @@ pub(crate) struct Slot {
     pub(crate) needs_reset: bool,
 }
 
-impl Slot {
-    pub(crate) fn new(env: Box<dyn Env>, global: u64) -> Self {
+impl<E> Slot<E> {
+    pub(crate) fn new(env: E, global: u64) -> Self {
         Slot {
             env,
             global,
@@ -163,6 +167,44 @@ impl Slot {
             len: 0,
             needs_reset: true,
         }
+    }
+
+    /// Begin the episode `self.episode` (its seed from the schedule; return and length 0).
+    pub(crate) fn begin_episode(&mut self, ctx: &SlotCtx) {
+        self.seed = ctx.seeds.seed(self.global, self.episode, ctx.num_envs);
+        self.ret = 0.0;
+        self.len = 0;
+        self.needs_reset = false;
+    }
+
+    /// The record's episode bookkeeping.
+    pub(crate) fn stamp(&self, rec: &mut EnvRecord) {
+        rec.episode = self.episode;
+        rec.seed = self.seed;
+        rec.episode_return = self.ret;
+        rec.episode_length = self.len;
+    }
+
+    /// Fail if `value` is an action index out of range (envs of raw action bytes check their
+    /// actions themselves).
+    pub(crate) fn check_action(&self, value: u64, ctx: &SlotCtx) -> Result<(), EnvFault> {
+        if ctx.action_bytes > 0 || value < ctx.num_actions as u64 {
+            return Ok(());
+        }
+        let msg = format!(
+            "action {value} is out of range; valid actions are 0 to {} (range({}))",
+            ctx.num_actions.saturating_sub(1),
+            ctx.num_actions
+        );
+        Err(fault(self, "step".into(), msg))
+    }
+
+    /// The context of a failed step of this env.
+    pub(crate) fn step_context(&self) -> String {
+        format!(
+            "step (episode {}, seed {}, step {})",
+            self.episode, self.seed, self.len
+        )
     }
 }
 
@@ -189,7 +231,7 @@ pub(crate) struct EnvOut<'a> {
     pub(crate) info: &'a mut Vec<u8>,
 }
 
-fn fault(s: &Slot, context: String, message: impl std::fmt::Display) -> EnvFault {
+pub(crate) fn fault<E>(s: &Slot<E>, context: String, message: impl std::fmt::Display) -> EnvFault {
     EnvFault {
         env: s.global,
         context,
@@ -198,10 +240,7 @@ fn fault(s: &Slot, context: String, message: impl std::fmt::Display) -> EnvFault
 }
 
 fn do_reset(s: &mut Slot, obs: &mut [u8], ctx: &SlotCtx) -> Result<(), EnvFault> {
-    s.seed = ctx.seeds.seed(s.global, s.episode, ctx.num_envs);
-    s.ret = 0.0;
-    s.len = 0;
-    s.needs_reset = false;
+    s.begin_episode(ctx);
     s.env.reset_episode(s.seed, s.episode, obs).map_err(|e| {
         fault(
             s,
@@ -251,27 +290,15 @@ pub(crate) fn apply(
             do_reset(s, obs, ctx)?;
         }
         CMD_STEP => {
+            s.check_action(value, ctx)?;
             let result = if ctx.action_bytes > 0 {
                 let bytes = rogue_gym_ipc::words_as_bytes(words);
                 s.env
                     .step_bytes(&bytes[..ctx.action_bytes.min(bytes.len())], obs)
-            } else if value >= ctx.num_actions as u64 {
-                let msg = format!(
-                    "action {value} is out of range; valid actions are 0 to {} (range({}))",
-                    ctx.num_actions.saturating_sub(1),
-                    ctx.num_actions
-                );
-                return Err(fault(s, "step".into(), msg));
             } else {
                 s.env.step(value as usize, obs)
             };
-            let out = result.map_err(|e| {
-                let c = format!(
-                    "step (episode {}, seed {}, step {})",
-                    s.episode, s.seed, s.len
-                );
-                fault(s, c, e)
-            })?;
+            let out = result.map_err(|e| fault(s, s.step_context(), e))?;
             s.ret += out.reward;
             s.len += 1;
             rec.reward = out.reward;
@@ -286,10 +313,7 @@ pub(crate) fn apply(
             ));
         }
     }
-    rec.episode = s.episode;
-    rec.seed = s.seed;
-    rec.episode_return = s.ret;
-    rec.episode_length = s.len;
+    s.stamp(&mut rec);
     s.env.info(&mut rec.info[..ctx.n_info]);
     if rec.flags & (FLAG_TERMINATED | FLAG_TRUNCATED) != 0 {
         match ctx.autoreset {
@@ -310,37 +334,130 @@ pub(crate) fn apply(
         s.env
             .extra_info(info)
             .map_err(|e| fault(s, "extra info".into(), e))?;
-        let n = info.len();
-        rec.extra_len = u32::try_from(n)
-            .map_err(|_| fault(s, "extra info".into(), format!("{n} bytes of extra info")))?;
-        match extra.get_mut(..n) {
-            Some(room) => room.copy_from_slice(info),
-            None => rec.flags |= FLAG_EXTRA_APART,
-        }
+        place_extra(&mut rec, extra, info).map_err(|e| fault(s, "extra info".into(), e))?;
     }
     Ok(rec)
 }
 
+/// Put an env's extra info `info` in its room `extra`, or flag the record
+/// [`FLAG_EXTRA_APART`] when it does not fit (the worker then sends it beside the block).
+pub(crate) fn place_extra(
+    rec: &mut EnvRecord,
+    extra: &mut [u8],
+    info: &[u8],
+) -> Result<(), String> {
+    let n = info.len();
+    rec.extra_len = u32::try_from(n).map_err(|_| format!("{n} bytes of extra info"))?;
+    match extra.get_mut(..n) {
+        Some(room) => room.copy_from_slice(info),
+        None => rec.flags |= FLAG_EXTRA_APART,
+    }
+    Ok(())
+}
+
+/// A worker's envs: one [`Env`] each, or one [`crate::EnvBlock`] for them all.
+enum Hosted {
+    Each(Vec<Slot>),
+    Block(BlockHost),
+}
+
+impl Hosted {
+    fn len(&self) -> usize {
+        match self {
+            Hosted::Each(slots) => slots.len(),
+            Hosted::Block(host) => host.len(),
+        }
+    }
+
+    /// Answer one command (`kind`, with `per_env` payload words per env) into `out`.
+    fn serve(
+        &mut self,
+        kind: u32,
+        payload: &[u64],
+        per_env: usize,
+        out: &mut BlockOut<'_>,
+        ctx: &SlotCtx,
+    ) -> Result<(), EnvFault> {
+        let slots = match self {
+            Hosted::Block(host) => return host.serve(kind, payload, out, ctx),
+            Hosted::Each(slots) => slots,
+        };
+        for (j, s) in slots.iter_mut().enumerate() {
+            let rec = apply(
+                s,
+                kind,
+                &payload[j * per_env..(j + 1) * per_env],
+                out.env(j),
+                ctx,
+            )?;
+            out.finish(j, &rec);
+        }
+        Ok(())
+    }
+}
+
+/// Where one command's answers go: the parts of the worker's block being filled.
+pub(crate) struct BlockOut<'a> {
+    pub(crate) records: &'a mut [u64],
+    pub(crate) obs: &'a mut [u8],
+    pub(crate) final_obs: &'a mut [u8],
+    pub(crate) extra: &'a mut [u8],
+    pub(crate) obs_bytes: usize,
+    pub(crate) final_bytes: usize,
+    pub(crate) extra_bytes: usize,
+    /// One env's extra info (a buffer reused from env to env).
+    pub(crate) info: &'a mut Vec<u8>,
+    /// The envs whose info did not fit their room, with that info.
+    pub(crate) apart: &'a mut Vec<(u32, Vec<u8>)>,
+}
+
+impl BlockOut<'_> {
+    /// Env `j`'s parts.
+    fn env(&mut self, j: usize) -> EnvOut<'_> {
+        let (ob, fb, xb) = (self.obs_bytes, self.final_bytes, self.extra_bytes);
+        EnvOut {
+            obs: &mut self.obs[j * ob..(j + 1) * ob],
+            fin: &mut self.final_obs[j * fb..(j + 1) * fb],
+            extra: &mut self.extra[j * xb..(j + 1) * xb],
+            info: &mut *self.info,
+        }
+    }
+
+    /// Write env `j`'s record; keep its info apart if the record says it did not fit.
+    pub(crate) fn finish(&mut self, j: usize, rec: &EnvRecord) {
+        write_record_words(self.records, j, rec);
+        if rec.extra_apart() {
+            self.apart.push((j as u32, std::mem::take(self.info)));
+        }
+    }
+}
+
 /// Answer the call requests of the worker's call file ([`calls`]), env by env.
-fn answer_calls(id: &PoolId, a: &Args, slots: &mut [Slot]) -> Result<(), EnvFault> {
+fn answer_calls(id: &PoolId, a: &Args, hosted: &mut Hosted, first: u64) -> Result<(), EnvFault> {
     let fail = |env: u64, message: String| EnvFault {
         env,
         context: "a call".into(),
         message,
     };
-    let first = slots.first().map_or(0, |s| s.global);
     let requests =
         calls::take(&calls::request_path(id, a.index, a.generation)).map_err(|e| fail(first, e))?;
     let mut replies = Vec::with_capacity(requests.len());
     for (row, request) in &requests {
-        let s = slots
-            .get_mut(*row as usize)
-            .ok_or_else(|| fail(first, format!("call for row {row}, outside the block")))?;
-        let reply = s
-            .env
-            .call(request)
-            .map_err(|e| fail(s.global, e.to_string()))?;
-        replies.push((*row, reply));
+        let j = *row as usize;
+        if j >= hosted.len() {
+            return Err(fail(
+                first,
+                format!("call for row {row}, outside the block"),
+            ));
+        }
+        let reply = match hosted {
+            Hosted::Each(slots) => slots[j].env.call(request),
+            Hosted::Block(host) => host.call(j, request),
+        };
+        replies.push((
+            *row,
+            reply.map_err(|e| fail(first + j as u64, e.to_string()))?,
+        ));
     }
     let entries: Vec<(u32, &[u8])> = replies.iter().map(|(r, b)| (*r, b.as_slice())).collect();
     calls::write(
@@ -361,22 +478,40 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
     let epw = envs.len();
     let id = PoolId::from_parts(&cfg.pool_name, &cfg.runtime_dir)?;
     let fault_path = env_fault_path(&id, a.index, a.generation);
-    let mut slots = Vec::with_capacity(epw);
-    for j in 0..epw {
-        let global = (envs.start + j) as u64;
-        let env = registry.make(&cfg.env, global).map_err(|e| {
+    let globals = envs.start as u64..envs.end as u64;
+    let mut building = globals.start;
+    let built = registry
+        .make_block(&cfg.env, globals.clone(), |g| building = g)
+        .map_err(|e| {
             // Reported like a failed step (the supervisor raises it rather than retrying).
             let fault = EnvFault {
-                env: global,
+                env: building,
                 context: "construction".into(),
                 message: e.to_string(),
             };
             let _ = fault.write(&fault_path);
-            WorkerError::Msg(format!("cannot build env {global}: {e}"))
+            WorkerError::Msg(format!("cannot build env {building}: {e}"))
         })?;
-        slots.push(Slot::new(env, global));
-    }
-    let spec = slots[0].env.spec();
+    let mut hosted = match built {
+        Built::Envs(list) => Hosted::Each(
+            list.into_iter()
+                .zip(globals)
+                .map(|(env, g)| Slot::new(env, g))
+                .collect(),
+        ),
+        Built::Block(block) => {
+            if cfg.autoreset == AutoresetMode::SameStep {
+                return Err(WorkerError::Msg(
+                    "a block of envs hosted as one vector env autoresets NEXT_STEP only".into(),
+                ));
+            }
+            Hosted::Block(BlockHost::new(block, globals))
+        }
+    };
+    let spec = match &hosted {
+        Hosted::Each(slots) => slots[0].env.spec(),
+        Hosted::Block(host) => host.spec(),
+    };
     let n_info = spec.info_names.len().min(MAX_INFO);
     let aw = spec.action_words();
     let layout = BlockLayout {
@@ -430,7 +565,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         let kind = h.kind & ((1 << TARGET_SHIFT) - 1);
         if kind == CMD_CALL {
             drop(cmd);
-            let kind = match answer_calls(&id, a, &mut slots) {
+            let kind = match answer_calls(&id, a, &mut hosted, first_env as u64) {
                 Ok(()) => BLOCK_CALL,
                 Err(f) => {
                     f.write(&fault_path).map_err(WorkerError::Msg)?;
@@ -485,30 +620,21 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
                 )
             }
         };
-        let fob = if layout.final_obs { ob } else { 0 };
-        let xb = layout.extra_bytes;
-        let mut failed = None;
         apart.clear();
-        for (j, s) in slots.iter_mut().enumerate() {
-            let out = EnvOut {
-                obs: &mut obs_area[j * ob..(j + 1) * ob],
-                fin: &mut areas.final_obs[j * fob..(j + 1) * fob],
-                extra: &mut areas.extra[j * xb..(j + 1) * xb],
-                info: &mut info,
-            };
-            match apply(s, kind, &payload[j * per_env..(j + 1) * per_env], out, &ctx) {
-                Ok(rec) => {
-                    write_record_words(areas.records, j, &rec);
-                    if rec.extra_apart() {
-                        apart.push((j as u32, std::mem::take(&mut info)));
-                    }
-                }
-                Err(f) => {
-                    failed = Some(f);
-                    break;
-                }
-            }
-        }
+        let mut out = BlockOut {
+            records: areas.records,
+            obs: obs_area,
+            final_obs: areas.final_obs,
+            extra: areas.extra,
+            obs_bytes: ob,
+            final_bytes: if layout.final_obs { ob } else { 0 },
+            extra_bytes: layout.extra_bytes,
+            info: &mut info,
+            apart: &mut apart,
+        };
+        let mut failed = hosted
+            .serve(kind, &payload[..n], per_env, &mut out, &ctx)
+            .err();
         if failed.is_none() && !apart.is_empty() {
             // Info too long for the block's room goes beside it, in a private file named by
             // the block; the supervisor takes it with the block.

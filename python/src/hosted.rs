@@ -35,7 +35,7 @@ struct HostedEnv {
 }
 
 /// The message of a Python error: the adapter's encoding, or `Type: message` for anything else.
-fn env_error(py: Python<'_>, encoded: &Py<PyAny>, e: PyErr) -> EnvError {
+pub(crate) fn env_error(py: Python<'_>, encoded: &Py<PyAny>, e: PyErr) -> EnvError {
     let is_encoded = e
         .get_type(py)
         .is_subclass(encoded.bind(py))
@@ -46,8 +46,8 @@ fn env_error(py: Python<'_>, encoded: &Py<PyAny>, e: PyErr) -> EnvError {
     EnvError::new(e.to_string())
 }
 
-/// Build env number `index` of a pool (the [`rogue_gym_pool::EnvCtor`] of [`KIND`]).
-pub(crate) fn make_hosted_env(v: &Value, index: u64) -> Result<Box<dyn Env>, EnvError> {
+/// The spec and adapter config (JSON text) of a hosted kind's JSON spec.
+pub(crate) fn spec_and_adapter(v: &Value) -> Result<(EnvSpec, String), EnvError> {
     let spec: EnvSpec = v
         .get("spec")
         .cloned()
@@ -59,19 +59,39 @@ pub(crate) fn make_hosted_env(v: &Value, index: u64) -> Result<Box<dyn Env>, Env
         .get("adapter")
         .ok_or_else(|| EnvError::new("python env: the spec has no \"adapter\" field"))?
         .to_string();
+    Ok((spec, adapter_cfg))
+}
+
+/// Build an adapter: `module.class.build(*args)`; returns it with the module's exception class
+/// for encoded env errors.
+pub(crate) fn build_adapter<'py>(
+    py: Python<'py>,
+    module: &str,
+    class: &str,
+    args: impl pyo3::call::PyCallArgs<'py>,
+) -> Result<(Py<PyAny>, Py<PyAny>), EnvError> {
+    let m = py
+        .import(module)
+        .map_err(|e| EnvError::new(format!("cannot import {module}: {e}")))?;
+    let encoded = py
+        .import(ADAPTER_MODULE)
+        .and_then(|a| a.getattr("EncodedEnvError"))
+        .map_err(|e| EnvError::new(e.to_string()))?
+        .unbind();
+    let adapter = m
+        .getattr(class)
+        .and_then(|cls| cls.call_method1("build", args))
+        .map_err(|e| env_error(py, &encoded, e))?
+        .unbind();
+    Ok((adapter, encoded))
+}
+
+/// Build env number `index` of a pool (the [`rogue_gym_pool::EnvCtor`] of [`KIND`]).
+pub(crate) fn make_hosted_env(v: &Value, index: u64) -> Result<Box<dyn Env>, EnvError> {
+    let (spec, adapter_cfg) = spec_and_adapter(v)?;
     Python::attach(|py| {
-        let module = py
-            .import(ADAPTER_MODULE)
-            .map_err(|e| EnvError::new(format!("cannot import {ADAPTER_MODULE}: {e}")))?;
-        let encoded = module
-            .getattr("EncodedEnvError")
-            .map_err(|e| EnvError::new(e.to_string()))?
-            .unbind();
-        let adapter = module
-            .getattr("HostedEnv")
-            .and_then(|cls| cls.call_method1("build", (adapter_cfg, index)))
-            .map_err(|e| env_error(py, &encoded, e))?
-            .unbind();
+        let (adapter, encoded) =
+            build_adapter(py, ADAPTER_MODULE, "HostedEnv", (adapter_cfg, index))?;
         Ok(Box::new(HostedEnv {
             adapter,
             encoded,
@@ -83,7 +103,10 @@ pub(crate) fn make_hosted_env(v: &Value, index: u64) -> Result<Box<dyn Env>, Env
 }
 
 /// The bytes an adapter method returned (`what` names it in the error).
-fn returned_bytes<'a>(b: &'a Bound<'_, PyAny>, what: &str) -> Result<&'a [u8], EnvError> {
+pub(crate) fn returned_bytes<'a>(
+    b: &'a Bound<'_, PyAny>,
+    what: &str,
+) -> Result<&'a [u8], EnvError> {
     b.cast::<PyBytes>()
         .map(|b| b.as_bytes())
         .map_err(|_| EnvError::new(format!("the adapter's {what} returned non-bytes")))
@@ -91,7 +114,7 @@ fn returned_bytes<'a>(b: &'a Bound<'_, PyAny>, what: &str) -> Result<&'a [u8], E
 
 /// The address of an observation destination, as the adapter's `address` argument. The
 /// adapter writes at most the observation space's bytes there, during the call only.
-fn address(obs: &mut [u8]) -> usize {
+pub(crate) fn address(obs: &mut [u8]) -> usize {
     obs.as_mut_ptr() as usize
 }
 

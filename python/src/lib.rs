@@ -13,6 +13,7 @@ mod columns;
 mod errors;
 mod game;
 mod hosted;
+mod hosted_vector;
 mod pool;
 mod settings;
 mod spec;
@@ -47,10 +48,12 @@ fn default_runtime_dir() -> String {
 }
 
 /// The env kinds of this extension's pools: the pool crate's own, plus `"python"` (hosted
-/// gymnasium envs, see [`hosted`]).
+/// gymnasium envs, see [`hosted`]) and `"python-vector"` (a hosted vector env per worker, see
+/// [`hosted_vector`]).
 pub(crate) fn registry() -> rogue_gym_pool::EnvRegistry {
     let mut r = rogue_gym_pool::EnvRegistry::with_defaults();
     r.register(hosted::KIND, hosted::make_hosted_env);
+    r.register_block(hosted_vector::KIND, hosted_vector::make_hosted_vector);
     r
 }
 

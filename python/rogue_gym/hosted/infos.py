@@ -24,7 +24,7 @@ from typing import Any, Callable, Optional
 
 import numpy as np
 
-__all__ = ["InfoDecoder", "InfoEncoder", "add_row_info", "vector_infos"]
+__all__ = ["InfoDecoder", "InfoEncoder", "add_row_info", "split_vector_info", "vector_infos"]
 
 #: Marks a typed row (a pickle starts with 0x80).
 MAGIC = b"RGi1"
@@ -361,3 +361,27 @@ def vector_infos(
         if info:
             infos = add_row_info(infos, info, row, n)
     return infos
+
+
+def split_vector_info(info: dict[str, Any], n: int) -> list[dict[str, Any]]:
+    """The per-env infos in a vector env's info dict of ``n`` envs (the inverse of
+    gymnasium's ``_add_info``): env ``i`` has key ``k`` where the mask ``_k`` is set (everywhere
+    when there is none), with row ``i`` of its array (a nested dict is split the same way, a
+    ``numpy.bool_`` becomes a ``bool``); a value that is not ``n`` rows goes to every env."""
+    rows: list[dict[str, Any]] = [{} for _ in range(n)]
+    for key, value in info.items():
+        if key.startswith("_") and key[1:] in info:
+            continue
+        parts: Any
+        if isinstance(value, dict):
+            parts = split_vector_info(value, n)
+        elif isinstance(value, np.ndarray) and value.ndim >= 1 and value.shape[0] == n:
+            parts = value.tolist() if value.dtype == np.bool_ and value.ndim == 1 else list(value)
+        elif isinstance(value, (list, tuple)) and len(value) == n:
+            parts = value
+        else:
+            parts = [value] * n
+        mask = info.get(f"_{key}")
+        for i in range(n) if mask is None else np.flatnonzero(mask):
+            rows[i][key] = parts[i]
+    return rows

@@ -16,6 +16,7 @@ import os
 import pickle
 import sys
 import weakref
+from dataclasses import dataclass
 from typing import Any, Callable, NoReturn, Optional, Sequence, Union
 
 import cloudpickle
@@ -32,6 +33,7 @@ from ..settings import FAILURE_POLICIES, PoolSettings, parse_autoreset_mode
 from .adapter import NO_SEED, decode_exception
 from .infos import InfoDecoder, vector_infos
 from .layout import SpaceLayout
+from .vector_adapter import check_vector_env
 
 __all__ = ["PoolVectorEnv"]
 
@@ -47,6 +49,19 @@ DEFAULT_INFO_BYTES = 4096
 HOSTED_WORKER_POLL_US = 2000
 
 EnvFn = Callable[[], gym.Env]
+
+
+@dataclass(frozen=True)
+class _VectorEnvFn:
+    """What :meth:`PoolVectorEnv.from_vector_env` hosts: ``fn(n)`` builds a vector env of
+    ``n`` envs, one per worker block."""
+
+    fn: Callable[[int], VectorEnv]
+    num_envs: int
+
+
+def _b64(data: bytes) -> str:
+    return base64.b64encode(data).decode("ascii")
 
 
 def _copy_tree(value: Any) -> Any:
@@ -127,8 +142,9 @@ class PoolVectorEnv(VectorEnv):
         observation_mode: str = "same",
     ) -> None:
         del shared_memory, context, daemon  # always shared memory and spawned workers
-        env_fns = list(env_fns)
-        if not env_fns:
+        hosted = env_fns if isinstance(env_fns, _VectorEnvFn) else None
+        env_fns = [] if hosted is not None else list(env_fns)
+        if hosted is None and not env_fns:
             raise ValueError("env_fns is empty: give one callable per env")
         if observation_mode != "same":
             raise ValueError(
@@ -139,7 +155,7 @@ class PoolVectorEnv(VectorEnv):
                 f"on_worker_failure must be one of {FAILURE_POLICIES}, got {on_worker_failure!r}"
             )
         self.autoreset_mode = parse_autoreset_mode(autoreset_mode)
-        self.num_envs = len(env_fns)
+        self.num_envs = len(env_fns) if hosted is None else hosted.num_envs
         self.copy = bool(copy)
         workers = (
             min(self.num_envs, os.cpu_count() or 1) if num_workers is None else int(num_workers)
@@ -150,18 +166,33 @@ class PoolVectorEnv(VectorEnv):
             raise ValueError(
                 f"num_workers must be between 1 and the number of envs ({self.num_envs}), got {workers}"
             )
-        probe = env_fns[0]()
-        if not isinstance(probe, gym.Env):
-            raise TypeError(
-                f"env_fns[0]() returned {type(probe).__name__!r}, not a gymnasium.Env: each env "
-                "function must build and return an env (e.g. lambda: gym.make('CartPole-v1'))"
-            )
+        probe: Any
+        if hosted is None:
+            probe = env_fns[0]()
+            if not isinstance(probe, gym.Env):
+                raise TypeError(
+                    f"env_fns[0]() returned {type(probe).__name__!r}, not a gymnasium.Env: each "
+                    "env function must build and return an env (e.g. lambda: "
+                    "gym.make('CartPole-v1'))"
+                )
+        else:
+            if self.autoreset_mode == AutoresetMode.SAME_STEP:
+                raise ValueError(
+                    "a hosted vector env supports autoreset_mode NEXT_STEP and DISABLED, not "
+                    "SAME_STEP"
+                )
+            probe = hosted.fn(1)
         try:
-            self.single_observation_space = probe.observation_space
-            self.single_action_space = probe.action_space
+            if hosted is None:
+                self.single_observation_space = probe.observation_space
+                self.single_action_space = probe.action_space
+            else:
+                check_vector_env(probe, 1, self.autoreset_mode)
+                self.single_observation_space = probe.single_observation_space
+                self.single_action_space = probe.single_action_space
             self.metadata = dict(probe.metadata)
             self.render_mode = probe.render_mode
-            self.spec = probe.spec
+            self.spec = getattr(probe, "spec", None)
         finally:
             probe.close()
         self.metadata["autoreset_mode"] = self.autoreset_mode
@@ -175,8 +206,6 @@ class PoolVectorEnv(VectorEnv):
         )
         self._act_layout = SpaceLayout(act)
 
-        pickled = [cloudpickle.dumps(fn) for fn in env_fns]
-        unique = list(dict.fromkeys(pickled))
         spec = {
             "obs_shape": [self._obs_layout.stride],
             "dtype": "u8",
@@ -185,17 +214,22 @@ class PoolVectorEnv(VectorEnv):
             "action_bytes": 0 if self._discrete_start is not None else self._act_layout.nbytes,
             "extra_bytes": int(info_bytes),
         }
-        adapter = {
+        adapter: dict[str, Any] = {
             "sys_path": [p for p in sys.path if p],
-            "env_fns": [base64.b64encode(p).decode("ascii") for p in unique],
-            "fn_of_env": [unique.index(p) for p in pickled],
-            "spaces": base64.b64encode(
-                cloudpickle.dumps((self.single_observation_space, act))
-            ).decode("ascii"),
+            "spaces": _b64(cloudpickle.dumps((self.single_observation_space, act))),
             "discrete_start": self._discrete_start,
         }
+        if hosted is None:
+            pickled = [cloudpickle.dumps(fn) for fn in env_fns]
+            unique = list(dict.fromkeys(pickled))
+            adapter["env_fns"] = [_b64(p) for p in unique]
+            adapter["fn_of_env"] = [unique.index(p) for p in pickled]
+        else:
+            adapter["vector_env_fn"] = _b64(cloudpickle.dumps(hosted.fn))
+            adapter["autoreset_mode"] = self.autoreset_mode.value
+        kind = "python" if hosted is None else "python-vector"
         self._settings: dict[str, Any] = {
-            "env": {"kind": "python", "spec": spec, "adapter": adapter},
+            "env": {"kind": kind, "spec": spec, "adapter": adapter},
             "spec": spec,
             "num_envs": self.num_envs,
             "num_workers": workers,
@@ -233,6 +267,36 @@ class PoolVectorEnv(VectorEnv):
         self._info_decoder = InfoDecoder()
         self._started = False
         self.closed = False
+
+    @classmethod
+    def from_vector_env(
+        cls, vector_env_fn: Callable[[int], VectorEnv], num_envs: int, **options: Any
+    ) -> PoolVectorEnv:
+        """``num_envs`` envs hosted as one vector env per worker: worker ``k`` builds
+        ``vector_env_fn(n_k)`` for its block of ``n_k`` envs and steps the whole block with one
+        call, which lets a vector env that runs its envs in C++ (ale-py's ``AtariVectorEnv``,
+        with ``num_threads=1``) run at its own speed in every worker. Example::
+
+            from ale_py.vector_env import AtariVectorEnv
+
+            envs = rogue_gym.PoolVectorEnv.from_vector_env(
+                lambda n: AtariVectorEnv("pong", num_envs=n, num_threads=1), 64, num_workers=2
+            )
+
+        The vector env must autoreset as the pool does (``NEXT_STEP``, or ``DISABLED`` for a
+        pool that is); ``vector_env_fn(1)`` is called here once, to learn the spaces. Seeds:
+        ``reset(seed=s)`` resets the block of envs ``i .. j`` with ``seed=s + i`` (consecutive
+        seeds, as every vector env takes them), so trajectories do not depend on the worker
+        count when the vector env seeds its env ``k`` with ``seed + k``, as gymnasium's and
+        ale-py's do. Infos are split per env (by the ``_key`` masks) and merged again as
+        gymnasium does (with a ``_key`` mask per key); an ``env_id`` info is the pool's env
+        index. ``call``/``get_attr`` go through the vector env's own.
+        ``options`` are those of :class:`PoolVectorEnv`."""
+        if not callable(vector_env_fn):
+            raise TypeError("vector_env_fn must be a callable building a vector env of n envs")
+        if int(num_envs) < 1:
+            raise ValueError(f"num_envs must be at least 1, got {num_envs}")
+        return cls(_VectorEnvFn(vector_env_fn, int(num_envs)), **options)  # type: ignore[arg-type]
 
     # -- seeds ---------------------------------------------------------------------------
 

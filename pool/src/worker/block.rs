@@ -1,0 +1,319 @@
+//! A worker's block of envs hosted as one [`EnvBlock`] (a vector env): one call resets or
+//! steps every env of the block, while the worker keeps each env's episode bookkeeping exactly
+//! as [`super::apply`] does for single envs, so that records read the same either way.
+
+use std::ops::Range;
+
+use crate::env::{EnvBlock, EnvSpec, StepOutcome};
+use crate::wire::layout::{EnvRecord, FLAG_TERMINATED, FLAG_TRUNCATED};
+use crate::wire::{CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE};
+
+use super::{BlockOut, Slot, SlotCtx, fault, place_extra};
+
+/// An [`EnvBlock`] with the bookkeeping of its envs and the buffers of its calls.
+pub(crate) struct BlockHost {
+    block: Box<dyn EnvBlock>,
+    /// Each env's episode bookkeeping (the block owns the envs themselves).
+    books: Vec<Slot<()>>,
+    mask: Vec<bool>,
+    seeds: Vec<u64>,
+    episodes: Vec<u64>,
+    outcomes: Vec<StepOutcome>,
+}
+
+impl BlockHost {
+    /// Host `block`, the envs `globals` of the pool.
+    pub(crate) fn new(block: Box<dyn EnvBlock>, globals: Range<u64>) -> Self {
+        let books: Vec<Slot<()>> = globals.map(|g| Slot::new((), g)).collect();
+        let n = books.len();
+        BlockHost {
+            block,
+            books,
+            mask: vec![false; n],
+            seeds: vec![0; n],
+            episodes: vec![0; n],
+            outcomes: vec![StepOutcome::default(); n],
+        }
+    }
+
+    /// Envs of the block.
+    pub(crate) fn len(&self) -> usize {
+        self.books.len()
+    }
+
+    /// The envs' spec.
+    pub(crate) fn spec(&self) -> EnvSpec {
+        self.block.spec()
+    }
+
+    /// Answer a call for env `j` of the block.
+    pub(crate) fn call(
+        &mut self,
+        j: usize,
+        request: &[u8],
+    ) -> Result<Vec<u8>, crate::env::EnvError> {
+        self.block.call(j, request)
+    }
+
+    /// A failure of the block as a whole, blamed on its first env.
+    fn block_fault(&self, context: &str, e: impl std::fmt::Display) -> EnvFault {
+        fault(
+            &self.books[0],
+            format!("{context} of its worker's vector env"),
+            e,
+        )
+    }
+
+    /// Answer one command (`CMD_RESET`: an episode index or [`KEEP_EPISODE`] per env;
+    /// `CMD_STEP`: an action per env) for the whole block, records and extra info included.
+    /// Autoreset is `NEXT_STEP` (the worker refuses a block in `SAME_STEP` mode).
+    pub(crate) fn serve(
+        &mut self,
+        kind: u32,
+        payload: &[u64],
+        out: &mut BlockOut<'_>,
+        ctx: &SlotCtx,
+    ) -> Result<(), EnvFault> {
+        let n = self.books.len();
+        match kind {
+            CMD_RESET => {
+                for (j, s) in self.books.iter_mut().enumerate() {
+                    let value = payload[j];
+                    self.mask[j] = value != KEEP_EPISODE;
+                    if self.mask[j] {
+                        s.episode = value;
+                        s.begin_episode(ctx);
+                    }
+                    self.seeds[j] = s.seed;
+                    self.episodes[j] = s.episode;
+                }
+                self.block
+                    .reset(&self.mask, &self.seeds, &self.episodes, out.obs)
+                    .map_err(|e| self.block_fault("reset", e))?;
+            }
+            CMD_STEP => {
+                let w = payload.len() / n.max(1);
+                for (j, s) in self.books.iter_mut().enumerate() {
+                    // NEXT_STEP: an env whose episode ended resets on this step (the block
+                    // does it) and its action is ignored.
+                    self.mask[j] = s.needs_reset;
+                    if s.needs_reset {
+                        s.episode += 1;
+                        s.begin_episode(ctx);
+                    } else {
+                        s.check_action(payload[j * w], ctx)?;
+                    }
+                }
+                self.block
+                    .step(payload, out.obs, &mut self.outcomes)
+                    .map_err(|e| self.block_fault("a step", e))?;
+                for (j, s) in self.books.iter_mut().enumerate() {
+                    if !self.mask[j] {
+                        let o = self.outcomes[j];
+                        s.ret += o.reward;
+                        s.len += 1;
+                        s.needs_reset = o.terminated || o.truncated;
+                    }
+                }
+            }
+            k => {
+                return Err(fault(
+                    &self.books[0],
+                    "a command".into(),
+                    format!("unknown command kind {k}"),
+                ));
+            }
+        }
+        for j in 0..n {
+            let mut rec = EnvRecord::default();
+            if kind == CMD_STEP && !self.mask[j] {
+                let o = self.outcomes[j];
+                rec.reward = o.reward;
+                rec.flags = (u32::from(o.terminated) * FLAG_TERMINATED)
+                    | (u32::from(o.truncated) * FLAG_TRUNCATED);
+            }
+            self.books[j].stamp(&mut rec);
+            if out.extra_bytes > 0 {
+                out.info.clear();
+                self.block
+                    .extra_info(j, out.info)
+                    .map_err(|e| fault(&self.books[j], "extra info".into(), e))?;
+                let xb = out.extra_bytes;
+                place_extra(&mut rec, &mut out.extra[j * xb..(j + 1) * xb], out.info)
+                    .map_err(|e| fault(&self.books[j], "extra info".into(), e))?;
+            }
+            out.finish(j, &rec);
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::AutoresetMode;
+    use crate::env::{Env, EnvError};
+    use crate::kinds::test_env::TestEnv;
+    use crate::seeds::SeedSchedule;
+    use crate::wire::layout::BlockLayout;
+    use crate::worker::{EnvOut, apply};
+
+    const N: usize = 3;
+    const OB: usize = 4;
+    const NUM_ENVS: u64 = 8;
+    const FIRST: u64 = 2;
+
+    fn test_env() -> TestEnv {
+        TestEnv::from_json(&serde_json::json!({"obs_shape": [OB], "max_steps": 3})).unwrap()
+    }
+
+    /// A block of [`TestEnv`]s that autoresets `NEXT_STEP` and, where a gymnasium vector env
+    /// would continue an env's generator, reseeds from the schedule as the worker's single
+    /// envs do, so that both paths must give the same records.
+    struct Naive {
+        envs: Vec<TestEnv>,
+        ended: Vec<bool>,
+        episode: Vec<u64>,
+        seeds: SeedSchedule,
+    }
+
+    impl EnvBlock for Naive {
+        fn spec(&self) -> EnvSpec {
+            self.envs[0].spec()
+        }
+        fn reset(
+            &mut self,
+            mask: &[bool],
+            seeds: &[u64],
+            episodes: &[u64],
+            obs: &mut [u8],
+        ) -> Result<(), EnvError> {
+            for (j, row) in obs.chunks_exact_mut(OB).enumerate() {
+                if mask[j] {
+                    self.episode[j] = episodes[j];
+                    self.ended[j] = false;
+                    self.envs[j].reset(seeds[j], row)?;
+                } else {
+                    self.envs[j].observe(row)?;
+                }
+            }
+            Ok(())
+        }
+        fn step(
+            &mut self,
+            actions: &[u64],
+            obs: &mut [u8],
+            out: &mut [StepOutcome],
+        ) -> Result<(), EnvError> {
+            for (j, row) in obs.chunks_exact_mut(OB).enumerate() {
+                if self.ended[j] {
+                    self.episode[j] += 1;
+                    let seed = self.seeds.seed(FIRST + j as u64, self.episode[j], NUM_ENVS);
+                    self.envs[j].reset(seed, row)?;
+                    out[j] = StepOutcome::default();
+                    self.ended[j] = false;
+                } else {
+                    out[j] = self.envs[j].step(actions[j] as usize, row)?;
+                    self.ended[j] = out[j].terminated || out[j].truncated;
+                }
+            }
+            Ok(())
+        }
+    }
+
+    fn ctx(seeds: &SeedSchedule) -> SlotCtx<'_> {
+        SlotCtx {
+            seeds,
+            num_envs: NUM_ENVS,
+            autoreset: AutoresetMode::NextStep,
+            num_actions: 5,
+            action_bytes: 0,
+            n_info: 0,
+        }
+    }
+
+    fn host(seeds: &SeedSchedule) -> BlockHost {
+        let naive = Naive {
+            envs: (0..N).map(|_| test_env()).collect(),
+            ended: vec![false; N],
+            episode: vec![0; N],
+            seeds: seeds.clone(),
+        };
+        BlockHost::new(Box::new(naive), FIRST..FIRST + N as u64)
+    }
+
+    /// Serve one command; the block's words.
+    fn serve(
+        host: &mut BlockHost,
+        kind: u32,
+        payload: &[u64],
+        ctx: &SlotCtx,
+    ) -> Result<(BlockLayout, Vec<u64>), EnvFault> {
+        let layout = BlockLayout {
+            envs: N,
+            obs_bytes: OB,
+            final_obs: false,
+            extra_bytes: 0,
+        };
+        let mut block = vec![0u64; layout.words()];
+        let areas = layout.split_mut(&mut block);
+        let (mut info, mut apart) = (Vec::new(), Vec::new());
+        let mut out = BlockOut {
+            records: areas.records,
+            obs: areas.obs,
+            final_obs: areas.final_obs,
+            extra: areas.extra,
+            obs_bytes: OB,
+            final_bytes: 0,
+            extra_bytes: 0,
+            info: &mut info,
+            apart: &mut apart,
+        };
+        host.serve(kind, payload, &mut out, ctx)?;
+        Ok((layout, block))
+    }
+
+    #[test]
+    fn a_block_keeps_the_same_books_as_single_envs() {
+        let seeds = SeedSchedule::from_base(9);
+        let ctx = ctx(&seeds);
+        let mut host = host(&seeds);
+        let mut slots: Vec<Slot> = (0..N as u64)
+            .map(|j| Slot::new(Box::new(test_env()) as Box<dyn Env>, FIRST + j))
+            .collect();
+        let mut commands = vec![(CMD_RESET, vec![0u64; N])];
+        commands
+            .extend((0..12u64).map(|t| (CMD_STEP, (0..N as u64).map(|j| (t + j) % 5).collect())));
+        commands.push((CMD_RESET, vec![KEEP_EPISODE, 4, KEEP_EPISODE]));
+        commands.push((CMD_STEP, vec![1, 2, 3]));
+        let mut ends = 0;
+        for (kind, payload) in commands {
+            let (layout, block) = serve(&mut host, kind, &payload, &ctx).unwrap();
+            for (j, s) in slots.iter_mut().enumerate() {
+                let mut obs = [0u8; OB];
+                let env_out = EnvOut {
+                    obs: &mut obs,
+                    fin: &mut [],
+                    extra: &mut [],
+                    info: &mut Vec::new(),
+                };
+                let want = apply(s, kind, &payload[j..j + 1], env_out, &ctx).unwrap();
+                ends += usize::from(want.truncated() || want.terminated());
+                assert_eq!(layout.record(&block, j), want, "command {kind}, env {j}");
+                assert_eq!(&layout.obs(&block)[j * OB..(j + 1) * OB], &obs);
+            }
+        }
+        assert!(ends >= N * 3, "the run crosses episode ends ({ends})");
+    }
+
+    #[test]
+    fn an_action_out_of_range_is_an_error_not_a_panic() {
+        let seeds = SeedSchedule::from_base(1);
+        let ctx = ctx(&seeds);
+        let mut host = host(&seeds);
+        serve(&mut host, CMD_RESET, &[0; N], &ctx).unwrap();
+        let e = serve(&mut host, CMD_STEP, &[0, 9, 0], &ctx).unwrap_err();
+        assert_eq!(e.env, FIRST + 1);
+        assert!(e.message.contains("action 9"), "{}", e.message);
+    }
+}

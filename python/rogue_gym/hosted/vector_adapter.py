@@ -1,0 +1,241 @@
+"""The worker side of a hosted *vector* env: one gymnasium ``VectorEnv`` (for instance ale-py's
+C++ ``AtariVectorEnv``) for a worker's whole block of envs, built from the caller's cloudpickled
+``vector_env_fn(num_envs)``.
+
+The pool's Rust worker loop (``python/src/hosted.rs``) calls :class:`HostedVectorEnv` once per
+command for the whole block: it keeps each env's episode bookkeeping itself, and this adapter
+resets or steps the vector env, writes the batch of observations straight into the worker's
+rows of shared memory and returns rewards and flags as raw arrays and each env's info as bytes
+(:mod:`rogue_gym.hosted.infos`). The vector env must autoreset ``NEXT_STEP`` (or be
+``DISABLED`` in a pool that is), as the pool does.
+"""
+
+from __future__ import annotations
+
+import base64
+import contextlib
+import ctypes
+import json
+import pickle
+import sys
+from typing import Any, Optional
+
+import cloudpickle
+import numpy as np
+
+from .adapter import NO_SEED, EncodedEnvError, encode_exception
+from .infos import InfoEncoder, split_vector_info
+from .layout import SpaceLayout
+
+__all__ = ["HostedVectorEnv", "check_vector_env"]
+
+
+def check_vector_env(envs: Any, num_envs: int, autoreset_mode: Any) -> None:
+    """Raise ``ValueError``/``TypeError`` unless ``envs`` is a gymnasium ``VectorEnv`` of
+    ``num_envs`` envs that autoresets as the pool will (``autoreset_mode``)."""
+    from gymnasium.vector import AutoresetMode, VectorEnv
+
+    if not isinstance(envs, VectorEnv):
+        raise TypeError(
+            f"vector_env_fn({num_envs}) returned {type(envs).__name__!r}, not a gymnasium "
+            "VectorEnv: it must build a vector env of that many envs"
+        )
+    if int(envs.num_envs) != num_envs:
+        raise ValueError(
+            f"vector_env_fn({num_envs}) built a vector env of {envs.num_envs} envs: it must "
+            "build as many envs as it is asked for"
+        )
+    mode = envs.metadata.get("autoreset_mode", AutoresetMode.NEXT_STEP)
+    if AutoresetMode(mode) != autoreset_mode:
+        raise ValueError(
+            f"the vector env autoresets {AutoresetMode(mode).name} but the pool "
+            f"{autoreset_mode.name}: build it with the same autoreset mode (a hosted vector env "
+            "supports NEXT_STEP and DISABLED)"
+        )
+
+
+def _rows(address: int, n: int, stride: int) -> np.ndarray:
+    """The ``(n, stride)`` bytes at ``address`` (the worker's rows, lent for a call)."""
+    return np.ctypeslib.as_array((ctypes.c_uint8 * (n * stride)).from_address(address)).reshape(
+        n, stride
+    )
+
+
+def _seed_arg(seeds: list[Optional[int]]) -> Any:
+    """The ``seed`` argument of a vector env's ``reset`` for one seed (or ``None``) per env
+    being reset: ``None`` for none, an ``int`` for consecutive seeds (what every vector env
+    takes), else the list."""
+    if all(s is None for s in seeds):
+        return None
+    first = seeds[0]
+    if first is not None and all(s == first + i for i, s in enumerate(seeds)):
+        return first
+    return seeds
+
+
+class HostedVectorEnv:
+    """One worker's vector env (built by :meth:`build`) and the byte codecs of its spaces."""
+
+    def __init__(
+        self, envs: Any, first: int, obs_space: Any, action_space: Any, discrete_start: Any
+    ) -> None:
+        self.envs = envs
+        self.n = int(envs.num_envs)
+        #: The pool's index of the block's first env.
+        self.first = first
+        self._obs = SpaceLayout(obs_space)
+        self._act = SpaceLayout(action_space)
+        self._discrete_start: Optional[int] = discrete_start
+        #: Whether each env has not been reset yet (its first reset is seeded in any episode).
+        self._fresh = np.ones(self.n, bool)
+        self._options: Optional[dict[str, Any]] = None
+        self._encoder = InfoEncoder()
+        self._rows: dict[int, np.ndarray] = {}
+        #: The last batch of observations (what envs not being reset show again).
+        self._last: Any = None
+
+    @classmethod
+    def build(cls, config_json: str, first: int, count: int) -> HostedVectorEnv:
+        """Build the vector env of the pool's envs ``first .. first + count`` from the front
+        end's adapter config (the caller's ``sys_path``, the pickled ``vector_env_fn``, the
+        spaces and autoreset mode every env must have)."""
+        try:
+            from gymnasium.vector import AutoresetMode
+
+            cfg = json.loads(config_json)
+            for path in reversed(cfg["sys_path"]):
+                if path not in sys.path:
+                    sys.path.insert(0, path)
+            fn = cloudpickle.loads(base64.b64decode(cfg["vector_env_fn"]))
+            obs_space, action_space = cloudpickle.loads(base64.b64decode(cfg["spaces"]))
+            envs = fn(count)
+            try:
+                check_vector_env(envs, count, AutoresetMode(cfg["autoreset_mode"]))
+                for what, got, want in (
+                    ("observation", envs.single_observation_space, obs_space),
+                    ("action", envs.single_action_space, action_space),
+                ):
+                    if got != want:
+                        raise ValueError(
+                            f"the vector env of envs {first}..{first + count - 1} has the {what} "
+                            f"space {got}, but the probe had {want}"
+                        )
+            except BaseException:
+                with contextlib.suppress(Exception):
+                    envs.close()
+                raise
+            return cls(envs, first, obs_space, action_space, cfg["discrete_start"])
+        except BaseException as exc:
+            raise EncodedEnvError(encode_exception(exc)) from exc
+
+    def _write(self, obs: Any, address: int) -> None:
+        rows = self._rows.get(address)
+        if rows is None:
+            if len(self._rows) >= 64:
+                self._rows.clear()
+            rows = self._rows[address] = _rows(address, self.n, self._obs.stride)
+        self._obs.write_batch(obs, rows)
+        self._last = obs
+
+    def _infos(self, info: dict[str, Any], kind: str, envs: Any) -> Optional[list[Optional[bytes]]]:
+        """Each env's info bytes (``None`` for an env in ``envs`` with none, and for the
+        others), or ``None`` for no info at all."""
+        if not info:
+            return None
+        ids = info.get("env_id")
+        if isinstance(ids, np.ndarray) and ids.shape == (self.n,) and ids.dtype.kind in "iu":
+            # The async vector envs' convention (ale-py, EnvPool): the pool's index, not the
+            # block's.
+            info = {**info, "env_id": ids + ids.dtype.type(self.first)}
+        rows = split_vector_info(info, self.n)
+        encode = self._encoder.encode
+        out: list[Optional[bytes]] = [None] * self.n
+        for i in envs:
+            if rows[i]:
+                out[i] = encode([(kind, rows[i])])
+        return out
+
+    def reset(
+        self, mask: bytes, seeds: bytes, episodes: bytes, address: int
+    ) -> Optional[list[Optional[bytes]]]:
+        """Reset the envs of ``mask`` (one byte per env), each seeded with its entry of
+        ``seeds`` (``uint64``) if it is its schedule's first episode (``episodes``) or its
+        first reset, unless it is :data:`~rogue_gym.hosted.adapter.NO_SEED`; write every env's
+        observation at ``address``. Returns each env's info bytes, or ``None``."""
+        try:
+            which = np.frombuffer(mask, np.bool_)
+            seed_of = np.frombuffer(seeds, np.uint64)
+            first = (np.frombuffer(episodes, np.uint64) == 0) | self._fresh
+            ids = np.flatnonzero(which)
+            if ids.size == 0:  # no env of this block is reset: the same observations again
+                if self._last is None:
+                    raise RuntimeError("the vector env has no observations yet: reset it first")
+                self._write(self._last, address)
+                return None
+            use = [int(seed_of[i]) if first[i] and seed_of[i] != NO_SEED else None for i in ids]
+            options = dict(self._options or {})
+            self._options = None
+            if not which.all():
+                options["reset_mask"] = which.copy()
+            obs, info = self.envs.reset(seed=_seed_arg(use), options=options or None)
+            self._fresh[ids] = False
+            self._write(obs, address)
+            return self._infos(info, "reset", ids)
+        except BaseException as exc:
+            raise EncodedEnvError(encode_exception(exc)) from exc
+
+    def step(self, actions: bytes, address: int) -> tuple[bytes, bytes, bytes, Any]:
+        """Step every env with ``actions`` (one ``uint64`` index per env for a Discrete
+        space, else each env's action bytes in rows of whole words) and write the observations
+        at ``address``. Returns the rewards (``float64``), terminations and truncations (one
+        byte each) and each env's info bytes, or ``None``."""
+        try:
+            if self._discrete_start is not None:
+                acts: Any = np.frombuffer(actions, np.int64) + self._discrete_start
+            else:
+                rows = np.frombuffer(actions, np.uint8).reshape(self.n, -1)
+                acts = self._act.batch_views(rows.copy())
+            obs, rewards, terminated, truncated, info = self.envs.step(acts)
+            self._write(obs, address)
+            return (
+                np.asarray(rewards, np.float64).tobytes(),
+                np.asarray(terminated, np.bool_).tobytes(),
+                np.asarray(truncated, np.bool_).tobytes(),
+                self._infos(info, "step", range(self.n)),
+            )
+        except BaseException as exc:
+            raise EncodedEnvError(encode_exception(exc)) from exc
+
+    def call(self, row: int, request: bytes) -> bytes:
+        """Answer a call for env ``row`` (a pickled ``(op, name, args, kwargs)``, as
+        :meth:`rogue_gym.hosted.adapter.HostedEnv.call`): through the vector env's own
+        ``call``/``get_attr``/``set_attr`` (this env's element), or reset options."""
+        try:
+            op, name, args, kwargs = pickle.loads(request)
+            if op == "set_reset_options":
+                self._options, value = args[0], None
+            elif op in ("call", "env_method"):
+                if name in ("reset", "step", "close"):
+                    raise ValueError(f"call({name!r}) is not allowed; use the vector env's own")
+                value = self.envs.call(name, *args, **kwargs)[row]
+            elif op == "get_attr":
+                value = self.envs.get_attr(name)[row]
+            elif op == "has_attr":
+                try:
+                    self.envs.get_attr(name)
+                    value = True
+                except AttributeError:
+                    value = False
+            else:
+                raise NotImplementedError(
+                    f"{op!r} is not available for the envs of a hosted vector env: it reaches "
+                    "them through the vector env's call and get_attr only"
+                )
+            return bytes(cloudpickle.dumps(("ok", value)))
+        except BaseException as exc:
+            return bytes(cloudpickle.dumps(("err", encode_exception(exc))))
+
+    def close(self) -> None:
+        """Close the vector env (when the worker exits); errors are ignored."""
+        with contextlib.suppress(Exception):
+            self.envs.close()

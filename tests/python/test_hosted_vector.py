@@ -1,0 +1,136 @@
+"""Vector envs hosted one per worker block (``PoolVectorEnv.from_vector_env``): the same
+outputs as the vector env itself in one process, whatever the worker layout; partial resets,
+env exceptions, bad vector env functions, a killed worker, calls."""
+
+from __future__ import annotations
+
+import functools
+import os
+import signal
+from collections.abc import Iterator
+from typing import Any, Callable
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode, SyncVectorEnv
+from rogue_gym import PoolVectorEnv
+
+from conftest import pid_alive, pool_files, wait_until
+from hosted_envs import InfoEnv, NestedEnv, RaisingEnv, SpecialError
+from test_hosted import run_both
+
+
+def cartpole() -> gym.Env:
+    return gym.make("CartPole-v1")
+
+
+def sync_of(make: Callable[[], gym.Env], **kw: Any) -> Callable[[int], SyncVectorEnv]:
+    """A vector env function: ``n`` envs of ``make`` in a ``SyncVectorEnv``."""
+    return lambda n: SyncVectorEnv([make] * n, **kw)
+
+
+@pytest.fixture
+def hosted() -> Iterator[Callable[..., PoolVectorEnv]]:
+    """``hosted(vector_env_fn, num_envs, **kw)``: closed at teardown, checked for leftover
+    files and workers."""
+    made: list[PoolVectorEnv] = []
+
+    def factory(fn: Any, num_envs: int, **kw: Any) -> PoolVectorEnv:
+        env = PoolVectorEnv.from_vector_env(fn, num_envs, **kw)
+        made.append(env)
+        return env
+
+    yield factory
+    for env in made:
+        pids, name = env.worker_pids, env.pool_name
+        env.close()
+        assert wait_until(lambda pids=pids: not any(pid_alive(p) for p in pids))
+        assert pool_files(name) == []
+
+
+@pytest.mark.parametrize("workers", [1, 3])
+@pytest.mark.parametrize("make", [cartpole, NestedEnv, InfoEnv], ids=["cartpole", "nested", "info"])
+def test_outputs_equal_the_vector_env_in_one_process(hosted, make, workers) -> None:
+    """Observations, rewards, flags and infos (keys, dtypes, masks, nesting) over episode ends,
+    for Discrete and Dict/Tuple actions, with one block and with three uneven ones."""
+    ours = hosted(sync_of(make), 7, num_workers=workers)
+    ref = SyncVectorEnv([make] * 7)
+    assert ours.single_observation_space == ref.single_observation_space
+    assert ours.action_space == ref.action_space
+    run_both(ours, ref, steps=120, seed=4)
+    ref.close()
+
+
+def test_partial_resets_with_autoreset_disabled(hosted) -> None:
+    mode = AutoresetMode.DISABLED
+    ours = hosted(sync_of(InfoEnv, autoreset_mode=mode), 4, num_workers=2, autoreset_mode=mode)
+    ref = SyncVectorEnv([InfoEnv] * 4, autoreset_mode=mode)
+    run_both(ours, ref, steps=0, seed=2)
+    done = np.zeros(4, bool)
+    for _ in range(3):
+        while not done.any():
+            step = [v.step(np.zeros(4, np.int64)) for v in (ours, ref)]
+            run_equal(*step)
+            done = step[1][2] | step[1][3]
+        with pytest.raises(ValueError, match="reset_mask"):
+            ours.step(np.zeros(4, np.int64))
+        run_equal(*(v.reset(options={"reset_mask": done}) for v in (ours, ref)))
+        done[:] = False
+    ref.close()
+
+
+def run_equal(a: Any, b: Any) -> None:
+    from test_hosted import assert_tree_equal
+
+    for x, y in zip(a, b):
+        assert_tree_equal(x, y)
+
+
+def test_env_exceptions_reach_the_caller_and_reset_recovers(hosted) -> None:
+    env = hosted(sync_of(functools.partial(RaisingEnv, fail_after=1)), 4, num_workers=2)
+    env.reset(seed=0)
+    env.step(np.zeros(4, np.int64))
+    with pytest.raises(SpecialError, match="step 2 refused action 1"):
+        env.step(np.array([0, 0, 0, 1]))
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.zeros(4, np.int64))
+    env.reset(seed=0)
+    env.step(np.zeros(4, np.int64))
+
+
+def test_bad_vector_env_functions_are_clear_errors() -> None:
+    with pytest.raises(TypeError, match="not a gymnasium VectorEnv"):
+        PoolVectorEnv.from_vector_env(lambda n: cartpole(), 2, num_workers=1)
+    with pytest.raises(ValueError, match="built a vector env of 2 envs"):
+        PoolVectorEnv.from_vector_env(lambda n: SyncVectorEnv([cartpole] * (n + 1)), 2)
+    with pytest.raises(ValueError, match="autoresets SAME_STEP but the pool NEXT_STEP"):
+        PoolVectorEnv.from_vector_env(sync_of(cartpole, autoreset_mode="SameStep"), 2)
+    with pytest.raises(ValueError, match="NEXT_STEP and DISABLED, not SAME_STEP"):
+        PoolVectorEnv.from_vector_env(sync_of(cartpole), 2, autoreset_mode="SameStep")
+    with pytest.raises(ValueError, match="num_envs must be at least 1"):
+        PoolVectorEnv.from_vector_env(sync_of(cartpole), 0)
+
+
+def test_killed_worker_rebuilds_its_block(hosted) -> None:
+    env = hosted(sync_of(cartpole), 4, num_workers=2)
+    env.reset(seed=0)
+    victim = env.worker_pids[1]
+    os.kill(victim, signal.SIGKILL)
+    _, _, _, trunc, infos = env.step(np.zeros(4, np.int64))
+    assert infos["worker_restarted"].tolist() == [False, False, True, True]
+    assert trunc[2:].all()
+    assert env.worker_pids[1] != victim
+    env.step(np.zeros(4, np.int64))
+
+
+def test_calls_reach_each_env_through_the_vector_env(hosted) -> None:
+    env = hosted(sync_of(NestedEnv), 3, num_workers=2)
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    assert env.call("scaled_t", 10, offset=1) == (11, 11, 11)
+    assert env.get_attr("t") == (1, 1, 1)
+    with pytest.raises(SpecialError, match="negative factor"):
+        env.call("scaled_t", -1)
+    with pytest.raises(NotImplementedError, match="hosted vector env"):
+        env.set_attr("t", 5)
