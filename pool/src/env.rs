@@ -171,7 +171,8 @@ pub trait Env {
 /// per worker, e.g. ale-py's C++ `AtariVectorEnv`) and steps every env of the block in one
 /// call. The worker keeps each env's episode bookkeeping (episode, seed, return, length) as it
 /// does for single [`Env`]s; the block resets and steps, and must autoreset as the pool does
-/// (`NEXT_STEP`: the step after an env's episode ended resets it and ignores its action).
+/// (`NEXT_STEP`: the step after an env's episode ended resets it and ignores its action;
+/// `SAME_STEP`: the step that ends an episode resets the env and keeps its final observation).
 /// Observations are written in place: row `j` of `obs` (each [`EnvSpec::obs_bytes`] long) is
 /// env `j`'s.
 pub trait EnvBlock {
@@ -189,11 +190,14 @@ pub trait EnvBlock {
     ) -> Result<(), EnvError>;
     /// Step every env: env `j`'s action is `actions[j * w..(j + 1) * w]` (`w` =
     /// [`EnvSpec::action_words`]: an index already checked against `num_actions`, or
-    /// [`EnvSpec::action_bytes`] raw bytes), its outcome goes to `out[j]`.
+    /// [`EnvSpec::action_bytes`] raw bytes), its outcome goes to `out[j]`. In `SAME_STEP`
+    /// mode (`fin` is as long as `obs`, else empty) an env whose episode ends writes its first
+    /// observation of the next episode to `obs` and its final one to its row of `fin`.
     fn step(
         &mut self,
         actions: &[u64],
         obs: &mut [u8],
+        fin: &mut [u8],
         out: &mut [StepOutcome],
     ) -> Result<(), EnvError>;
     /// Append env `j`'s extra info of the last command to `out` (see [`Env::extra_info`]).

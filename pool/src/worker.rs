@@ -499,14 +499,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
                 .map(|(env, g)| Slot::new(env, g))
                 .collect(),
         ),
-        Built::Block(block) => {
-            if cfg.autoreset == AutoresetMode::SameStep {
-                return Err(WorkerError::Msg(
-                    "a block of envs hosted as one vector env autoresets NEXT_STEP only".into(),
-                ));
-            }
-            Hosted::Block(BlockHost::new(block, globals))
-        }
+        Built::Block(block) => Hosted::Block(BlockHost::new(block, globals)),
     };
     let spec = match &hosted {
         Hosted::Each(slots) => slots[0].env.spec(),

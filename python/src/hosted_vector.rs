@@ -123,16 +123,19 @@ impl EnvBlock for HostedVector {
         &mut self,
         actions: &[u64],
         obs: &mut [u8],
+        fin: &mut [u8],
         out: &mut [StepOutcome],
     ) -> Result<(), EnvError> {
         let n = out.len();
+        // 0: no final observations (NEXT_STEP).
+        let fin = if fin.is_empty() { 0 } else { address(fin) };
         Python::attach(|py| {
             let arg = PyBytes::new(py, rogue_gym_ipc::words_as_bytes(actions));
             let err = |e: PyErr| env_error(py, &self.encoded, e);
             let r = self
                 .adapter
                 .bind(py)
-                .call_method1(intern!(py, "step"), (arg, address(obs)))
+                .call_method1(intern!(py, "step"), (arg, address(obs), fin))
                 .map_err(err)?;
             let t = r
                 .cast::<PyTuple>()

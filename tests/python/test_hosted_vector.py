@@ -49,13 +49,15 @@ def hosted() -> Iterator[Callable[..., PoolVectorEnv]]:
         assert pool_files(name) == []
 
 
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
 @pytest.mark.parametrize("workers", [1, 3])
 @pytest.mark.parametrize("make", [cartpole, NestedEnv, InfoEnv], ids=["cartpole", "nested", "info"])
-def test_outputs_equal_the_vector_env_in_one_process(hosted, make, workers) -> None:
-    """Observations, rewards, flags and infos (keys, dtypes, masks, nesting) over episode ends,
-    for Discrete and Dict/Tuple actions, with one block and with three uneven ones."""
-    ours = hosted(sync_of(make), 7, num_workers=workers)
-    ref = SyncVectorEnv([make] * 7)
+def test_outputs_equal_the_vector_env_in_one_process(hosted, make, workers, mode) -> None:
+    """Observations, rewards, flags and infos (keys, dtypes, masks, nesting; SAME_STEP's
+    ``final_obs`` and ``final_info``) over episode ends, for Discrete and Dict/Tuple actions,
+    with one block and with three uneven ones."""
+    ours = hosted(sync_of(make, autoreset_mode=mode), 7, num_workers=workers, autoreset_mode=mode)
+    ref = SyncVectorEnv([make] * 7, autoreset_mode=mode)
     assert ours.single_observation_space == ref.single_observation_space
     assert ours.action_space == ref.action_space
     run_both(ours, ref, steps=120, seed=4)
@@ -106,7 +108,7 @@ def test_bad_vector_env_functions_are_clear_errors() -> None:
         PoolVectorEnv.from_vector_env(lambda n: SyncVectorEnv([cartpole] * (n + 1)), 2)
     with pytest.raises(ValueError, match="autoresets SAME_STEP but the pool NEXT_STEP"):
         PoolVectorEnv.from_vector_env(sync_of(cartpole, autoreset_mode="SameStep"), 2)
-    with pytest.raises(ValueError, match="NEXT_STEP and DISABLED, not SAME_STEP"):
+    with pytest.raises(ValueError, match="autoresets NEXT_STEP but the pool SAME_STEP"):
         PoolVectorEnv.from_vector_env(sync_of(cartpole), 2, autoreset_mode="SameStep")
     with pytest.raises(ValueError, match="num_envs must be at least 1"):
         PoolVectorEnv.from_vector_env(sync_of(cartpole), 0)
@@ -134,3 +136,36 @@ def test_calls_reach_each_env_through_the_vector_env(hosted) -> None:
         env.call("scaled_t", -1)
     with pytest.raises(NotImplementedError, match="hosted vector env"):
         env.set_attr("t", 5)
+
+
+def test_sb3_vec_env_hosting_vector_envs_plays_as_dummy_vec_env() -> None:
+    """``rogue_gym.sb3.PoolVecEnv.from_vector_env`` (SAME_STEP vector envs): the observations,
+    rewards, dones and infos (``terminal_observation``, ``TimeLimit.truncated``) of SB3's
+    ``DummyVecEnv`` over the same envs."""
+    pytest.importorskip("stable_baselines3")
+    from rogue_gym.sb3 import PoolVecEnv
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    ours = PoolVecEnv.from_vector_env(
+        sync_of(cartpole, autoreset_mode=AutoresetMode.SAME_STEP), 5, num_workers=2
+    )
+    ref = DummyVecEnv([cartpole] * 5)
+    try:
+        ours.seed(3)
+        ref.seed(3)
+        assert np.array_equal(ours.reset(), ref.reset())
+        rng = np.random.default_rng(0)
+        ends = 0
+        for _ in range(150):
+            actions = rng.integers(0, 2, 5)
+            (o1, r1, d1, i1), (o2, r2, d2, i2) = ours.step(actions), ref.step(actions)
+            assert np.array_equal(o1, o2) and np.array_equal(r1, r2) and np.array_equal(d1, d2)
+            for a, b in zip(i1, i2):
+                assert sorted(a) == sorted(b), (a, b)
+                for key in b:
+                    assert np.array_equal(a[key], b[key]), key
+            ends += int(d2.sum())
+        assert ends >= 5, "the run crosses episode ends"
+    finally:
+        ours.close()
+        ref.close()

@@ -4,8 +4,9 @@
 
 use std::ops::Range;
 
+use crate::config::AutoresetMode;
 use crate::env::{EnvBlock, EnvSpec, StepOutcome};
-use crate::wire::layout::{EnvRecord, FLAG_TERMINATED, FLAG_TRUNCATED};
+use crate::wire::layout::{EnvRecord, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED};
 use crate::wire::{CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE};
 
 use super::{BlockOut, Slot, SlotCtx, fault, place_extra};
@@ -66,7 +67,6 @@ impl BlockHost {
 
     /// Answer one command (`CMD_RESET`: an episode index or [`KEEP_EPISODE`] per env;
     /// `CMD_STEP`: an action per env) for the whole block, records and extra info included.
-    /// Autoreset is `NEXT_STEP` (the worker refuses a block in `SAME_STEP` mode).
     pub(crate) fn serve(
         &mut self,
         kind: u32,
@@ -105,7 +105,7 @@ impl BlockHost {
                     }
                 }
                 self.block
-                    .step(payload, out.obs, &mut self.outcomes)
+                    .step(payload, out.obs, out.final_obs, &mut self.outcomes)
                     .map_err(|e| self.block_fault("a step", e))?;
                 for (j, s) in self.books.iter_mut().enumerate() {
                     if !self.mask[j] {
@@ -133,6 +133,17 @@ impl BlockHost {
                     | (u32::from(o.truncated) * FLAG_TRUNCATED);
             }
             self.books[j].stamp(&mut rec);
+            let ended = rec.flags & (FLAG_TERMINATED | FLAG_TRUNCATED) != 0;
+            if ended && ctx.autoreset == AutoresetMode::SameStep {
+                // The block has reset the env already; the record describes the finished
+                // episode, the books begin the next.
+                if out.final_bytes > 0 {
+                    rec.flags |= FLAG_FINAL_OBS;
+                }
+                let s = &mut self.books[j];
+                s.episode += 1;
+                s.begin_episode(ctx);
+            }
             if out.extra_bytes > 0 {
                 out.info.clear();
                 self.block
@@ -167,14 +178,22 @@ mod tests {
         TestEnv::from_json(&serde_json::json!({"obs_shape": [OB], "max_steps": 3})).unwrap()
     }
 
-    /// A block of [`TestEnv`]s that autoresets `NEXT_STEP` and, where a gymnasium vector env
-    /// would continue an env's generator, reseeds from the schedule as the worker's single
-    /// envs do, so that both paths must give the same records.
+    /// A block of [`TestEnv`]s that autoresets `NEXT_STEP` or `SAME_STEP` and, where a
+    /// gymnasium vector env would continue an env's generator, reseeds from the schedule as the
+    /// worker's single envs do, so that both paths must give the same records.
     struct Naive {
         envs: Vec<TestEnv>,
         ended: Vec<bool>,
         episode: Vec<u64>,
         seeds: SeedSchedule,
+    }
+
+    impl Naive {
+        fn next_episode(&mut self, j: usize, row: &mut [u8]) -> Result<(), EnvError> {
+            self.episode[j] += 1;
+            let seed = self.seeds.seed(FIRST + j as u64, self.episode[j], NUM_ENVS);
+            self.envs[j].reset(seed, row)
+        }
     }
 
     impl EnvBlock for Naive {
@@ -203,29 +222,33 @@ mod tests {
             &mut self,
             actions: &[u64],
             obs: &mut [u8],
+            fin: &mut [u8],
             out: &mut [StepOutcome],
         ) -> Result<(), EnvError> {
             for (j, row) in obs.chunks_exact_mut(OB).enumerate() {
                 if self.ended[j] {
-                    self.episode[j] += 1;
-                    let seed = self.seeds.seed(FIRST + j as u64, self.episode[j], NUM_ENVS);
-                    self.envs[j].reset(seed, row)?;
+                    self.next_episode(j, row)?;
                     out[j] = StepOutcome::default();
                     self.ended[j] = false;
-                } else {
-                    out[j] = self.envs[j].step(actions[j] as usize, row)?;
-                    self.ended[j] = out[j].terminated || out[j].truncated;
+                    continue;
+                }
+                out[j] = self.envs[j].step(actions[j] as usize, row)?;
+                self.ended[j] = out[j].terminated || out[j].truncated;
+                if self.ended[j] && !fin.is_empty() {
+                    fin[j * OB..(j + 1) * OB].copy_from_slice(row);
+                    self.next_episode(j, row)?;
+                    self.ended[j] = false;
                 }
             }
             Ok(())
         }
     }
 
-    fn ctx(seeds: &SeedSchedule) -> SlotCtx<'_> {
+    fn ctx(seeds: &SeedSchedule, autoreset: AutoresetMode) -> SlotCtx<'_> {
         SlotCtx {
             seeds,
             num_envs: NUM_ENVS,
-            autoreset: AutoresetMode::NextStep,
+            autoreset,
             num_actions: 5,
             action_bytes: 0,
             n_info: 0,
@@ -249,10 +272,11 @@ mod tests {
         payload: &[u64],
         ctx: &SlotCtx,
     ) -> Result<(BlockLayout, Vec<u64>), EnvFault> {
+        let same_step = ctx.autoreset == AutoresetMode::SameStep;
         let layout = BlockLayout {
             envs: N,
             obs_bytes: OB,
-            final_obs: false,
+            final_obs: same_step,
             extra_bytes: 0,
         };
         let mut block = vec![0u64; layout.words()];
@@ -264,7 +288,7 @@ mod tests {
             final_obs: areas.final_obs,
             extra: areas.extra,
             obs_bytes: OB,
-            final_bytes: 0,
+            final_bytes: if same_step { OB } else { 0 },
             extra_bytes: 0,
             info: &mut info,
             apart: &mut apart,
@@ -275,8 +299,14 @@ mod tests {
 
     #[test]
     fn a_block_keeps_the_same_books_as_single_envs() {
+        for mode in [AutoresetMode::NextStep, AutoresetMode::SameStep] {
+            same_books(mode);
+        }
+    }
+
+    fn same_books(mode: AutoresetMode) {
         let seeds = SeedSchedule::from_base(9);
-        let ctx = ctx(&seeds);
+        let ctx = ctx(&seeds, mode);
         let mut host = host(&seeds);
         let mut slots: Vec<Slot> = (0..N as u64)
             .map(|j| Slot::new(Box::new(test_env()) as Box<dyn Env>, FIRST + j))
@@ -290,17 +320,30 @@ mod tests {
         for (kind, payload) in commands {
             let (layout, block) = serve(&mut host, kind, &payload, &ctx).unwrap();
             for (j, s) in slots.iter_mut().enumerate() {
-                let mut obs = [0u8; OB];
+                let (mut obs, mut fin) = ([0u8; OB], [0u8; OB]);
+                let fb = if mode == AutoresetMode::SameStep {
+                    OB
+                } else {
+                    0
+                };
                 let env_out = EnvOut {
                     obs: &mut obs,
-                    fin: &mut [],
+                    fin: &mut fin[..fb],
                     extra: &mut [],
                     info: &mut Vec::new(),
                 };
                 let want = apply(s, kind, &payload[j..j + 1], env_out, &ctx).unwrap();
                 ends += usize::from(want.truncated() || want.terminated());
-                assert_eq!(layout.record(&block, j), want, "command {kind}, env {j}");
+                assert_eq!(
+                    layout.record(&block, j),
+                    want,
+                    "{mode:?}: command {kind}, env {j}"
+                );
                 assert_eq!(&layout.obs(&block)[j * OB..(j + 1) * OB], &obs);
+                if want.has_final_obs() {
+                    let got = layout.final_obs(&block).unwrap();
+                    assert_eq!(&got[j * OB..(j + 1) * OB], &fin);
+                }
             }
         }
         assert!(ends >= N * 3, "the run crosses episode ends ({ends})");
@@ -309,7 +352,7 @@ mod tests {
     #[test]
     fn an_action_out_of_range_is_an_error_not_a_panic() {
         let seeds = SeedSchedule::from_base(1);
-        let ctx = ctx(&seeds);
+        let ctx = ctx(&seeds, AutoresetMode::NextStep);
         let mut host = host(&seeds);
         serve(&mut host, CMD_RESET, &[0; N], &ctx).unwrap();
         let e = serve(&mut host, CMD_STEP, &[0, 9, 0], &ctx).unwrap_err();

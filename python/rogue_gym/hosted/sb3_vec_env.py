@@ -25,7 +25,7 @@ from stable_baselines3.common.vec_env.base_vec_env import (
     VecEnvStepReturn,
 )
 
-from .vector_env import PoolVectorEnv
+from .vector_env import PoolVectorEnv, _VectorEnvFn
 
 __all__ = ["PoolVecEnv"]
 
@@ -73,6 +73,18 @@ class PoolVecEnv(VecEnv):
         super().__init__(
             self.venv.num_envs, self.venv.single_observation_space, self.venv.single_action_space
         )
+
+    @classmethod
+    def from_vector_env(
+        cls, vector_env_fn: Callable[[int], gym.vector.VectorEnv], num_envs: int, **options: Any
+    ) -> PoolVecEnv:
+        """``num_envs`` envs hosted as one gymnasium vector env per worker block (see
+        :meth:`rogue_gym.hosted.PoolVectorEnv.from_vector_env`), as an SB3 ``VecEnv``. The
+        vector env must autoreset ``SAME_STEP``, SB3's convention, e.g.
+        ``lambda n: AtariVectorEnv("pong", num_envs=n, num_threads=1,
+        autoreset_mode="SameStep")``. ``set_attr`` is not available; reset options reach
+        every env of the block."""
+        return cls(_VectorEnvFn(vector_env_fn, int(num_envs)), **options)  # type: ignore[arg-type]
 
     # -- stepping --------------------------------------------------------------------------
 

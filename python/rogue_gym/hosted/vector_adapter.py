@@ -6,8 +6,10 @@ The pool's Rust worker loop (``python/src/hosted.rs``) calls :class:`HostedVecto
 command for the whole block: it keeps each env's episode bookkeeping itself, and this adapter
 resets or steps the vector env, writes the batch of observations straight into the worker's
 rows of shared memory and returns rewards and flags as raw arrays and each env's info as bytes
-(:mod:`rogue_gym.hosted.infos`). The vector env must autoreset ``NEXT_STEP`` (or be
-``DISABLED`` in a pool that is), as the pool does.
+(:mod:`rogue_gym.hosted.infos`). The vector env must autoreset as the pool does; in
+``SAME_STEP`` mode the final observations of the envs whose episode ended go to their rows of
+the worker's final-observation area, and their last step's info travels as the env's step
+entry, before its reset's.
 """
 
 from __future__ import annotations
@@ -49,8 +51,7 @@ def check_vector_env(envs: Any, num_envs: int, autoreset_mode: Any) -> None:
     if AutoresetMode(mode) != autoreset_mode:
         raise ValueError(
             f"the vector env autoresets {AutoresetMode(mode).name} but the pool "
-            f"{autoreset_mode.name}: build it with the same autoreset mode (a hosted vector env "
-            "supports NEXT_STEP and DISABLED)"
+            f"{autoreset_mode.name}: build it with the same autoreset mode"
         )
 
 
@@ -93,6 +94,7 @@ class HostedVectorEnv:
         self._rows: dict[int, np.ndarray] = {}
         #: The last batch of observations (what envs not being reset show again).
         self._last: Any = None
+        self._final_writers: dict[int, Any] = {}
 
     @classmethod
     def build(cls, config_json: str, first: int, count: int) -> HostedVectorEnv:
@@ -137,23 +139,38 @@ class HostedVectorEnv:
         self._obs.write_batch(obs, rows)
         self._last = obs
 
-    def _infos(self, info: dict[str, Any], kind: str, envs: Any) -> Optional[list[Optional[bytes]]]:
-        """Each env's info bytes (``None`` for an env in ``envs`` with none, and for the
-        others), or ``None`` for no info at all."""
-        if not info:
-            return None
+    def _split(self, info: dict[str, Any]) -> list[dict[str, Any]]:
+        """Each env's part of a vector info dict; an ``env_id`` (the async vector envs'
+        convention: ale-py, EnvPool) becomes the pool's index, not the block's."""
         ids = info.get("env_id")
         if isinstance(ids, np.ndarray) and ids.shape == (self.n,) and ids.dtype.kind in "iu":
-            # The async vector envs' convention (ale-py, EnvPool): the pool's index, not the
-            # block's.
             info = {**info, "env_id": ids + ids.dtype.type(self.first)}
-        rows = split_vector_info(info, self.n)
+        return split_vector_info(info, self.n)
+
+    def _encode(self, entries: list[list[tuple[str, dict[str, Any]]]]) -> Any:
+        """Each env's info bytes from its entries (``None`` for none), or ``None`` if no env
+        has any."""
+        if not any(entries):
+            return None
         encode = self._encoder.encode
-        out: list[Optional[bytes]] = [None] * self.n
-        for i in envs:
-            if rows[i]:
-                out[i] = encode([(kind, rows[i])])
-        return out
+        return [encode(e) if e else None for e in entries]
+
+    def _write_final(self, final_obs: Any, ended: np.ndarray, address: int) -> None:
+        """Write the final observations of the envs ``ended`` to their rows at ``address``."""
+        if final_obs is None:
+            raise ValueError(
+                "the vector env autoresets SAME_STEP but its step info has no 'final_obs' for "
+                "the envs whose episode ended"
+            )
+        stride = self._obs.stride
+        for j in ended:
+            row = address + int(j) * stride
+            writer = self._final_writers.get(row)
+            if writer is None:
+                if len(self._final_writers) >= 4096:
+                    self._final_writers.clear()
+                writer = self._final_writers[row] = self._obs.writer(row)
+            writer(final_obs[j])
 
     def reset(
         self, mask: bytes, seeds: bytes, episodes: bytes, address: int
@@ -180,15 +197,24 @@ class HostedVectorEnv:
             obs, info = self.envs.reset(seed=_seed_arg(use), options=options or None)
             self._fresh[ids] = False
             self._write(obs, address)
-            return self._infos(info, "reset", ids)
+            if not info:
+                return None
+            rows = self._split(info)
+            return self._encode(
+                [[("reset", rows[i])] if rows[i] and which[i] else [] for i in range(self.n)]
+            )
         except BaseException as exc:
             raise EncodedEnvError(encode_exception(exc)) from exc
 
-    def step(self, actions: bytes, address: int) -> tuple[bytes, bytes, bytes, Any]:
+    def step(
+        self, actions: bytes, address: int, final_address: int
+    ) -> tuple[bytes, bytes, bytes, Any]:
         """Step every env with ``actions`` (one ``uint64`` index per env for a Discrete
         space, else each env's action bytes in rows of whole words) and write the observations
-        at ``address``. Returns the rewards (``float64``), terminations and truncations (one
-        byte each) and each env's info bytes, or ``None``."""
+        at ``address`` (and, ``SAME_STEP`` when ``final_address`` is not 0, the final
+        observations of the envs whose episode ended there). Returns the rewards
+        (``float64``), terminations and truncations (one byte each) and each env's info bytes,
+        or ``None``."""
         try:
             if self._discrete_start is not None:
                 acts: Any = np.frombuffer(actions, np.int64) + self._discrete_start
@@ -197,11 +223,30 @@ class HostedVectorEnv:
                 acts = self._act.batch_views(rows.copy())
             obs, rewards, terminated, truncated, info = self.envs.step(acts)
             self._write(obs, address)
+            terminated = np.asarray(terminated, np.bool_)
+            truncated = np.asarray(truncated, np.bool_)
+            ended = np.flatnonzero(terminated | truncated) if final_address else np.empty(0, int)
+            entries: list[list[tuple[str, dict[str, Any]]]]
+            if len(ended):
+                info = dict(info)
+                final_obs = info.pop("final_obs", None)
+                final_info = info.pop("final_info", None) or {}
+                for key in ("_final_obs", "_final_info"):
+                    info.pop(key, None)
+                self._write_final(final_obs, ended, final_address)
+                parts, finals = self._split(info), self._split(final_info)
+                entries = [[("step", p)] if p else [] for p in parts]
+                for j in ended:
+                    entries[j] = [("step", finals[j])] if finals[j] else []
+                    if parts[j]:
+                        entries[j].append(("reset", parts[j]))
+            else:
+                entries = [[("step", r)] if r else [] for r in self._split(info)] if info else []
             return (
                 np.asarray(rewards, np.float64).tobytes(),
-                np.asarray(terminated, np.bool_).tobytes(),
-                np.asarray(truncated, np.bool_).tobytes(),
-                self._infos(info, "step", range(self.n)),
+                terminated.tobytes(),
+                truncated.tobytes(),
+                self._encode(entries),
             )
         except BaseException as exc:
             raise EncodedEnvError(encode_exception(exc)) from exc

@@ -59,6 +59,12 @@ class _VectorEnvFn:
     fn: Callable[[int], VectorEnv]
     num_envs: int
 
+    def __post_init__(self) -> None:
+        if not callable(self.fn):
+            raise TypeError("vector_env_fn must be a callable building a vector env of n envs")
+        if int(self.num_envs) < 1:
+            raise ValueError(f"num_envs must be at least 1, got {self.num_envs}")
+
 
 def _b64(data: bytes) -> str:
     return base64.b64encode(data).decode("ascii")
@@ -176,11 +182,6 @@ class PoolVectorEnv(VectorEnv):
                     "gym.make('CartPole-v1'))"
                 )
         else:
-            if self.autoreset_mode == AutoresetMode.SAME_STEP:
-                raise ValueError(
-                    "a hosted vector env supports autoreset_mode NEXT_STEP and DISABLED, not "
-                    "SAME_STEP"
-                )
             probe = hosted.fn(1)
         try:
             if hosted is None:
@@ -283,8 +284,9 @@ class PoolVectorEnv(VectorEnv):
                 lambda n: AtariVectorEnv("pong", num_envs=n, num_threads=1), 64, num_workers=2
             )
 
-        The vector env must autoreset as the pool does (``NEXT_STEP``, or ``DISABLED`` for a
-        pool that is); ``vector_env_fn(1)`` is called here once, to learn the spaces. Seeds:
+        The vector env must autoreset as the pool does (its ``metadata["autoreset_mode"]``, in
+        ``SAME_STEP`` with ``final_obs`` and ``final_info`` in its infos, as gymnasium's vector
+        envs give them); ``vector_env_fn(1)`` is called here once, to learn the spaces. Seeds:
         ``reset(seed=s)`` resets the block of envs ``i .. j`` with ``seed=s + i`` (consecutive
         seeds, as every vector env takes them), so trajectories do not depend on the worker
         count when the vector env seeds its env ``k`` with ``seed + k``, as gymnasium's and
@@ -292,10 +294,6 @@ class PoolVectorEnv(VectorEnv):
         gymnasium does (with a ``_key`` mask per key); an ``env_id`` info is the pool's env
         index. ``call``/``get_attr`` go through the vector env's own.
         ``options`` are those of :class:`PoolVectorEnv`."""
-        if not callable(vector_env_fn):
-            raise TypeError("vector_env_fn must be a callable building a vector env of n envs")
-        if int(num_envs) < 1:
-            raise ValueError(f"num_envs must be at least 1, got {num_envs}")
         return cls(_VectorEnvFn(vector_env_fn, int(num_envs)), **options)  # type: ignore[arg-type]
 
     # -- seeds ---------------------------------------------------------------------------
