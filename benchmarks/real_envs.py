@@ -362,23 +362,46 @@ def _first_difference(a: Any, b: Any, where: str = "") -> Optional[str]:
     return None
 
 
-def parity(env: str, steps: int, num_envs: int = 5) -> str:
-    """Step the pool and SyncVectorEnv with the same seeds and actions; the first difference
-    of observations, rewards, flags or infos, or "equal"."""
+def parity(env: str, steps: int, num_envs: int = 5, hosted_vector: bool = False) -> str:
+    """Step the pool and SyncVectorEnv with the same seeds and actions (``hosted_vector``:
+    the pool hosting ale-py's vector env per worker, against one such vector env of all the
+    envs); the first difference of observations, rewards, flags or infos, or "equal"."""
     import gymnasium as gym
     import rogue_gym
 
-    fn = env_fn(env)
-    ours = rogue_gym.PoolVectorEnv([fn] * num_envs, num_workers=2)
-    ref = gym.vector.SyncVectorEnv([fn] * num_envs)
+    if hosted_vector:
+        block = functools.partial(_ale_vector, env, workers=1)
+        ours = rogue_gym.PoolVectorEnv.from_vector_env(block, num_envs, num_workers=2)
+        ref = _ale_vector(env, num_envs, 2)
+    else:
+        fn = env_fn(env)
+        ours = rogue_gym.PoolVectorEnv([fn] * num_envs, num_workers=2)
+        ref = gym.vector.SyncVectorEnv([fn] * num_envs)
+
+    def masked(out: Any) -> Any:
+        # ale-py's infos have no `_key` masks (every env has every key); the pool's merge
+        # adds them, all set.
+        *rest, info = out
+        assert all(m.all() for k, m in info.items() if k.startswith("_"))
+        return (*rest, {k: v for k, v in info.items() if not k.startswith("_")})
+
+    def theirs(out: Any) -> Any:
+        # ale-py's rewards are int32; the pool's are float64, as gymnasium's vector envs give.
+        if len(out) == 2:
+            return out
+        obs, rewards, *rest = out
+        return (obs, rewards.astype("float64"), *rest)
+
+    mine = masked if hosted_vector else (lambda out: out)
+    ref_out = theirs if hosted_vector else (lambda out: out)
     try:
-        d = _first_difference(ours.reset(seed=0), ref.reset(seed=0), "reset")
+        d = _first_difference(mine(ours.reset(seed=0)), ref.reset(seed=0), "reset")
         if d:
             return d
         ref.action_space.seed(0)
         for t in range(steps):
             actions = ref.action_space.sample()
-            d = _first_difference(ours.step(actions), ref.step(actions), f"step {t}")
+            d = _first_difference(mine(ours.step(actions)), ref_out(ref.step(actions)), f"step {t}")
             if d:
                 return d
         return "equal"
@@ -458,13 +481,16 @@ def main(argv: Optional[list[str]] = None) -> None:
     if args.parity:
         for env in args.envs:
             print(f"{env:12s} {parity(env, args.parity)}", flush=True)
+            if env in ("pong", "pong-pre") and "pool-vector" in args.backends:
+                found = parity(env, args.parity, hosted_vector=True)
+                print(f"{env:12s} pool-vector against ale-py's vector env: {found}", flush=True)
         return
     if args.profile:
         profile(args.profile, args.workers, args.seconds, Path(args.out) / "profiles")
         return
     if args.from_json:
         raw = json.loads(Path(args.from_json).read_text())
-        for name in ("reps", "seconds", "num_envs", "workers"):
+        for name in ("envs", "backends", "reps", "seconds", "warmup", "num_envs", "workers"):
             setattr(args, name, raw["args"][name])
         runs = {tuple(r["cell"]): r["runs"] for r in raw["runs"]}
         failed = {tuple(r["cell"]): r["reason"] for r in raw["failed"]}
@@ -507,18 +533,23 @@ def write(args: argparse.Namespace, runs: dict[Key, list[dict[str, Any]]], faile
         lines.append(
             f"| {env} | {n} | {backend} | {med[k]:,.0f} | {min(v):,.0f}-{max(v):,.0f} | {cpu:.0%} | {ratio} |"
         )
-    lines += ["", "## The pool against each backend (ratio of medians)", ""]
-    others = [b for b in BACKENDS if b != "pool"]
-    for n in args.num_envs:
-        lines += [f"{n} envs:", "", "| env | " + " | ".join(others) + " |"]
-        lines.append("|---|" + "---:|" * len(others))
-        for env in ENVS:
-            pool = med.get((env, "pool", n))
-            if pool is None:
-                continue
-            cols = [f"{pool / med[(env, b, n)]:.2f}x" if (env, b, n) in med else "" for b in others]
-            lines.append(f"| {env} | " + " | ".join(cols) + " |")
-        lines.append("")
+    for ours in ("pool", "pool-vector"):
+        others = [b for b in BACKENDS if b != ours]
+        rows = [
+            (env, n, med[(env, ours, n)])
+            for n in args.num_envs
+            for env in ENVS
+            if (env, ours, n) in med
+        ]
+        if not rows:
+            continue
+        lines += ["", f"## {ours} against each backend (ratio of medians)", ""]
+        lines += ["| env | num_envs | " + " | ".join(others) + " |"]
+        lines.append("|---|---:|" + "---:|" * len(others))
+        for env, n, mine in rows:
+            cols = [f"{mine / med[(env, b, n)]:.2f}x" if (env, b, n) in med else "" for b in others]
+            lines.append(f"| {env} | {n} | " + " | ".join(cols) + " |")
+    lines.append("")
     (out / "real_envs.md").write_text("\n".join(lines) + "\n")
     raw = {
         "args": {k: v for k, v in vars(args).items() if k not in ("cell", "from_json")},
