@@ -336,7 +336,12 @@ def test_autoreset_disabled_needs_a_masked_reset(pool) -> None:
 
 
 def test_killed_worker_is_restarted_with_flagged_envs(pool) -> None:
-    env = pool([cartpole] * 4, num_workers=2)
+    assert_killed_worker_restarts(pool([cartpole] * 4, num_workers=2))
+
+
+def assert_killed_worker_restarts(env: PoolVectorEnv) -> None:
+    """Kill worker 1 of a pool of 4 CartPole-like envs in 2 workers: its envs' episodes end
+    (truncated, ``worker_restarted``), a new worker takes over and the pool steps on."""
     env.reset(seed=0)
     victim = env.worker_pids[1]
     os.kill(victim, signal.SIGKILL)

@@ -5,8 +5,6 @@ env exceptions, bad vector env functions, a killed worker, calls."""
 from __future__ import annotations
 
 import functools
-import os
-import signal
 from collections.abc import Iterator
 from typing import Any, Callable
 
@@ -18,7 +16,7 @@ from rogue_gym import PoolVectorEnv
 
 from conftest import pid_alive, pool_files, wait_until
 from hosted_envs import InfoEnv, NestedEnv, RaisingEnv, SpecialError
-from test_hosted import run_both
+from test_hosted import assert_killed_worker_restarts, assert_tree_equal, run_both
 
 
 def cartpole() -> gym.Env:
@@ -83,8 +81,6 @@ def test_partial_resets_with_autoreset_disabled(hosted) -> None:
 
 
 def run_equal(a: Any, b: Any) -> None:
-    from test_hosted import assert_tree_equal
-
     for x, y in zip(a, b):
         assert_tree_equal(x, y)
 
@@ -115,15 +111,7 @@ def test_bad_vector_env_functions_are_clear_errors() -> None:
 
 
 def test_killed_worker_rebuilds_its_block(hosted) -> None:
-    env = hosted(sync_of(cartpole), 4, num_workers=2)
-    env.reset(seed=0)
-    victim = env.worker_pids[1]
-    os.kill(victim, signal.SIGKILL)
-    _, _, _, trunc, infos = env.step(np.zeros(4, np.int64))
-    assert infos["worker_restarted"].tolist() == [False, False, True, True]
-    assert trunc[2:].all()
-    assert env.worker_pids[1] != victim
-    env.step(np.zeros(4, np.int64))
+    assert_killed_worker_restarts(hosted(sync_of(cartpole), 4, num_workers=2))
 
 
 def test_calls_reach_each_env_through_the_vector_env(hosted) -> None:
