@@ -66,9 +66,17 @@ _PY_SCALARS: dict[type, tuple[str, str]] = {
 _PY_SCALAR_OF_NAME = {name: t for t, (name, _) in _PY_SCALARS.items()}
 
 
+#: Value types whose signature needs more than the type (see :func:`_signature`).
+_DEEP_TYPES = frozenset((np.ndarray, dict))
+
+
 def _signature(info: dict[str, Any]) -> tuple[Any, ...]:
     """What must match for two infos to share a layout (keys in order, value types, array
-    dtypes and shapes)."""
+    dtypes and shapes). A flat info of scalars (the common per-step info) takes a shortcut:
+    its keys and its value types."""
+    types = tuple(map(type, info.values()))
+    if _DEEP_TYPES.isdisjoint(types):
+        return (tuple(info), types)
     out: list[Any] = []
     for key, value in info.items():
         t = type(value)
@@ -117,6 +125,8 @@ class _Layout:
 
         self.structure = describe(info)
         self.has_arrays = arrays > 0
+        #: Scalars only, no nested dicts: the values pack as they come.
+        self.flat = not self.has_arrays and all(type(v) is not dict for v in info.values())
         self.pack = struct.Struct("<" + "".join(scalars)).pack
         desc = pickle.dumps(self.structure, protocol=4)
         digest = int.from_bytes(hashlib.blake2b(desc, digest_size=8).digest(), "little")
@@ -124,6 +134,8 @@ class _Layout:
         self.prefixes = [_HEADER.pack(MAGIC, k, digest, len(desc)) + desc + pad for k in (0, 1)]
 
     def encode(self, info: dict[str, Any], kind: int) -> bytes:
+        if self.flat:
+            return self.prefixes[kind] + self.pack(*info.values())
         if not self.has_arrays:
             return self.prefixes[kind] + self.pack(*_flat_scalars(info))
         scalars: list[Any] = []
