@@ -285,8 +285,8 @@ class PoolVectorEnv(VectorEnv):
             )
 
         The vector env must autoreset as the pool does (its ``metadata["autoreset_mode"]``, in
-        ``SAME_STEP`` with ``final_obs`` and ``final_info`` in its infos, as gymnasium's vector
-        envs give them); ``vector_env_fn(1)`` is called here once, to learn the spaces. Seeds:
+        ``SAME_STEP`` with ``final_obs``, and ``final_info`` if any, in its infos, as
+        gymnasium's vector envs give them); ``vector_env_fn(1)`` is called here once, to learn the spaces. Seeds:
         ``reset(seed=s)`` resets the block of envs ``i .. j`` with ``seed=s + i`` (consecutive
         seeds, as every vector env takes them), so trajectories do not depend on the worker
         count when the vector env seeds its env ``k`` with ``seed + k``, as gymnasium's and
