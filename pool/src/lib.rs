@@ -15,7 +15,8 @@
 //!
 //! * [`config`]: [`PoolConfig`] and its enums; [`error`]: [`PoolError`], [`WorkerFailure`];
 //!   [`batch`]: what a step returns.
-//! * [`env`]: the [`Env`] trait and [`EnvSpec`]; [`registry`]: kinds by name; [`kinds`]: the
+//! * [`env`]: the [`Env`] trait, [`EnvBlock`] (a worker's whole block behind one object, e.g.
+//!   a hosted vector env) and [`EnvSpec`]; [`registry`]: kinds by name; [`kinds`]: the
 //!   built-in kinds (the game, `"rogue"`, and a deterministic [`TestEnv`], `"test"`),
 //!   registered here by [`EnvRegistry::with_defaults`].
 //! * [`seeds`]: the [`SeedSchedule`]: the seed of env `i`'s `e`-th episode depends only on
