@@ -53,22 +53,22 @@ pub(crate) fn make_hosted_vector(
     })
 }
 
-/// `n` values of `T` from the raw bytes an adapter returned (`what` names them).
-fn values<T: Copy>(
+/// `n` values of `N` bytes each from the raw bytes an adapter returned (`what` names them).
+fn values<T, const N: usize>(
     b: &Bound<'_, PyAny>,
     n: usize,
     what: &str,
-    read: impl Fn(&[u8]) -> T,
+    read: impl Fn([u8; N]) -> T,
 ) -> Result<Vec<T>, EnvError> {
     let raw = returned_bytes(b, what)?;
-    let size = raw.len() / n.max(1);
-    if size == 0 || raw.len() != n * size {
+    if raw.len() != n * N {
         return Err(EnvError::new(format!(
-            "the adapter returned {} bytes of {what} for {n} envs",
+            "the adapter returned {} bytes of {what} for {n} envs of {N} bytes",
             raw.len()
         )));
     }
-    Ok(raw.chunks_exact(size).map(read).collect())
+    let (chunks, _) = raw.as_chunks::<N>();
+    Ok(chunks.iter().map(|c| read(*c)).collect())
 }
 
 impl HostedVector {
@@ -141,11 +141,9 @@ impl EnvBlock for HostedVector {
                 .cast::<PyTuple>()
                 .map_err(|_| EnvError::new("the adapter's step returned a non-tuple"))?;
             let item = |i| t.get_item(i).map_err(err);
-            let rewards = values(&item(0)?, n, "rewards", |b| {
-                f64::from_ne_bytes(b.try_into().unwrap_or([0; 8]))
-            })?;
-            let terminated = values(&item(1)?, n, "terminations", |b| b[0] != 0)?;
-            let truncated = values(&item(2)?, n, "truncations", |b| b[0] != 0)?;
+            let rewards = values(&item(0)?, n, "rewards", f64::from_ne_bytes)?;
+            let terminated = values(&item(1)?, n, "terminations", |[b]: [u8; 1]| b != 0)?;
+            let truncated = values(&item(2)?, n, "truncations", |[b]: [u8; 1]| b != 0)?;
             for (j, o) in out.iter_mut().enumerate() {
                 *o = StepOutcome {
                     reward: rewards[j],

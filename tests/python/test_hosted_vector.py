@@ -157,3 +157,14 @@ def test_sb3_vec_env_hosting_vector_envs_plays_as_dummy_vec_env() -> None:
     finally:
         ours.close()
         ref.close()
+
+
+def test_a_seed_list_seeds_each_env(hosted) -> None:
+    """Seeds that are not consecutive within a block reach each env as a list."""
+    ours = hosted(sync_of(cartpole), 5, num_workers=2)
+    ref = SyncVectorEnv([cartpole] * 5)
+    seeds = [11, 3, 42, 7, 19]
+    run_equal(ours.reset(seed=seeds), ref.reset(seed=seeds))
+    for _ in range(30):
+        run_equal(ours.step(np.ones(5, np.int64)), ref.step(np.ones(5, np.int64)))
+    ref.close()

@@ -62,16 +62,21 @@ def _rows(address: int, n: int, stride: int) -> np.ndarray:
     )
 
 
-def _seed_arg(seeds: list[Optional[int]]) -> Any:
-    """The ``seed`` argument of a vector env's ``reset`` for one seed (or ``None``) per env
-    being reset: ``None`` for none, an ``int`` for consecutive seeds (what every vector env
-    takes), else the list."""
+def _seed_arg(seeds: list[Optional[int]], envs: Any) -> Any:
+    """The ``seed`` argument of ``envs.reset`` for one seed (or ``None``) per env being reset:
+    ``None`` for none, an ``int`` for consecutive seeds (what every vector env takes), else the
+    list for gymnasium's own vector envs and an ``int64`` array with -1 for "no seed" for
+    others (ale-py's convention)."""
     if all(s is None for s in seeds):
         return None
     first = seeds[0]
     if first is not None and all(s == first + i for i, s in enumerate(seeds)):
         return first
-    return seeds
+    from gymnasium.vector import AsyncVectorEnv, SyncVectorEnv
+
+    if isinstance(envs, (SyncVectorEnv, AsyncVectorEnv)):
+        return seeds
+    return np.array([-1 if s is None else s for s in seeds], np.int64)
 
 
 class HostedVectorEnv:
@@ -194,7 +199,8 @@ class HostedVectorEnv:
             self._options = None
             if not which.all():
                 options["reset_mask"] = which.copy()
-            obs, info = self.envs.reset(seed=_seed_arg(use), options=options or None)
+            seed = _seed_arg(use, self.envs)
+            obs, info = self.envs.reset(seed=seed, options=options or None)
             self._fresh[ids] = False
             self._write(obs, address)
             if not info:
