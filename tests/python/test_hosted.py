@@ -43,10 +43,18 @@ def cartpole() -> gym.Env:
 def pool() -> Iterator[Callable[..., PoolVectorEnv]]:
     """``pool(env_fns, **kw)``: vector envs closed at teardown, checked for leftover files
     and workers."""
+    yield from tracked(PoolVectorEnv)
+
+
+def tracked(
+    make: Callable[..., PoolVectorEnv],
+) -> Iterator[Callable[..., PoolVectorEnv]]:
+    """For a fixture to ``yield from``: ``make`` as a factory whose vector envs are closed at
+    teardown and checked for leftover files and workers."""
     made: list[PoolVectorEnv] = []
 
-    def factory(env_fns: Any, **kw: Any) -> PoolVectorEnv:
-        env = PoolVectorEnv(env_fns, **kw)
+    def factory(*args: Any, **kw: Any) -> PoolVectorEnv:
+        env = make(*args, **kw)
         made.append(env)
         return env
 

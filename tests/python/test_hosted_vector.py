@@ -14,9 +14,8 @@ import pytest
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
 from rogue_gym import PoolVectorEnv
 
-from conftest import pid_alive, pool_files, wait_until
 from hosted_envs import InfoEnv, NestedEnv, RaisingEnv, SpecialError
-from test_hosted import assert_killed_worker_restarts, assert_tree_equal, run_both
+from test_hosted import assert_killed_worker_restarts, assert_tree_equal, run_both, tracked
 
 
 def cartpole() -> gym.Env:
@@ -32,19 +31,7 @@ def sync_of(make: Callable[[], gym.Env], **kw: Any) -> Callable[[int], SyncVecto
 def hosted() -> Iterator[Callable[..., PoolVectorEnv]]:
     """``hosted(vector_env_fn, num_envs, **kw)``: closed at teardown, checked for leftover
     files and workers."""
-    made: list[PoolVectorEnv] = []
-
-    def factory(fn: Any, num_envs: int, **kw: Any) -> PoolVectorEnv:
-        env = PoolVectorEnv.from_vector_env(fn, num_envs, **kw)
-        made.append(env)
-        return env
-
-    yield factory
-    for env in made:
-        pids, name = env.worker_pids, env.pool_name
-        env.close()
-        assert wait_until(lambda pids=pids: not any(pid_alive(p) for p in pids))
-        assert pool_files(name) == []
+    yield from tracked(PoolVectorEnv.from_vector_env)
 
 
 @pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])

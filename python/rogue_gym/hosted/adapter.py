@@ -50,9 +50,6 @@ CALL_OPS = (
     "set_reset_options",
 )
 
-#: Observation writers kept per env (one per destination the pool lends; a few dozen).
-MAX_WRITERS = 1024
-
 #: The key of an encoded exception in an env error message.
 _KEY = "rogue_gym_exception"
 
@@ -147,8 +144,10 @@ class HostedEnv:
         #: The infos of the current command (a step, a reset, or a step and its autoreset).
         self._infos: list[tuple[str, dict[str, Any]]] = []
         self._info_encoder = InfoEncoder()
-        #: Observation writers by destination address (the pool's slots are reused).
-        self._writers: dict[int, Any] = {}
+        #: Observation writers by destination address (the layout's cache, looked up inline
+        #: on the step path).
+        self._writers = self._obs.writers
+        self._writer = self._obs.writer_at
 
     @classmethod
     @_guarded
@@ -178,15 +177,8 @@ class HostedEnv:
     def _write_obs(self, obs: Any, address: int) -> None:
         """Write an observation straight into the pool's memory at ``address`` (the
         destination the worker lends for this call: the observation's row of a batch slot)."""
-        writer = self._writers.get(address) or self._writer(address)
-        writer(obs)
+        self._obs.writer_at(address)(obs)
         self._last = obs
-
-    def _writer(self, address: int) -> Any:
-        if len(self._writers) >= MAX_WRITERS:
-            self._writers.clear()
-        writer = self._writers[address] = self._obs.writer(address)
-        return writer
 
     def reset(self, seed: int, episode: int, fresh: bool, address: int) -> Optional[bytes]:
         """Start an episode and write its first observation at ``address``: seeded with

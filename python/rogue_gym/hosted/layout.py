@@ -22,6 +22,9 @@ __all__ = ["Leaf", "SpaceLayout", "UnsupportedSpaceError"]
 
 #: Alignment of a batch row (so leaves of every dtype stay aligned in every row).
 ROW_ALIGN = 8
+#: Writers and row views a layout keeps, by destination address (the pool lends the same few
+#: dozen destinations over and over); beyond this many the cache starts again.
+MAX_DESTINATIONS = 1024
 
 Path = tuple[Union[str, int], ...]
 
@@ -97,6 +100,9 @@ class SpaceLayout:
         #: Bytes of one row of a batch (``nbytes`` rounded up to 8, at least 8).
         self.stride = max(ROW_ALIGN, -(-offset // ROW_ALIGN) * ROW_ALIGN)
         self._single = len(self.leaves) == 1 and self.leaves[0].path == ()
+        #: :meth:`writer` by destination address (see :meth:`writer_at`).
+        self.writers: dict[int, Callable[[Any], None]] = {}
+        self._rows: dict[tuple[int, int], np.ndarray] = {}
 
     # -- one value <-> memory (worker side) ---------------------------------------------
 
@@ -145,6 +151,27 @@ class SpaceLayout:
                 put(leaf, dst, v)
 
         return write_tree
+
+    def writer_at(self, address: int) -> Callable[[Any], None]:
+        """:meth:`writer` for ``address``, made once per destination and kept in
+        :attr:`writers` (hot loops look there first)."""
+        writer = self.writers.get(address)
+        if writer is None:
+            if len(self.writers) >= MAX_DESTINATIONS:
+                self.writers.clear()
+            writer = self.writers[address] = self.writer(address)
+        return writer
+
+    def rows_at(self, address: int, n: int) -> np.ndarray:
+        """The ``(n, stride)`` bytes at ``address`` (a batch of destinations lent by the
+        caller, for :meth:`write_batch`), as a numpy view made once per destination."""
+        rows = self._rows.get((address, n))
+        if rows is None:
+            if len(self._rows) >= MAX_DESTINATIONS:
+                self._rows.clear()
+            raw = (ctypes.c_uint8 * (n * self.stride)).from_address(address)
+            rows = self._rows[(address, n)] = np.ctypeslib.as_array(raw).reshape(n, self.stride)
+        return rows
 
     def decode(self, data: bytes) -> Any:
         """One value from its bytes: writable arrays (a ``Discrete`` leaf as a numpy int)."""

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import base64
 import contextlib
-import ctypes
 import json
 import pickle
 import sys
@@ -24,6 +23,7 @@ from typing import Any, Optional
 
 import cloudpickle
 import numpy as np
+from gymnasium.vector import AsyncVectorEnv, AutoresetMode, SyncVectorEnv, VectorEnv
 
 from .adapter import NO_SEED, EncodedEnvError, encode_exception
 from .infos import InfoEncoder, split_vector_info
@@ -35,8 +35,6 @@ __all__ = ["HostedVectorEnv", "check_vector_env"]
 def check_vector_env(envs: Any, num_envs: int, autoreset_mode: Any) -> None:
     """Raise ``ValueError``/``TypeError`` unless ``envs`` is a gymnasium ``VectorEnv`` of
     ``num_envs`` envs that autoresets as the pool will (``autoreset_mode``)."""
-    from gymnasium.vector import AutoresetMode, VectorEnv
-
     if not isinstance(envs, VectorEnv):
         raise TypeError(
             f"vector_env_fn({num_envs}) returned {type(envs).__name__!r}, not a gymnasium "
@@ -55,13 +53,6 @@ def check_vector_env(envs: Any, num_envs: int, autoreset_mode: Any) -> None:
         )
 
 
-def _rows(address: int, n: int, stride: int) -> np.ndarray:
-    """The ``(n, stride)`` bytes at ``address`` (the worker's rows, lent for a call)."""
-    return np.ctypeslib.as_array((ctypes.c_uint8 * (n * stride)).from_address(address)).reshape(
-        n, stride
-    )
-
-
 def _seed_arg(seeds: list[Optional[int]], envs: Any) -> Any:
     """The ``seed`` argument of ``envs.reset`` for one seed (or ``None``) per env being reset:
     ``None`` for none, an ``int`` for consecutive seeds (what every vector env takes), else the
@@ -72,8 +63,6 @@ def _seed_arg(seeds: list[Optional[int]], envs: Any) -> Any:
     first = seeds[0]
     if first is not None and all(s == first + i for i, s in enumerate(seeds)):
         return first
-    from gymnasium.vector import AsyncVectorEnv, SyncVectorEnv
-
     if isinstance(envs, (SyncVectorEnv, AsyncVectorEnv)):
         return seeds
     return np.array([-1 if s is None else s for s in seeds], np.int64)
@@ -96,10 +85,8 @@ class HostedVectorEnv:
         self._fresh = np.ones(self.n, bool)
         self._options: Optional[dict[str, Any]] = None
         self._encoder = InfoEncoder()
-        self._rows: dict[int, np.ndarray] = {}
         #: The last batch of observations (what envs not being reset show again).
         self._last: Any = None
-        self._final_writers: dict[int, Any] = {}
 
     @classmethod
     def build(cls, config_json: str, first: int, count: int) -> HostedVectorEnv:
@@ -107,8 +94,6 @@ class HostedVectorEnv:
         end's adapter config (the caller's ``sys_path``, the pickled ``vector_env_fn``, the
         spaces and autoreset mode every env must have)."""
         try:
-            from gymnasium.vector import AutoresetMode
-
             cfg = json.loads(config_json)
             for path in reversed(cfg["sys_path"]):
                 if path not in sys.path:
@@ -136,12 +121,7 @@ class HostedVectorEnv:
             raise EncodedEnvError(encode_exception(exc)) from exc
 
     def _write(self, obs: Any, address: int) -> None:
-        rows = self._rows.get(address)
-        if rows is None:
-            if len(self._rows) >= 64:
-                self._rows.clear()
-            rows = self._rows[address] = _rows(address, self.n, self._obs.stride)
-        self._obs.write_batch(obs, rows)
+        self._obs.write_batch(obs, self._obs.rows_at(address, self.n))
         self._last = obs
 
     def _split(self, info: dict[str, Any]) -> list[dict[str, Any]]:
@@ -160,22 +140,15 @@ class HostedVectorEnv:
         encode = self._encoder.encode
         return [encode(e) if e else None for e in entries]
 
-    def _write_final(self, final_obs: Any, ended: np.ndarray, address: int) -> None:
+    def _write_final(self, final_obs: Any, ended: Any, address: int) -> None:
         """Write the final observations of the envs ``ended`` to their rows at ``address``."""
         if final_obs is None:
             raise ValueError(
                 "the vector env autoresets SAME_STEP but its step info has no 'final_obs' for "
                 "the envs whose episode ended"
             )
-        stride = self._obs.stride
         for j in ended:
-            row = address + int(j) * stride
-            writer = self._final_writers.get(row)
-            if writer is None:
-                if len(self._final_writers) >= 4096:
-                    self._final_writers.clear()
-                writer = self._final_writers[row] = self._obs.writer(row)
-            writer(final_obs[j])
+            self._obs.writer_at(address + int(j) * self._obs.stride)(final_obs[j])
 
     def reset(
         self, mask: bytes, seeds: bytes, episodes: bytes, address: int
@@ -231,23 +204,20 @@ class HostedVectorEnv:
             self._write(obs, address)
             terminated = np.asarray(terminated, np.bool_)
             truncated = np.asarray(truncated, np.bool_)
-            ended = np.flatnonzero(terminated | truncated) if final_address else np.empty(0, int)
-            entries: list[list[tuple[str, dict[str, Any]]]]
-            if len(ended):
+            ended = np.flatnonzero(terminated | truncated) if final_address else ()
+            finals: list[dict[str, Any]] = []
+            if len(ended):  # SAME_STEP: the final observations and infos ride in the info
                 info = dict(info)
-                final_obs = info.pop("final_obs", None)
-                final_info = info.pop("final_info", None) or {}
+                self._write_final(info.pop("final_obs", None), ended, final_address)
+                finals = self._split(info.pop("final_info", None) or {})
                 for key in ("_final_obs", "_final_info"):
                     info.pop(key, None)
-                self._write_final(final_obs, ended, final_address)
-                parts, finals = self._split(info), self._split(final_info)
-                entries = [[("step", p)] if p else [] for p in parts]
-                for j in ended:
-                    entries[j] = [("step", finals[j])] if finals[j] else []
-                    if parts[j]:
-                        entries[j].append(("reset", parts[j]))
-            else:
-                entries = [[("step", r)] if r else [] for r in self._split(info)] if info else []
+            parts = self._split(info) if info else [{}] * self.n
+            entries = [[("step", p)] if p else [] for p in parts]
+            for j in ended:  # the last step's info, then the reset's
+                entries[j] = [("step", finals[j])] if finals[j] else []
+                if parts[j]:
+                    entries[j].append(("reset", parts[j]))
             return (
                 np.asarray(rewards, np.float64).tobytes(),
                 terminated.tobytes(),
