@@ -207,6 +207,37 @@ fn shared_slots_stay_mapped_through_their_arc_after_close() {
 }
 
 #[test]
+fn select_slot_steers_the_next_shared_batch_and_leaves_the_others_alone() {
+    let mut c = config(EXE, test_env(), 4, 2);
+    c.batch_slots = 4;
+    let mut p = pool(c);
+    assert_eq!(p.batch_slots(), 4);
+    let mut out = BatchOutput::default();
+    assert_eq!(p.reset_shared(&mut out).unwrap(), 0);
+    let kept = p.shared_obs(0).to_vec();
+    // The slots take turns, and a selected slot is written next; slot 0 is never touched.
+    assert_eq!(p.step_shared(&[1; 4], &mut out).unwrap(), 1);
+    p.select_slot(3).unwrap();
+    assert_eq!(p.step_shared(&[2; 4], &mut out).unwrap(), 3);
+    p.select_slot(1).unwrap();
+    assert_eq!(p.step_shared(&[3; 4], &mut out).unwrap(), 1);
+    assert_eq!(p.step_shared(&[4; 4], &mut out).unwrap(), 2);
+    assert_eq!(
+        p.shared_obs(0),
+        &kept[..],
+        "a slot no call named stays as it was"
+    );
+    let err = p.select_slot(4).unwrap_err().to_string();
+    assert!(err.contains("4 batch slots"), "{err}");
+    for bad in [1, rogue_gym_pool::MAX_BATCH_SLOTS + 1] {
+        let mut c = config(EXE, test_env(), 4, 2);
+        c.batch_slots = bad;
+        let err = Pool::new(c, &EnvRegistry::with_defaults()).unwrap_err();
+        assert!(err.to_string().contains("batch_slots"), "{err}");
+    }
+}
+
+#[test]
 fn set_seeds_then_reset_replays_a_fresh_pool() {
     let mut fresh = pool(config(EXE, test_env(), 4, 2));
     let reference = run_sync(&mut fresh, 20).unwrap();

@@ -93,6 +93,10 @@ pub struct PoolConfig {
     pub max_restarts: u32,
     /// Blocks of one worker the caller may hold at once, plus one (see [`Block`]).
     pub max_borrowed: usize,
+    /// Slots of the shared batch buffer the synchronous `*_shared` calls write, 2 to
+    /// [`crate::MAX_BATCH_SLOTS`]: 2 is double buffering; more let the caller keep several
+    /// batches of observations without copying them (see [`crate::Pool::select_slot`]).
+    pub batch_slots: usize,
     /// How to start a worker.
     pub worker: WorkerCommand,
     /// Supervisor's waiting policy.
@@ -108,7 +112,7 @@ pub struct PoolConfig {
 
 impl PoolConfig {
     /// A config with defaults: NEXT_STEP autoreset, restart policy, no step timeout, 30 s start
-    /// timeout, 100 restarts, 4 borrowed samples, base seed 0.
+    /// timeout, 100 restarts, 4 borrowed samples, 2 batch slots, base seed 0.
     pub fn new(env: Value, num_envs: usize, num_workers: usize, worker: WorkerCommand) -> Self {
         PoolConfig {
             env,
@@ -123,6 +127,7 @@ impl PoolConfig {
             start_timeout: Duration::from_secs(30),
             max_restarts: 100,
             max_borrowed: 4,
+            batch_slots: crate::BATCH_SLOTS,
             worker,
             wait: WaitPolicy {
                 poll_budget: Duration::from_micros(50),

@@ -55,7 +55,7 @@ pub use supervisor::{Actions, InterruptCheck, Pool, validate_actions};
 pub use wire::layout::{
     EnvRecord, FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED,
 };
-pub use wire::{BATCH_SLOTS, EnvFault, WorkerConfig};
+pub use wire::{BATCH_SLOTS, EnvFault, MAX_BATCH_SLOTS, WorkerConfig};
 pub use worker::worker_main;
 
 impl EnvRegistry {

@@ -21,9 +21,9 @@ use crate::wire::layout::{
     write_record_words,
 };
 use crate::wire::{
-    BATCH_BUFFER, BATCH_SLOTS, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_CALL,
-    CMD_CLOSE, CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE, RELOAD_SEEDS, TARGET_SHIFT,
-    WorkerConfig, calls, env_fault_path, extra_apart_path, slot_bytes,
+    BATCH_BUFFER, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_CALL, CMD_CLOSE, CMD_RESET,
+    CMD_STEP, EnvFault, KEEP_EPISODE, RELOAD_SEEDS, TARGET_SHIFT, WorkerConfig, calls,
+    env_fault_path, extra_apart_path, slot_bytes,
 };
 
 mod block;
@@ -529,7 +529,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
     };
     let ob = layout.obs_bytes;
     let sb = slot_bytes(cfg.num_envs, ob);
-    let batch = rogue_gym_ipc::SharedBuffer::open(&id, BATCH_BUFFER, BATCH_SLOTS * sb)?;
+    let batch = rogue_gym_ipc::SharedBuffer::open(&id, BATCH_BUFFER, cfg.batch_slots * sb)?;
     let first_env = envs.start;
     let mut ready = ports.loan_block(words)?;
     *ready.user_header_mut() = header(0, BLOCK_READY);
@@ -593,7 +593,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
             action_bytes: spec.action_bytes,
             n_info,
         };
-        if target > BATCH_SLOTS {
+        if target > cfg.batch_slots {
             return Err(WorkerError::Msg(format!("bad observation target {target}")));
         }
         let mut block = ports.loan_block(words)?;
@@ -602,7 +602,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         let obs_area: &mut [u8] = if target == 0 {
             areas.obs
         } else {
-            // SAFETY: the shared batch buffer holds BATCH_SLOTS slots of `sb` bytes; this
+            // SAFETY: the shared batch buffer holds `cfg.batch_slots` slots of `sb` bytes; this
             // worker's envs occupy bytes [first_env*ob, (first_env+epw)*ob) of slot
             // `target - 1`, which the supervisor neither reads nor lends out until this
             // command is answered, and no other worker writes them.

@@ -37,7 +37,7 @@ impl BlockHolder {
     }
 }
 
-/// Owner of the pool's shared batch buffer (two observation slots written by the workers)
+/// Owner of the pool's shared batch buffer (the observation slots written by the workers)
 /// behind the zero-copy views returned by `Pool.shared_views()`. The mapping stays valid for
 /// as long as a view (or this object) lives, even after the pool is closed.
 #[pyclass(module = "rogue_gym._native", name = "SharedBatchHolder", frozen)]
@@ -57,6 +57,7 @@ pub struct PyPool {
     out: Mutex<BatchOutput>,
     num_envs: usize,
     num_workers: usize,
+    batch_slots: usize,
     obs_bytes: usize,
     /// Bytes of one raw action (hosted envs; 0: action indices).
     action_bytes: usize,
@@ -216,6 +217,7 @@ impl PyPool {
         Ok(PyPool {
             num_envs: pool.num_envs(),
             num_workers: pool.num_workers(),
+            batch_slots: pool.batch_slots(),
             obs_bytes: pool.obs_bytes(),
             action_bytes: spec.action_bytes,
             n_info: spec.info_names.len(),
@@ -444,6 +446,18 @@ impl PyPool {
             slot += 1;
         }
         Ok(list)
+    }
+
+    /// Make the next `*_shared` call write batch slot `slot` (`0..batch_slots`); the turns go
+    /// on from there. `ValueError` for a slot that does not exist.
+    fn select_slot(&self, py: Python<'_>, slot: usize) -> PyResult<()> {
+        self.with_pool(py, move |p, _| p.select_slot(slot))
+    }
+
+    /// Slots of the shared batch buffer (the length of `shared_views()`).
+    #[getter]
+    fn batch_slots(&self) -> usize {
+        self.batch_slots
     }
 
     /// Replace the episode-seed schedule (JSON `{"base": .., "set": .., "policy": ..}`) and

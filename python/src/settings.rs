@@ -36,6 +36,9 @@ pub(crate) struct PyPoolSettings {
     max_restarts: Option<u32>,
     #[serde(default)]
     max_borrowed: Option<usize>,
+    /// Slots of the shared batch buffer (`None`: the pool's default, two).
+    #[serde(default)]
+    batch_slots: Option<usize>,
     /// The runtime directory (`None`: the default, see `rogue_gym_ipc::default_runtime_dir`).
     #[serde(default)]
     runtime_dir: Option<String>,
@@ -87,6 +90,9 @@ pub(crate) fn pool_config(
     }
     if let Some(m) = s.max_borrowed {
         cfg.max_borrowed = m;
+    }
+    if let Some(n) = s.batch_slots {
+        cfg.batch_slots = n;
     }
     cfg.runtime_dir = s.runtime_dir.map(Into::into);
     if let Some(us) = s.poll_us {

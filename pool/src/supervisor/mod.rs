@@ -26,7 +26,9 @@ use crate::error::PoolError;
 use crate::registry::EnvRegistry;
 use crate::seeds::SeedSchedule;
 use crate::wire::layout::BlockLayout;
-use crate::wire::{BATCH_BUFFER, BATCH_SLOTS, CMD_CLOSE, WorkerConfig, block_range, slot_bytes};
+use crate::wire::{
+    BATCH_BUFFER, CMD_CLOSE, MAX_BATCH_SLOTS, WorkerConfig, block_range, slot_bytes,
+};
 
 pub use stepping::{Actions, validate_actions};
 use workers::{SlotState, WorkerSlot};
@@ -138,6 +140,12 @@ impl Pool {
                 "max_borrowed must be at least 2 (one sample being received, one held)".into(),
             ));
         }
+        if !(2..=MAX_BATCH_SLOTS).contains(&cfg.batch_slots) {
+            return Err(PoolError::Config(format!(
+                "batch_slots must be between 2 and {MAX_BATCH_SLOTS}, got {}",
+                cfg.batch_slots
+            )));
+        }
         cfg.seeds
             .validate(cfg.num_envs as u64)
             .map_err(PoolError::Config)?;
@@ -175,6 +183,7 @@ impl Pool {
             poll_budget_us: cfg.worker_wait.poll_budget.as_micros() as u64,
             block_slice_ms: cfg.worker_wait.block_slice.as_millis() as u64,
             poll_yield: cfg.worker_wait.yield_cpu,
+            batch_slots: cfg.batch_slots,
         };
         let config_path = id.aux_dir().join("worker.json");
         let num_envs = cfg.num_envs;
@@ -223,7 +232,7 @@ impl Pool {
         c.batch = Some(std::sync::Arc::new(rogue_gym_ipc::SharedBuffer::create(
             &c.id,
             BATCH_BUFFER,
-            BATCH_SLOTS * c.slot_bytes,
+            c.cfg.batch_slots * c.slot_bytes,
         )?));
         // Right after the pool's first /dev/shm file, before any node: iceoryx2's node counter,
         // private (see rogue_gym_ipc::create_node_counter).

@@ -6,7 +6,6 @@ use std::ops::Range;
 use super::Pool;
 use crate::batch::{Batch, BatchOutput, Block};
 use crate::error::PoolError;
-use crate::wire::BATCH_SLOTS;
 
 /// The actions of a step, one per env: indices `0..num_actions`, or `EnvSpec::action_bytes`
 /// raw bytes each (envs that decode their own actions, such as hosted gymnasium envs).
@@ -111,7 +110,7 @@ impl Pool {
         }
         self.core.must_reset = false;
         self.gather_all(None, out)?;
-        self.core.next_slot = (slot + 1) % BATCH_SLOTS;
+        self.core.next_slot = (slot + 1) % self.core.cfg.batch_slots;
         Ok(slot)
     }
 
@@ -133,7 +132,7 @@ impl Pool {
     pub fn reset_envs(&mut self, mask: &[bool], out: &mut BatchOutput) -> Result<usize, PoolError> {
         let slot = self.core.next_slot;
         self.reset_masked(mask, slot as u32 + 1, None, out)?;
-        self.core.next_slot = (slot + 1) % BATCH_SLOTS;
+        self.core.next_slot = (slot + 1) % self.core.cfg.batch_slots;
         Ok(slot)
     }
 
@@ -178,8 +177,10 @@ impl Pool {
 
     /// Like [`Pool::step`], but the workers write the observations straight into the next
     /// slot of the pool's shared batch buffer (zero-copy sync step); returns the slot index
-    /// for [`Pool::shared_obs`]. Slots alternate (double buffering): the observations of slot
-    /// `s` stay unchanged until the second `*_shared` call after the one that returned `s`.
+    /// for [`Pool::shared_obs`]. Slots take turns ([`crate::PoolConfig::batch_slots`] of them, two by
+    /// default): the observations of slot `s` stay unchanged until the call that writes `s`
+    /// again, at the earliest the second `*_shared` call after the one that returned `s`.
+    /// [`Pool::select_slot`] names the slot the next call writes.
     pub fn step_shared(
         &mut self,
         actions: &[i64],
@@ -198,8 +199,27 @@ impl Pool {
         let slot = self.core.next_slot;
         self.send_steps(actions, slot as u32 + 1)?;
         self.gather_all(None, out)?;
-        self.core.next_slot = (slot + 1) % BATCH_SLOTS;
+        self.core.next_slot = (slot + 1) % self.core.cfg.batch_slots;
         Ok(slot)
+    }
+
+    /// Make the next `*_shared` call write slot `slot` (then the turns go on from there): a
+    /// caller that keeps the observations of some slots without copying them (all but one of
+    /// the [`crate::PoolConfig::batch_slots`]) steers the workers to a slot it no longer holds.
+    pub fn select_slot(&mut self, slot: usize) -> Result<(), PoolError> {
+        let slots = self.core.cfg.batch_slots;
+        if slot >= slots {
+            return Err(PoolError::Config(format!(
+                "slot {slot} does not exist: the pool has {slots} batch slots (0..{slots})"
+            )));
+        }
+        self.core.next_slot = slot;
+        Ok(())
+    }
+
+    /// Slots of the shared batch buffer ([`crate::PoolConfig::batch_slots`]).
+    pub fn batch_slots(&self) -> usize {
+        self.core.cfg.batch_slots
     }
 
     /// The observations of shared batch slot `slot` (`num_envs x obs_bytes`, env-major,
@@ -209,7 +229,7 @@ impl Pool {
         match &self.core.batch {
             // SAFETY: the slot lies inside the mapping. Workers write a slot only during a
             // `*_shared` call, which needs `&mut self`: none runs while this borrow lives.
-            Some(b) if slot < BATCH_SLOTS => unsafe {
+            Some(b) if slot < self.core.cfg.batch_slots => unsafe {
                 std::slice::from_raw_parts(b.as_ptr().add(slot * self.core.slot_bytes), n)
             },
             _ => &[],
@@ -232,7 +252,7 @@ impl Pool {
     /// [`Pool::shared_buffer`] alive with the view). Null after `close`.
     pub fn shared_obs_ptr(&self, slot: usize) -> *const u8 {
         match &self.core.batch {
-            Some(b) if slot < BATCH_SLOTS => {
+            Some(b) if slot < self.core.cfg.batch_slots => {
                 // SAFETY: the offset stays inside the mapping.
                 unsafe { b.as_ptr().add(slot * self.core.slot_bytes) }
             }

@@ -34,8 +34,10 @@ pub(crate) const TARGET_SHIFT: u32 = 8;
 pub(crate) const RELOAD_SEEDS: u32 = 1 << 16;
 /// Name of the shared batch buffer (`/dev/shm/<prefix>batch`).
 pub(crate) const BATCH_BUFFER: &str = "batch";
-/// Number of slots of the shared batch buffer (double buffering).
+/// Default number of slots of the shared batch buffer (double buffering).
 pub const BATCH_SLOTS: usize = 2;
+/// Most slots a shared batch buffer may have ([`crate::PoolConfig::batch_slots`]).
+pub const MAX_BATCH_SLOTS: usize = 16;
 
 /// The envs worker `k` of `num_workers` hosts: contiguous blocks, the first
 /// `num_envs % num_workers` workers one env more than the rest (so any `num_envs >= num_workers`
@@ -106,6 +108,13 @@ pub struct WorkerConfig {
     /// Whether the worker's poll yields the CPU (see `WaitPolicy::yield_cpu`).
     #[serde(default = "default_true")]
     pub poll_yield: bool,
+    /// Slots of the shared batch buffer ([`crate::PoolConfig::batch_slots`]).
+    #[serde(default = "default_batch_slots")]
+    pub batch_slots: usize,
+}
+
+fn default_batch_slots() -> usize {
+    BATCH_SLOTS
 }
 
 fn default_true() -> bool {
