@@ -20,7 +20,8 @@ Backends: ``pool`` (``rogue_gym.PoolVectorEnv``), ``gym-sync`` (``SyncVectorEnv`
 (``SubprocVecEnv``, forkserver, one process per env), ``envpool`` (EnvPool's C++ pool, Pong
 and HalfCheetah only), ``ale-vector`` (ale-py's C++ ``AtariVectorEnv``, Pong only) and
 ``pool-vector`` (the pool hosting one ale-py ``AtariVectorEnv`` of one thread per worker
-block, ``PoolVectorEnv.from_vector_env``, Pong only). EnvPool
+block, ``PoolVectorEnv.from_vector_env``, Pong only); named only, ``pool-copy`` (the pool
+copying every batch of observations, as ``copy=True`` did before it lent its slots). EnvPool
 and ale-py's vector env are asked for the same frames as the Python set-up (raw 210x160x3 for
 ``pong``; 84x84 gray, 4-stack for ``pong-pre``).
 
@@ -68,6 +69,9 @@ from hosted_throughput import run_cells
 
 ENVS = ["pong", "pong-pre", "nethack", "halfcheetah", "minigrid", "crafter", "cartpole"]
 BACKENDS = ["pool", "gym-sync", "gym-async", "sb3-subproc", "envpool", "ale-vector", "pool-vector"]
+#: Backends run only when named: ``pool-copy`` is the pool copying every batch of observations
+#: into fresh arrays, as ``copy=True`` did before it lent the slots (the A/B of that change).
+EXTRA_BACKENDS = ["pool-copy"]
 #: Backends that run ale-py's C++ vector env (Pong only).
 ALE_BACKENDS = ("ale-vector", "pool-vector")
 #: Backends with one process per env (the worker count does not apply).
@@ -185,6 +189,33 @@ def _ale_vector(env: str, n: int, workers: int) -> Any:
     raise LookupError(f"ale-py's vector env runs Atari only, not {env}")
 
 
+class _Copying:
+    """A vector env whose observations are copied into fresh arrays after every call."""
+
+    def __init__(self, env: Any) -> None:
+        self.env = env
+        self.action_space = env.action_space
+
+    @staticmethod
+    def _copy(tree: Any) -> Any:
+        if isinstance(tree, dict):
+            return {k: _Copying._copy(v) for k, v in tree.items()}
+        if isinstance(tree, tuple):
+            return tuple(_Copying._copy(v) for v in tree)
+        return tree.copy()
+
+    def reset(self, **kw: Any) -> Any:
+        obs, info = self.env.reset(**kw)
+        return self._copy(obs), info
+
+    def step(self, actions: Any) -> Any:
+        obs, *rest = self.env.step(actions)
+        return (self._copy(obs), *rest)
+
+    def close(self) -> None:
+        self.env.close()
+
+
 def build(backend: str, env: str, n: int, workers: int) -> Any:
     """The vector env, reset (everything before the timed window)."""
     if backend == "envpool":
@@ -207,6 +238,10 @@ def build(backend: str, env: str, n: int, workers: int) -> Any:
         import rogue_gym
 
         v = rogue_gym.PoolVectorEnv([fn] * n, num_workers=workers)
+    elif backend == "pool-copy":
+        import rogue_gym
+
+        v = _Copying(rogue_gym.PoolVectorEnv([fn] * n, num_workers=workers, copy=False))
     elif backend == "gym-sync":
         import gymnasium as gym
 
@@ -445,7 +480,7 @@ def key(c: dict[str, Any]) -> Key:
 def main(argv: Optional[list[str]] = None) -> None:
     p = argparse.ArgumentParser(description=(__doc__ or "").split("\n\n")[0])
     p.add_argument("--envs", nargs="+", default=ENVS, choices=ENVS)
-    p.add_argument("--backends", nargs="+", default=BACKENDS, choices=BACKENDS)
+    p.add_argument("--backends", nargs="+", default=BACKENDS, choices=BACKENDS + EXTRA_BACKENDS)
     p.add_argument("--num-envs", nargs="+", type=int, default=[64])
     p.add_argument("--workers", type=int, default=2, help="pool workers, C++ pool threads")
     p.add_argument("--reps", type=int, default=3)
@@ -534,7 +569,7 @@ def write(args: argparse.Namespace, runs: dict[Key, list[dict[str, Any]]], faile
             f"| {env} | {n} | {backend} | {med[k]:,.0f} | {min(v):,.0f}-{max(v):,.0f} | {cpu:.0%} | {ratio} |"
         )
     for ours in ("pool", "pool-vector"):
-        others = [b for b in BACKENDS if b != ours]
+        others = [b for b in BACKENDS + EXTRA_BACKENDS if b != ours and any(k[1] == b for k in med)]
         rows = [
             (env, n, med[(env, ours, n)])
             for n in args.num_envs
@@ -570,6 +605,7 @@ COLORS = {
     "envpool": "tab:orange",
     "ale-vector": "tab:brown",
     "pool-vector": "tab:pink",
+    "pool-copy": "tab:gray",
 }
 
 
@@ -592,7 +628,7 @@ def plot(med: dict[Key, float], path: Path) -> None:
     rows = -(-len(envs) // cols)
     fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.4 * rows), squeeze=False)
     for ax, env in zip(axes.flat, envs):
-        for backend in BACKENDS:
+        for backend in BACKENDS + EXTRA_BACKENDS:
             pts = [(n, med[(env, backend, n)]) for n in sizes if (env, backend, n) in med]
             if not pts:
                 continue

@@ -22,6 +22,7 @@ from gymnasium.vector import AutoresetMode, SyncVectorEnv
 from gymnasium.vector.utils import concatenate, create_empty_array
 from rogue_gym import PoolVectorEnv, WorkerCrashedError
 from rogue_gym.hosted import UnsupportedSpaceError
+from rogue_gym.hosted.leases import LENDING_SLOTS
 
 from conftest import pid_alive, pool_files, wait_until
 from hosted_envs import (
@@ -138,13 +139,34 @@ def test_nested_spaces_and_infos_match_sync_vector_env(pool, mode) -> None:
     ref.close()
 
 
-def test_observations_are_copies_or_views(pool) -> None:
-    copied = pool([cartpole] * 2, num_workers=1)
-    obs, _ = copied.reset(seed=0)
-    kept = obs.copy()
-    copied.step(np.ones(2, np.int64))
-    copied.step(np.ones(2, np.int64))
-    assert np.array_equal(obs, kept), "copy=True returns arrays the pool never touches again"
+def test_observations_are_lent_kept_intact_or_views(pool) -> None:
+    """copy=True (the default) lends the shared-memory slot the workers wrote instead of
+    copying it: no later step writes a slot while any array from it (even a view of a view)
+    lives; batches kept past the free slots are copied; a loop that drops its batches never
+    copies. copy=False returns double-buffered views."""
+    env = pool([NestedEnv] * 3, num_workers=2)
+    obs, _ = env.reset(seed=0)
+    acts = env.action_space.sample()
+    for _ in range(2 * LENDING_SLOTS):
+        assert not obs["pos"].flags.owndata, "a dropped batch's slot is lent again, not copied"
+        obs, *_ = env.step(acts)
+    kept, snapshots, lent = [], [], []
+    for _ in range(2 * LENDING_SLOTS):
+        obs, *_ = env.step(acts)
+        kept.append(obs["pos"][1:])  # a view of a view keeps the slot lent
+        snapshots.append(obs["pos"][1:].copy())
+        lent.append(not obs["pos"].flags.owndata)
+        del obs
+    for a, b in zip(kept, snapshots):
+        assert_tree_equal(a, b)
+    assert len({s.tobytes() for s in snapshots}) == len(snapshots), "every batch differs"
+    assert lent == [True] * (LENDING_SLOTS - 1) + [False] * (LENDING_SLOTS + 1), (
+        "all slots but one are lent, the batches beyond are copies"
+    )
+    assert kept[0].flags.writeable, "a lent batch is the caller's to write"
+    del kept
+    obs, *_ = env.step(acts)
+    assert not obs["pos"].flags.owndata, "released slots are lent again"
 
     views = pool([cartpole] * 2, num_workers=1, copy=False)
     obs, _ = views.reset(seed=0)

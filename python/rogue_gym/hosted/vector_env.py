@@ -33,6 +33,7 @@ from ..settings import FAILURE_POLICIES, PoolSettings, parse_autoreset_mode
 from .adapter import NO_SEED, decode_exception
 from .infos import InfoDecoder, vector_infos
 from .layout import SpaceLayout
+from .leases import LENDING_SLOTS, SlotLender
 from .vector_adapter import check_vector_env
 
 __all__ = ["PoolVectorEnv"]
@@ -94,9 +95,11 @@ class PoolVectorEnv(VectorEnv):
             same spaces. They are cloudpickled, so closures and lambdas work.
         num_workers: worker processes (default: as many as CPUs, at most ``num_envs``); each
             hosts a contiguous block of envs, the blocks differing by at most one env.
-        copy: return copies of the observations (default, like ``AsyncVectorEnv``); with
-            ``False`` they are views of shared memory, valid until the second following
-            ``step``/``reset``.
+        copy: return observations that are yours to keep (default, like ``AsyncVectorEnv``):
+            views of a shared-memory slot that the workers do not write again while any of
+            them lives (:mod:`rogue_gym.hosted.leases`), or copies when you keep more than a
+            few batches; with ``False`` they are views of shared memory, valid until the
+            second following ``step``/``reset``.
         autoreset_mode: ``NEXT_STEP`` (default), ``SAME_STEP`` (``final_obs`` and
             ``final_info`` in the infos) or ``DISABLED`` (reset finished envs yourself with
             ``reset(options={"reset_mask": ...})``).
@@ -242,6 +245,7 @@ class PoolVectorEnv(VectorEnv):
             "step_timeout": step_timeout,
             "max_restarts": max_restarts,
             "batch_size": batch_size,
+            "batch_slots": LENDING_SLOTS if self.copy else None,
             "poll_us": poll_us,
             "worker_poll_us": worker_poll_us,
             "runtime_dir": None if runtime_dir is None else os.fspath(runtime_dir),
@@ -259,6 +263,9 @@ class PoolVectorEnv(VectorEnv):
         n, stride = self.num_envs, self._obs_layout.stride
         self._slots = [np.asarray(v).reshape(n, stride) for v in self._pool.shared_views()]
         self._slot_views = [self._obs_layout.batch_views(s) for s in self._slots]
+        self._lender = SlotLender(self._slots, self._obs_layout.batch_views) if self.copy else None
+        #: The slot the pool writes next unless told otherwise (it takes the slots in turn).
+        self._pool_next = 0
         self._recs = np.zeros(n, RECORD_DTYPE)
         self._final = (
             np.zeros((n, stride), np.uint8) if self._settings["autoreset"] == "same_step" else None
@@ -353,12 +360,12 @@ class PoolVectorEnv(VectorEnv):
                 raise ValueError("reset(seed=...) cannot be combined with a reset_mask")
             if not self._started:
                 raise ValueError("a reset_mask needs a full reset() first")
-            slot = int(self._call(lambda: self._pool.reset_envs_shared(mask, recs)))
+            slot = self._shared(lambda: self._pool.reset_envs_shared(mask, recs))
             self._done &= ~mask
         else:
             if seed is not None or not self._started:
                 self._pool.set_seeds(json.dumps(self._seeds(seed)))
-            slot = int(self._call(lambda: self._pool.reset_shared(recs)))
+            slot = self._shared(lambda: self._pool.reset_shared(recs))
             self._done[:] = False
             self._started = True
         return self._observations(slot), self._infos(recs)
@@ -376,12 +383,12 @@ class PoolVectorEnv(VectorEnv):
         recs = self._recs
         if self._discrete_start is not None:
             acts = self._discrete_indices(actions, range(self.num_envs))
-            slot = int(self._call(lambda: self._pool.step_shared(acts, recs, self._final)))
+            slot = self._shared(lambda: self._pool.step_shared(acts, recs, self._final))
         else:
             self._act_layout.write_batch(actions, self._act_rows)
             self._act_layout.check_batch(self._act_rows)
             flat = self._act_rows.reshape(-1)
-            slot = int(self._call(lambda: self._pool.step_shared(flat, recs, self._final)))
+            slot = self._shared(lambda: self._pool.step_shared(flat, recs, self._final))
         flags = recs["flags"]
         terminated = (flags & FLAG_TERMINATED) != 0
         truncated = (flags & FLAG_TRUNCATED) != 0
@@ -568,9 +575,27 @@ class PoolVectorEnv(VectorEnv):
             )
         return a.astype(np.int64) - start
 
+    def _shared(self, call: Callable[[], int]) -> int:
+        """Run a ``*_shared`` call of the pool into a slot no returned array still uses."""
+        if self._lender is not None:
+            free = self._lender.next_free()
+            if free != self._pool_next:
+                self._pool_next = -1  # unknown until the call succeeds
+                self._call(lambda: self._pool.select_slot(free))
+                self._pool_next = free
+        try:
+            slot = int(self._call(call))
+        except BaseException:
+            self._pool_next = -1
+            raise
+        self._pool_next = (slot + 1) % len(self._slots)
+        return slot
+
     def _observations(self, slot: int) -> Any:
-        views = self._slot_views[slot]
-        return _copy_tree(views) if self.copy else views
+        if self._lender is None:
+            return self._slot_views[slot]
+        lent = self._lender.lend(slot)
+        return _copy_tree(self._slot_views[slot]) if lent is None else lent
 
     def _infos(self, recs: np.ndarray) -> dict[str, Any]:
         infos: dict[str, Any] = {}
