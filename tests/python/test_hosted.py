@@ -21,7 +21,7 @@ import rogue_gym
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
 from gymnasium.vector.utils import concatenate, create_empty_array
 from rogue_gym import PoolVectorEnv, WorkerCrashedError
-from rogue_gym.hosted import UnsupportedSpaceError
+from rogue_gym.hosted import UnsupportedSpaceError, leases
 from rogue_gym.hosted.leases import LENDING_SLOTS
 
 from conftest import pid_alive, pool_files, wait_until
@@ -139,11 +139,15 @@ def test_nested_spaces_and_infos_match_sync_vector_env(pool, mode) -> None:
     ref.close()
 
 
-def test_observations_are_lent_kept_intact_or_views(pool) -> None:
+def test_observations_are_lent_kept_intact_or_views(pool, monkeypatch) -> None:
     """copy=True (the default) lends the shared-memory slot the workers wrote instead of
     copying it: no later step writes a slot while any array from it (even a view of a view)
     lives; batches kept past the free slots are copied; a loop that drops its batches never
-    copies. copy=False returns double-buffered views."""
+    copies; small batches are copied. copy=False returns double-buffered views."""
+    small = pool([NestedEnv] * 3, num_workers=2)
+    obs, _ = small.reset(seed=0)
+    assert obs["pos"].flags.owndata, "a batch under LEND_MIN_BYTES is a plain copy"
+    monkeypatch.setattr(leases, "LEND_MIN_BYTES", 0)
     env = pool([NestedEnv] * 3, num_workers=2)
     obs, _ = env.reset(seed=0)
     acts = env.action_space.sample()
@@ -365,21 +369,26 @@ def test_autoreset_disabled_needs_a_masked_reset(pool) -> None:
     env.step(env.action_space.sample())
 
 
-def test_killed_worker_is_restarted_with_flagged_envs(pool) -> None:
+def test_killed_worker_is_restarted_with_flagged_envs(pool, monkeypatch) -> None:
+    monkeypatch.setattr(leases, "LEND_MIN_BYTES", 0)  # the kept batch is lent
     assert_killed_worker_restarts(pool([cartpole] * 4, num_workers=2))
 
 
 def assert_killed_worker_restarts(env: PoolVectorEnv) -> None:
     """Kill worker 1 of a pool of 4 CartPole-like envs in 2 workers: its envs' episodes end
-    (truncated, ``worker_restarted``), a new worker takes over and the pool steps on."""
-    env.reset(seed=0)
+    (truncated, ``worker_restarted``), a new worker takes over and the pool steps on; the
+    observations the caller kept from before stay as they were."""
+    first, _ = env.reset(seed=0)
+    kept = first.copy()
     victim = env.worker_pids[1]
     os.kill(victim, signal.SIGKILL)
     _, _, _, trunc, infos = env.step(np.zeros(4, np.int64))
     assert infos["worker_restarted"].tolist() == [False, False, True, True]
     assert trunc[2:].all()
     assert env.worker_pids[1] != victim
-    env.step(np.zeros(4, np.int64))
+    for _ in range(2 * LENDING_SLOTS):
+        env.step(np.zeros(4, np.int64))
+    assert np.array_equal(first, kept), "a restart never writes a batch the caller holds"
 
 
 def test_hung_worker_is_restarted(pool) -> None:

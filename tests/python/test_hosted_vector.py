@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
 from rogue_gym import PoolVectorEnv
+from rogue_gym.hosted import leases
 
 from hosted_envs import InfoEnv, NestedEnv, RaisingEnv, SpecialError
 from test_hosted import assert_killed_worker_restarts, assert_tree_equal, run_both, tracked
@@ -97,7 +98,8 @@ def test_bad_vector_env_functions_are_clear_errors() -> None:
         PoolVectorEnv.from_vector_env(sync_of(cartpole), 0)
 
 
-def test_killed_worker_rebuilds_its_block(hosted) -> None:
+def test_killed_worker_rebuilds_its_block(hosted, monkeypatch) -> None:
+    monkeypatch.setattr(leases, "LEND_MIN_BYTES", 0)  # the kept batch is lent
     assert_killed_worker_restarts(hosted(sync_of(cartpole), 4, num_workers=2))
 
 

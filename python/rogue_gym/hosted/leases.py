@@ -6,7 +6,8 @@ returns are views of the slot, and the slot counts as lent for as long as any of
 view of them) lives. The workers' next batches go to slots that are not lent, so what the user
 holds never changes under them: the same guarantee as a copy, without the copy. When every
 other slot is lent (a user keeping many batches), the batch is copied as before, so one slot
-always stays free for the workers.
+always stays free for the workers. Batches smaller than :data:`LEND_MIN_BYTES` are simply
+copied.
 """
 
 from __future__ import annotations
@@ -16,11 +17,14 @@ from typing import Any, Callable, Optional
 
 import numpy as np
 
-__all__ = ["LENDING_SLOTS", "SlotLender"]
+__all__ = ["LENDING_SLOTS", "LEND_MIN_BYTES", "SlotLender"]
 
 #: Batch slots of a pool that lends its observations: the batch the caller holds while it steps
 #: (``obs`` of the previous step), the batch being written, and room for one more.
 LENDING_SLOTS = 4
+#: Smallest batch of observations (bytes, all envs) that is lent rather than copied: below it a
+#: copy costs less than the few microseconds of Python that lending takes per call.
+LEND_MIN_BYTES = 64 * 1024
 
 
 class SlotLender:

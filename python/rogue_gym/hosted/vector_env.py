@@ -30,10 +30,11 @@ from .. import _native, _sigterm
 from .._records import FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED, RECORD_DTYPE
 from ..errors import EnvFailedError
 from ..settings import FAILURE_POLICIES, PoolSettings, parse_autoreset_mode
+from . import leases
 from .adapter import NO_SEED, decode_exception
 from .infos import InfoDecoder, vector_infos
 from .layout import SpaceLayout
-from .leases import LENDING_SLOTS, SlotLender
+from .leases import SlotLender
 from .vector_adapter import check_vector_env
 
 __all__ = ["PoolVectorEnv"]
@@ -98,7 +99,7 @@ class PoolVectorEnv(VectorEnv):
         copy: return observations that are yours to keep (default, like ``AsyncVectorEnv``):
             views of a shared-memory slot that the workers do not write again while any of
             them lives (:mod:`rogue_gym.hosted.leases`), or copies when you keep more than a
-            few batches; with ``False`` they are views of shared memory, valid until the
+            few batches or the batch is small; with ``False`` they are views of shared memory, valid until the
             second following ``step``/``reset``.
         autoreset_mode: ``NEXT_STEP`` (default), ``SAME_STEP`` (``final_obs`` and
             ``final_info`` in the infos) or ``DISABLED`` (reset finished envs yourself with
@@ -232,6 +233,7 @@ class PoolVectorEnv(VectorEnv):
             adapter["vector_env_fn"] = _b64(cloudpickle.dumps(hosted.fn))
             adapter["autoreset_mode"] = self.autoreset_mode.value
         kind = "python" if hosted is None else "python-vector"
+        lend = self.copy and self.num_envs * self._obs_layout.stride >= leases.LEND_MIN_BYTES
         self._settings: dict[str, Any] = {
             "env": {"kind": kind, "spec": spec, "adapter": adapter},
             "spec": spec,
@@ -245,7 +247,7 @@ class PoolVectorEnv(VectorEnv):
             "step_timeout": step_timeout,
             "max_restarts": max_restarts,
             "batch_size": batch_size,
-            "batch_slots": LENDING_SLOTS if self.copy else None,
+            "batch_slots": leases.LENDING_SLOTS if lend else None,
             "poll_us": poll_us,
             "worker_poll_us": worker_poll_us,
             "runtime_dir": None if runtime_dir is None else os.fspath(runtime_dir),
@@ -263,7 +265,7 @@ class PoolVectorEnv(VectorEnv):
         n, stride = self.num_envs, self._obs_layout.stride
         self._slots = [np.asarray(v).reshape(n, stride) for v in self._pool.shared_views()]
         self._slot_views = [self._obs_layout.batch_views(s) for s in self._slots]
-        self._lender = SlotLender(self._slots, self._obs_layout.batch_views) if self.copy else None
+        self._lender = SlotLender(self._slots, self._obs_layout.batch_views) if lend else None
         #: The slot the pool writes next unless told otherwise (it takes the slots in turn).
         self._pool_next = 0
         self._recs = np.zeros(n, RECORD_DTYPE)
@@ -593,7 +595,8 @@ class PoolVectorEnv(VectorEnv):
 
     def _observations(self, slot: int) -> Any:
         if self._lender is None:
-            return self._slot_views[slot]
+            views = self._slot_views[slot]
+            return _copy_tree(views) if self.copy else views
         lent = self._lender.lend(slot)
         return _copy_tree(self._slot_views[slot]) if lent is None else lent
 
