@@ -42,6 +42,7 @@ Usage::
     .venv-bench/bin/python benchmarks/real_envs.py --envs pong --backends pool gym-sync
     .venv-bench/bin/python benchmarks/real_envs.py --from-json benchmarks/results/real_envs/real_envs.json
     .venv-bench/bin/python benchmarks/real_envs.py --profile halfcheetah --seconds 6  # py-spy
+    .venv-bench/bin/python benchmarks/real_envs.py --scaling --num-envs 32  # 1 vs 2 processes
     .venv-bench/bin/python benchmarks/real_envs.py --parity 200   # same outputs as SyncVectorEnv?
 
 Writes ``real_envs.md``, ``real_envs.json`` and ``real_envs.png`` under ``--out`` (default
@@ -397,6 +398,54 @@ def _first_difference(a: Any, b: Any, where: str = "") -> Optional[str]:
     return None
 
 
+def _bare_loop(job: tuple[str, int, int, float]) -> float:
+    """Steps/s of ``n`` envs stepped in a plain loop in this process (seeded envs, actions
+    sampled in advance), for ``seconds``."""
+    env, n, seed, seconds = job
+    fn = env_fn(env)
+    envs = [fn() for _ in range(n)]
+    for i, e in enumerate(envs):
+        e.reset(seed=seed + i)
+    space = envs[0].action_space
+    space.seed(seed)
+    acts = [[space.sample() for _ in range(n)] for _ in range(32)]
+    steps, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        for e, a in zip(envs, acts[(steps // n) % 32]):
+            _, _, term, trunc, _ = e.step(a)
+            if term or trunc:
+                e.reset()
+        steps += n
+    rate = steps / (time.perf_counter() - start)
+    for e in envs:
+        e.close()
+    return rate
+
+
+def scaling(envs: list[str], n: int, seconds: float, reps: int, out: Path) -> None:
+    """What two cores give without any vector env: ``n`` envs stepped in a plain loop by one
+    process alone, then by two such processes at once (other seeds); the sum over the alone
+    figure is the machine's ceiling for a pool of 2 workers over one process."""
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    rows = []
+    for env in envs:
+        for rep in range(reps):
+            with ctx.Pool(1) as p:
+                alone = p.map(_bare_loop, [(env, n, 0, seconds)])[0]
+            with ctx.Pool(2) as p:
+                two = p.map(_bare_loop, [(env, n, 0, seconds), (env, n, 1000, seconds)])
+            rows.append({"env": env, "rep": rep, "alone": alone, "two": two})
+            print(
+                f"{env:12s} alone {alone:10,.0f}  two at once {two[0]:10,.0f} + {two[1]:10,.0f}"
+                f"  = {sum(two) / alone:.2f}x",
+                flush=True,
+            )
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "scaling.json").write_text(json.dumps({"num_envs": n, "runs": rows}, indent=1) + "\n")
+
+
 def parity(env: str, steps: int, num_envs: int = 5, hosted_vector: bool = False) -> str:
     """Step the pool and SyncVectorEnv with the same seeds and actions (``hosted_vector``:
     the pool hosting ale-py's vector env per worker, against one such vector env of all the
@@ -507,6 +556,12 @@ def main(argv: Optional[list[str]] = None) -> None:
         metavar="STEPS",
         help="instead of timing: compare the pool with SyncVectorEnv (5 envs) for STEPS steps",
     )
+    p.add_argument(
+        "--scaling",
+        action="store_true",
+        help="instead of timing backends: num-envs envs in a plain loop in one process, then in "
+        "two processes at once (the machine's ceiling for 2 workers), for each of --envs",
+    )
     p.add_argument("--cell", help=argparse.SUPPRESS)
     p.add_argument("--from-json", help="rewrite the table and plot from a results JSON")
     args = p.parse_args(argv)
@@ -519,6 +574,9 @@ def main(argv: Optional[list[str]] = None) -> None:
             if env in ("pong", "pong-pre") and "pool-vector" in args.backends:
                 found = parity(env, args.parity, hosted_vector=True)
                 print(f"{env:12s} pool-vector against ale-py's vector env: {found}", flush=True)
+        return
+    if args.scaling:
+        scaling(args.envs, args.num_envs[0], args.seconds, args.reps, Path(args.out))
         return
     if args.profile:
         profile(args.profile, args.workers, args.seconds, Path(args.out) / "profiles")
