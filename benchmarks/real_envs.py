@@ -53,6 +53,7 @@ env, is listed as skipped with the reason.
 from __future__ import annotations
 
 import argparse
+import copy
 import functools
 import json
 import os
@@ -197,21 +198,13 @@ class _Copying:
         self.env = env
         self.action_space = env.action_space
 
-    @staticmethod
-    def _copy(tree: Any) -> Any:
-        if isinstance(tree, dict):
-            return {k: _Copying._copy(v) for k, v in tree.items()}
-        if isinstance(tree, tuple):
-            return tuple(_Copying._copy(v) for v in tree)
-        return tree.copy()
-
     def reset(self, **kw: Any) -> Any:
         obs, info = self.env.reset(**kw)
-        return self._copy(obs), info
+        return copy.deepcopy(obs), info
 
     def step(self, actions: Any) -> Any:
         obs, *rest = self.env.step(actions)
-        return (self._copy(obs), *rest)
+        return (copy.deepcopy(obs), *rest)
 
     def close(self) -> None:
         self.env.close()

@@ -57,7 +57,6 @@ pub struct PyPool {
     out: Mutex<BatchOutput>,
     num_envs: usize,
     num_workers: usize,
-    batch_slots: usize,
     obs_bytes: usize,
     /// Bytes of one raw action (hosted envs; 0: action indices).
     action_bytes: usize,
@@ -217,7 +216,6 @@ impl PyPool {
         Ok(PyPool {
             num_envs: pool.num_envs(),
             num_workers: pool.num_workers(),
-            batch_slots: pool.batch_slots(),
             obs_bytes: pool.obs_bytes(),
             action_bytes: spec.action_bytes,
             n_info: spec.info_names.len(),
@@ -448,16 +446,11 @@ impl PyPool {
         Ok(list)
     }
 
-    /// Make the next `*_shared` call write batch slot `slot` (`0..batch_slots`); the turns go
-    /// on from there. `ValueError` for a slot that does not exist.
+    /// Make the next `*_shared` call write batch slot `slot` (an index into
+    /// `shared_views()`); the turns go on from there. `ValueError` for a slot that does not
+    /// exist.
     fn select_slot(&self, py: Python<'_>, slot: usize) -> PyResult<()> {
         self.with_pool(py, move |p, _| p.select_slot(slot))
-    }
-
-    /// Slots of the shared batch buffer (the length of `shared_views()`).
-    #[getter]
-    fn batch_slots(&self) -> usize {
-        self.batch_slots
     }
 
     /// Replace the episode-seed schedule (JSON `{"base": .., "set": .., "policy": ..}`) and

@@ -587,10 +587,22 @@ def test_info_rows_are_typed_when_they_can_be() -> None:
         assert not enc.encode([("step", untyped)]).startswith(MAGIC), untyped
     assert not enc.encode([("step", info), ("reset", info)]).startswith(MAGIC)
 
-    rows = [(r, enc.encode([("step", {**info, "i": r})])) for r in (0, 2, 3)]
-    columns: dict = {}
-    assert dec.put_typed(columns, rows, 5)
-    one_by_one: dict = {}
-    for r, _ in rows:
-        one_by_one = add_row_info(one_by_one, {**info, "i": r}, r, 5)
-    assert_tree_equal(columns, one_by_one)
+    # Some rows, every row, and rows of two kinds and two structures (grouped, the lowest
+    # row's group first): the columns are what gymnasium builds one row at a time.
+    other = {"f": np.float32(2.0), "extra": np.ones(3)}
+    for kinds in (
+        {0: ("step", info), 2: ("step", info), 3: ("step", info)},
+        {r: ("step", info) for r in range(5)},
+        {0: ("step", other), 1: ("reset", info), 2: ("step", info), 4: ("reset", other)},
+    ):
+        rows = [(r, enc.encode([(k, {**i, "i": r})])) for r, (k, i) in kinds.items()]
+        columns: dict = {}
+        assert dec.put_typed(columns, rows, 5)
+        one_by_one: dict = {}
+        for r, (_, i) in kinds.items():
+            one_by_one = add_row_info(one_by_one, {**i, "i": r}, r, 5)
+        assert list(columns) == list(one_by_one), "gymnasium's key order"
+        assert_tree_equal(columns, one_by_one)
+        assert all(a.flags.c_contiguous for a in columns.values() if isinstance(a, np.ndarray))
+    pickled = [(0, rows[0][1]), (1, enc.encode([("step", {"s": "text"})]))]
+    assert not dec.put_typed({}, pickled, 2), "a pickled row is not typed"

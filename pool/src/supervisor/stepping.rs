@@ -177,10 +177,10 @@ impl Pool {
 
     /// Like [`Pool::step`], but the workers write the observations straight into the next
     /// slot of the pool's shared batch buffer (zero-copy sync step); returns the slot index
-    /// for [`Pool::shared_obs`]. Slots take turns ([`crate::PoolConfig::batch_slots`] of them, two by
-    /// default): the observations of slot `s` stay unchanged until the call that writes `s`
-    /// again, at the earliest the second `*_shared` call after the one that returned `s`.
-    /// [`Pool::select_slot`] names the slot the next call writes.
+    /// for [`Pool::shared_obs`]. Slots take turns ([`crate::PoolConfig::batch_slots`] of
+    /// them, two by default): the observations of slot `s` stay unchanged until the call that
+    /// writes `s` again, at the earliest the second `*_shared` call after the one that
+    /// returned `s`. [`Pool::select_slot`] names the slot the next call writes.
     pub fn step_shared(
         &mut self,
         actions: &[i64],

@@ -31,6 +31,8 @@ MAGIC = b"RGi1"
 #: ``magic, kind (0 reset, 1 step), structure hash, structure length``; 24 bytes.
 _HEADER = struct.Struct("<4sB3xQI4x")
 HEADER_BYTES = _HEADER.size
+#: The bytes that tell a row's kind and structure (magic, kind, padding, hash).
+HEAD = 16
 KINDS = ("reset", "step")
 #: At most this many structures are remembered per env (an env whose shapes never repeat
 #: falls back to pickles rather than growing without bound).
@@ -239,8 +241,12 @@ class _Decoded:
             {"names": names, "formats": formats, "offsets": offsets, "itemsize": max(offset, 1)}
         )
 
-    def put(self, infos: dict[str, Any], records: np.ndarray, rows: np.ndarray, n: int) -> None:
-        """Add the records of ``rows`` (of a batch of ``n``) to vector infos."""
+    def put(
+        self, infos: dict[str, Any], records: np.ndarray, rows: Optional[np.ndarray], n: int
+    ) -> None:
+        """Add the records of ``rows`` (of a batch of ``n``; ``None``: all ``n``, in order) to
+        vector infos."""
+        every = slice(None) if rows is None else rows
 
         def visit(target: dict[str, Any], nodes: Structure, path: tuple[str, ...]) -> None:
             for key, node in nodes:
@@ -253,10 +259,14 @@ class _Decoded:
                 else:
                     name, dt, shape, _ = leaf
                     array = target.get(key)
-                    if array is None:
+                    if array is not None:
+                        array[every] = records[name]
+                    elif rows is None:  # a new column of every row: one converting copy
+                        target[key] = records[name].astype(dt)
+                    else:
                         array = target[key] = np.zeros((n, *shape), dt)
-                    array[rows] = records[name]
-                _mark(target, key, rows, n)
+                        array[rows] = records[name]
+                _mark(target, key, every, n)
 
         visit(infos, self.structure, ())
 
@@ -304,6 +314,17 @@ class InfoDecoder:
     def put_typed(self, infos: dict[str, Any], rows: list[tuple[int, bytes]], n: int) -> bool:
         """Add typed rows to vector infos, a group of rows of the same structure at a time;
         ``False`` (nothing added) if any row is not typed."""
+        if not rows:
+            return True
+        ids, datas = zip(*rows)
+        if datas[0][:4] == MAGIC and len({d[:HEAD] for d in datas}) == 1:
+            # The usual call: every row typed, of one kind and structure (so of one size),
+            # decoded in one go.
+            layout = self._layout(datas[0])
+            every = len(ids) == n and ids == tuple(range(n))
+            records = np.frombuffer(b"".join(datas), layout.dtype)
+            layout.put(infos, records, None if every else np.array(ids, np.intp), n)
+            return True
         groups: dict[bytes, list[tuple[int, bytes]]] = {}
         for row, data in rows:
             if data[:4] != MAGIC:
@@ -314,8 +335,8 @@ class InfoDecoder:
         for group in sorted(groups.values(), key=lambda g: g[0][0]):
             layout = self._layout(group[0][1])
             records = np.frombuffer(b"".join(d for _, d in group), layout.dtype)
-            ids = np.fromiter((r for r, _ in group), np.intp, len(group))
-            layout.put(infos, records, ids, n)
+            at = np.fromiter((r for r, _ in group), np.intp, len(group))
+            layout.put(infos, records, at, n)
         return True
 
 
@@ -346,9 +367,13 @@ def add_row_info(infos: dict[str, Any], info: dict[str, Any], row: int, n: int) 
 def _mark(infos: dict[str, Any], key: str, rows: Any, n: int) -> None:
     """Set the ``_key`` mask of vector infos of ``n`` rows at ``rows``."""
     mask = infos.get(f"_{key}")
-    if mask is None:
+    if mask is not None:
+        mask[rows] = True
+    elif isinstance(rows, slice):  # every row
+        infos[f"_{key}"] = np.ones(n, np.bool_)
+    else:
         mask = infos[f"_{key}"] = np.zeros(n, np.bool_)
-    mask[rows] = True
+        mask[rows] = True
 
 
 def vector_infos(

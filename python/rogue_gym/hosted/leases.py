@@ -55,6 +55,14 @@ class SlotLender:
                 return k
         raise RuntimeError("every batch slot is lent; lend() keeps one free")  # unreachable
 
+    def steer(self) -> Optional[int]:
+        """The slot to select before the next ``*_shared`` call, or ``None`` when the pool's
+        own turn (the slot after the last one it wrote, which :meth:`lend` saw) is free. A
+        failed call changes neither the pool's turn nor the slots lent, so this holds after
+        one too."""
+        free = self.next_free()
+        return None if free == (self._last + 1) % len(self._slots) else free
+
     def lend(self, slot: int) -> Optional[Any]:
         """The observations in ``slot`` as arrays the caller may keep (views of the slot, which
         stays lent while any of them lives), or ``None`` when no other slot is free: then the

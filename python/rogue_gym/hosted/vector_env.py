@@ -34,7 +34,6 @@ from . import leases
 from .adapter import NO_SEED, decode_exception
 from .infos import InfoDecoder, vector_infos
 from .layout import SpaceLayout
-from .leases import SlotLender
 from .vector_adapter import check_vector_env
 
 __all__ = ["PoolVectorEnv"]
@@ -99,8 +98,8 @@ class PoolVectorEnv(VectorEnv):
         copy: return observations that are yours to keep (default, like ``AsyncVectorEnv``):
             views of a shared-memory slot that the workers do not write again while any of
             them lives (:mod:`rogue_gym.hosted.leases`), or copies when you keep more than a
-            few batches or the batch is small; with ``False`` they are views of shared memory, valid until the
-            second following ``step``/``reset``.
+            few batches or the batch is small; with ``False`` they are views of shared
+            memory, valid until the second following ``step``/``reset``.
         autoreset_mode: ``NEXT_STEP`` (default), ``SAME_STEP`` (``final_obs`` and
             ``final_info`` in the infos) or ``DISABLED`` (reset finished envs yourself with
             ``reset(options={"reset_mask": ...})``).
@@ -265,9 +264,9 @@ class PoolVectorEnv(VectorEnv):
         n, stride = self.num_envs, self._obs_layout.stride
         self._slots = [np.asarray(v).reshape(n, stride) for v in self._pool.shared_views()]
         self._slot_views = [self._obs_layout.batch_views(s) for s in self._slots]
-        self._lender = SlotLender(self._slots, self._obs_layout.batch_views) if lend else None
-        #: The slot the pool writes next unless told otherwise (it takes the slots in turn).
-        self._pool_next = 0
+        self._lender = (
+            leases.SlotLender(self._slots, self._obs_layout.batch_views) if lend else None
+        )
         self._recs = np.zeros(n, RECORD_DTYPE)
         self._final = (
             np.zeros((n, stride), np.uint8) if self._settings["autoreset"] == "same_step" else None
@@ -362,15 +361,15 @@ class PoolVectorEnv(VectorEnv):
                 raise ValueError("reset(seed=...) cannot be combined with a reset_mask")
             if not self._started:
                 raise ValueError("a reset_mask needs a full reset() first")
-            slot = self._shared(lambda: self._pool.reset_envs_shared(mask, recs))
+            obs = self._shared(lambda: self._pool.reset_envs_shared(mask, recs))
             self._done &= ~mask
         else:
             if seed is not None or not self._started:
                 self._pool.set_seeds(json.dumps(self._seeds(seed)))
-            slot = self._shared(lambda: self._pool.reset_shared(recs))
+            obs = self._shared(lambda: self._pool.reset_shared(recs))
             self._done[:] = False
             self._started = True
-        return self._observations(slot), self._infos(recs)
+        return obs, self._infos(recs)
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every env with ``actions`` (a batch of the action space)."""
@@ -385,18 +384,18 @@ class PoolVectorEnv(VectorEnv):
         recs = self._recs
         if self._discrete_start is not None:
             acts = self._discrete_indices(actions, range(self.num_envs))
-            slot = self._shared(lambda: self._pool.step_shared(acts, recs, self._final))
+            obs = self._shared(lambda: self._pool.step_shared(acts, recs, self._final))
         else:
             self._act_layout.write_batch(actions, self._act_rows)
             self._act_layout.check_batch(self._act_rows)
             flat = self._act_rows.reshape(-1)
-            slot = self._shared(lambda: self._pool.step_shared(flat, recs, self._final))
+            obs = self._shared(lambda: self._pool.step_shared(flat, recs, self._final))
         flags = recs["flags"]
         terminated = (flags & FLAG_TERMINATED) != 0
         truncated = (flags & FLAG_TRUNCATED) != 0
         self._done = terminated | truncated
         rewards = recs["reward"].astype(np.float64)
-        return self._observations(slot), rewards, terminated, truncated, self._infos(recs)
+        return obs, rewards, terminated, truncated, self._infos(recs)
 
     def close_extras(self, **kwargs: Any) -> None:
         """Stop the workers and remove the pool's shared-memory files (idempotent; nothing to
@@ -577,23 +576,14 @@ class PoolVectorEnv(VectorEnv):
             )
         return a.astype(np.int64) - start
 
-    def _shared(self, call: Callable[[], int]) -> int:
-        """Run a ``*_shared`` call of the pool into a slot no returned array still uses."""
+    def _shared(self, call: Callable[[], int]) -> Any:
+        """Run a ``*_shared`` call of the pool into a slot no returned array still uses;
+        returns the observations it wrote (lent, copied, or views with ``copy=False``)."""
         if self._lender is not None:
-            free = self._lender.next_free()
-            if free != self._pool_next:
-                self._pool_next = -1  # unknown until the call succeeds
+            free = self._lender.steer()
+            if free is not None:
                 self._call(lambda: self._pool.select_slot(free))
-                self._pool_next = free
-        try:
-            slot = int(self._call(call))
-        except BaseException:
-            self._pool_next = -1
-            raise
-        self._pool_next = (slot + 1) % len(self._slots)
-        return slot
-
-    def _observations(self, slot: int) -> Any:
+        slot = int(self._call(call))
         if self._lender is None:
             views = self._slot_views[slot]
             return _copy_tree(views) if self.copy else views
