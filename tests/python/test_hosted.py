@@ -562,6 +562,34 @@ def test_discrete_actions_outside_the_space_are_named_in_the_callers_terms(pool)
     env.step(np.array([-1, 1]))
 
 
+def test_actions_decode_to_fresh_writable_values_of_their_space() -> None:
+    """What a worker hands an env for an action's bytes: the same value, as a writable array
+    of its own (the env may keep or change it), for one-array and nested spaces."""
+    from gymnasium import spaces
+    from rogue_gym.hosted.layout import SpaceLayout
+
+    for space in (
+        spaces.Box(-1, 1, (6,), np.float32),
+        spaces.Box(0, 9, (2, 3), np.int16),
+        spaces.Box(-1, 1, (), np.float64),
+        spaces.Dict({"a": spaces.Discrete(3), "b": spaces.Box(0, 1, (2,))}),
+    ):
+        layout = SpaceLayout(space)
+        decode = layout.decoder()
+        space.seed(1)
+        value = space.sample()
+        data = bytearray(layout.nbytes)
+        layout.writer(np.frombuffer(data, np.uint8).ctypes.data)(value)
+        first, second = decode(bytes(data)), decode(bytes(data))
+        assert_tree_equal(first, value)
+        for leaf in first.values() if isinstance(first, dict) else [first]:
+            if isinstance(leaf, np.ndarray):
+                assert leaf.flags.writeable
+        if isinstance(first, np.ndarray) and first.ndim:
+            first[...] = 0  # each decode is a fresh array: the second is untouched
+            assert_tree_equal(second, value)
+
+
 def test_info_rows_are_typed_when_they_can_be() -> None:
     """Numbers and arrays in nested dicts travel as typed rows, read back as the same values
     of the same types; anything else is pickled; many rows become columns at once."""

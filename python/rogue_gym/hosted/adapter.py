@@ -148,6 +148,7 @@ class HostedEnv:
         #: on the step path).
         self._writers = self._obs.writers
         self._writer = self._obs.writer_at
+        self._decode = self._act.decoder()
 
     @classmethod
     @_guarded
@@ -208,7 +209,7 @@ class HostedEnv:
         the observation at ``address``. Returns ``(reward, terminated, truncated, info bytes
         or None)``."""
         try:
-            action = self._act.decode(action) if self._discrete is None else self._discrete[action]
+            action = self._decode(action) if self._discrete is None else self._discrete[action]
             obs, reward, terminated, truncated, info = self.env.step(action)
             (self._writers.get(address) or self._writer(address))(obs)
             self._last = obs

@@ -173,6 +173,19 @@ class SpaceLayout:
             rows = self._rows[(address, n)] = np.ctypeslib.as_array(raw).reshape(n, self.stride)
         return rows
 
+    def decoder(self) -> Callable[[bytes], Any]:
+        """:meth:`decode`, made short for a space of one array (the common Box action): it
+        runs every env step."""
+        if not self._single or self.leaves[0].shape == ():
+            return self.decode
+        leaf = self.leaves[0]
+        dtype, count, shape = leaf.dtype, leaf.count, leaf.shape
+        frombuffer = np.frombuffer
+
+        if len(shape) == 1:
+            return lambda data: frombuffer(bytearray(data), dtype, count)
+        return lambda data: frombuffer(bytearray(data), dtype, count).reshape(shape)
+
     def decode(self, data: bytes) -> Any:
         """One value from its bytes: writable arrays (a ``Discrete`` leaf as a numpy int)."""
         buf = bytearray(data)
