@@ -303,18 +303,59 @@ impl PyPool {
         Ok(slot)
     }
 
-    /// The extra info of the last sync call's envs that wrote some: a list of `(env id,
-    /// bytes)` (hosted envs: their pickled info dicts).
-    fn take_extras<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+    /// The extra info of the last sync call's envs that wrote some (hosted envs: their info
+    /// dicts as typed rows or pickles), joined: `(rows, data, size, ends)`. `rows`: the envs'
+    /// ids in row order, or `None` when every env wrote some; `data`: their bytes, one after
+    /// the other; `size`: the length of each when all have the same length and the same first
+    /// `head` bytes, else 0; `ends`: where each one's bytes end in `data` (empty when `size`
+    /// is not 0).
+    #[allow(clippy::type_complexity)]
+    fn take_extras<'py>(
+        &self,
+        py: Python<'py>,
+        head: usize,
+    ) -> PyResult<(Option<Vec<usize>>, Bound<'py, PyBytes>, usize, Vec<usize>)> {
         let mut out = self
             .out
             .lock()
             .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
-        let list = PyList::empty(py);
-        for (env, bytes) in out.extras.drain(..) {
-            list.append((env, PyBytes::new(py, &bytes)))?;
-        }
-        Ok(list)
+        let extras = std::mem::take(&mut out.extras);
+        drop(out);
+        let every = extras.len() == self.num_envs
+            && extras.iter().enumerate().all(|(i, (env, _))| *env == i);
+        let rows = (!every).then(|| extras.iter().map(|(env, _)| *env).collect());
+        let size = match extras.first() {
+            Some((_, first))
+                if first.len() >= head
+                    && extras
+                        .iter()
+                        .all(|(_, e)| e.len() == first.len() && e[..head] == first[..head]) =>
+            {
+                first.len()
+            }
+            _ => 0,
+        };
+        let total = extras.iter().map(|(_, e)| e.len()).sum();
+        let data = PyBytes::new_with(py, total, |buf| {
+            let mut at = 0;
+            for (_, e) in &extras {
+                buf[at..at + e.len()].copy_from_slice(e);
+                at += e.len();
+            }
+            Ok(())
+        })?;
+        let ends = if size > 0 {
+            Vec::new()
+        } else {
+            extras
+                .iter()
+                .scan(0, |at, (_, e)| {
+                    *at += e.len();
+                    Some(*at)
+                })
+                .collect()
+        };
+        Ok((rows, data, size, ends))
     }
 
     /// Partial sync reset (gymnasium `reset_mask`) straight into the next shared batch slot:

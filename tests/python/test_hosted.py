@@ -593,7 +593,13 @@ def test_actions_decode_to_fresh_writable_values_of_their_space() -> None:
 def test_info_rows_are_typed_when_they_can_be() -> None:
     """Numbers and arrays in nested dicts travel as typed rows, read back as the same values
     of the same types; anything else is pickled; many rows become columns at once."""
-    from rogue_gym.hosted.infos import MAGIC, InfoDecoder, InfoEncoder, add_row_info
+    from rogue_gym.hosted.infos import (
+        MAGIC,
+        InfoDecoder,
+        InfoEncoder,
+        add_row_info,
+        split_joined,
+    )
 
     enc, dec = InfoEncoder(), InfoDecoder()
     info = {
@@ -611,6 +617,10 @@ def test_info_rows_are_typed_when_they_can_be() -> None:
     assert kind == "step"
     assert {k: type(v) for k, v in back.items()} == {k: type(v) for k, v in info.items()}
     assert_tree_equal(back, info)
+    # The same keys with other value types, one after the other, are other layouts.
+    for value in (1.5, np.float32(1.5), True, 2, 2**70, np.int16(3), 2.5):
+        [(_, again)] = dec.entries(enc.encode([("step", {"v": value})]))
+        assert type(again["v"]) is type(value) and again["v"] == value, value
     for untyped in ({"s": "text"}, {"nb": np.bool_(True)}, {"big": 2**70}, {"l": [1]}):
         assert not enc.encode([("step", untyped)]).startswith(MAGIC), untyped
     assert not enc.encode([("step", info), ("reset", info)]).startswith(MAGIC)
@@ -634,3 +644,6 @@ def test_info_rows_are_typed_when_they_can_be() -> None:
         assert all(a.flags.c_contiguous for a in columns.values() if isinstance(a, np.ndarray))
     pickled = [(0, rows[0][1]), (1, enc.encode([("step", {"s": "text"})]))]
     assert not dec.put_typed({}, pickled, 2), "a pickled row is not typed"
+    # The pool's joined extras, split again: rows of one size, or of any sizes (their ends).
+    assert split_joined(None, b"aabbcc", 2, [], 3) == [(0, b"aa"), (1, b"bb"), (2, b"cc")]
+    assert split_joined([1, 4], b"abbb", 0, [1, 4], 5) == [(1, b"a"), (4, b"bbb")]

@@ -19,12 +19,19 @@ from __future__ import annotations
 import hashlib
 import pickle
 import struct
-from collections.abc import Iterable
-from typing import Any, Callable, Optional
+from collections.abc import Iterable, Sequence
+from typing import Any, Callable, NamedTuple, Optional
 
 import numpy as np
 
-__all__ = ["InfoDecoder", "InfoEncoder", "add_row_info", "split_vector_info", "vector_infos"]
+__all__ = [
+    "InfoDecoder",
+    "InfoEncoder",
+    "add_row_info",
+    "split_joined",
+    "split_vector_info",
+    "vector_infos",
+]
 
 #: Marks a typed row (a pickle starts with 0x80).
 MAGIC = b"RGi1"
@@ -170,12 +177,25 @@ class InfoEncoder:
 
     def __init__(self) -> None:
         self._layouts: dict[tuple[Any, ...], Optional[_Layout]] = {}
+        #: The last flat layout used, with its keys and value types: most envs give the same
+        #: info on every step, which is then matched without hashing a signature.
+        self._flat: Optional[tuple[tuple[str, ...], tuple[type, ...], _Layout]] = None
 
     def encode(self, entries: list[tuple[str, dict[str, Any]]]) -> bytes:
         """The bytes of one call's entries: a typed row for a single typed info, else the
         pickled entries."""
         if len(entries) == 1:
             kind, info = entries[0]
+            flat = self._flat
+            if (
+                flat is not None
+                and tuple(map(type, info.values())) == flat[1]
+                and tuple(info) == flat[0]
+            ):
+                try:
+                    return flat[2].prefixes[KINDS.index(kind)] + flat[2].pack(*info.values())
+                except (struct.error, OverflowError):
+                    return pickle.dumps(entries, protocol=pickle.HIGHEST_PROTOCOL)
             try:
                 sig = _signature(info)
                 layout = self._layouts.get(sig, ...)
@@ -188,10 +208,25 @@ class InfoEncoder:
                         self._layouts.clear()
                     self._layouts[sig] = layout
                 if layout is not None:
+                    if layout.flat:
+                        self._flat = (sig[0], sig[1], layout)
                     return layout.encode(info, KINDS.index(kind))
             except (struct.error, OverflowError, TypeError):
                 pass  # e.g. an int beyond int64: pickled as it is
         return pickle.dumps(entries, protocol=pickle.HIGHEST_PROTOCOL)
+
+
+class _Step(NamedTuple):
+    """One key of a typed row's structure, as :meth:`_Decoded.put` adds it: a nested dict
+    (``sub``, its steps) or a column (``name``: its record field; ``dtype``, ``shape``), and its
+    ``_key`` mask."""
+
+    key: str
+    mask_key: str
+    sub: Optional[list[_Step]]
+    name: str
+    dtype: Any
+    shape: tuple[int, ...]
 
 
 class _Decoded:
@@ -241,6 +276,18 @@ class _Decoded:
             {"names": names, "formats": formats, "offsets": offsets, "itemsize": max(offset, 1)}
         )
 
+        def plan(nodes: Structure, path: tuple[str, ...]) -> list[_Step]:
+            steps = []
+            for key, node in nodes:
+                leaf = self.leaves.get((*path, key))
+                sub = plan(node, (*path, key)) if leaf is None else None
+                name, dt, shape, _ = leaf if leaf is not None else ("", None, (), None)
+                steps.append(_Step(key, f"_{key}", sub, name, dt, shape))
+            return steps
+
+        #: What :meth:`put` does, key by key in the structure's order.
+        self.plan = plan(structure, ())
+
     def put(
         self, infos: dict[str, Any], records: np.ndarray, rows: Optional[np.ndarray], n: int
     ) -> None:
@@ -248,16 +295,14 @@ class _Decoded:
         vector infos."""
         every = slice(None) if rows is None else rows
 
-        def visit(target: dict[str, Any], nodes: Structure, path: tuple[str, ...]) -> None:
-            for key, node in nodes:
-                leaf = self.leaves.get((*path, key))
-                if leaf is None:
-                    sub = target.get(key)
-                    if not isinstance(sub, dict):
-                        sub = target[key] = {}
-                    visit(sub, node, (*path, key))
+        def run(target: dict[str, Any], steps: list[_Step]) -> None:
+            for key, mask_key, sub, name, dt, shape in steps:
+                if sub is not None:
+                    inner = target.get(key)
+                    if not isinstance(inner, dict):
+                        inner = target[key] = {}
+                    run(inner, sub)
                 else:
-                    name, dt, shape, _ = leaf
                     array = target.get(key)
                     if array is not None:
                         array[every] = records[name]
@@ -266,9 +311,16 @@ class _Decoded:
                     else:
                         array = target[key] = np.zeros((n, *shape), dt)
                         array[rows] = records[name]
-                _mark(target, key, every, n)
+                mask = target.get(mask_key)
+                if mask is not None:
+                    mask[every] = True
+                elif rows is None:
+                    target[mask_key] = np.ones(n, np.bool_)
+                else:
+                    mask = target[mask_key] = np.zeros(n, np.bool_)
+                    mask[rows] = True
 
-        visit(infos, self.structure, ())
+        run(infos, self.plan)
 
     def one(self, data: bytes) -> dict[str, Any]:
         """One row as the env's own info dict (same value types)."""
@@ -311,20 +363,33 @@ class InfoDecoder:
             return pickle.loads(data)
         return [(KINDS[data[4]], self._layout(data).one(data))]
 
+    def put_uniform(
+        self,
+        infos: dict[str, Any],
+        data: bytes,
+        rows: Optional[Sequence[int]],
+        n: int,
+    ) -> bool:
+        """Add rows that share one kind and structure (so one size), joined in ``data``, to
+        vector infos of ``n`` rows: those of ``rows``, or all ``n`` in order for ``None``, in
+        one go; ``False`` (nothing added) if they are not typed."""
+        if data[:4] != MAGIC:
+            return False
+        layout = self._layout(data)
+        at = None if rows is None else np.array(rows, np.intp)
+        layout.put(infos, np.frombuffer(data, layout.dtype), at, n)
+        return True
+
     def put_typed(self, infos: dict[str, Any], rows: list[tuple[int, bytes]], n: int) -> bool:
         """Add typed rows to vector infos, a group of rows of the same structure at a time;
         ``False`` (nothing added) if any row is not typed."""
         if not rows:
             return True
         ids, datas = zip(*rows)
-        if datas[0][:4] == MAGIC and len({d[:HEAD] for d in datas}) == 1:
-            # The usual call: every row typed, of one kind and structure (so of one size),
-            # decoded in one go.
-            layout = self._layout(datas[0])
+        if len({d[:HEAD] for d in datas}) == 1:  # the usual call: one kind and structure
             every = len(ids) == n and ids == tuple(range(n))
-            records = np.frombuffer(b"".join(datas), layout.dtype)
-            layout.put(infos, records, None if every else np.array(ids, np.intp), n)
-            return True
+            if self.put_uniform(infos, b"".join(datas), None if every else ids, n):
+                return True
         groups: dict[bytes, list[tuple[int, bytes]]] = {}
         for row, data in rows:
             if data[:4] != MAGIC:
@@ -338,6 +403,18 @@ class InfoDecoder:
             at = np.fromiter((r for r, _ in group), np.intp, len(group))
             layout.put(infos, records, at, n)
         return True
+
+
+def split_joined(
+    rows: Optional[Sequence[int]], data: bytes, size: int, ends: Sequence[int], n: int
+) -> list[tuple[int, bytes]]:
+    """The ``(row, bytes)`` of joined extras (the pool's ``take_extras``): ``rows`` (``None``:
+    all ``n`` in order), each ``size`` bytes of ``data``, or ending at ``ends``."""
+    if size:
+        ends = range(size, len(data) + 1, size)
+    starts = [0, *ends[:-1]]
+    ids = range(n) if rows is None else rows
+    return [(row, data[a:b]) for row, a, b in zip(ids, starts, ends)]
 
 
 def add_row_info(infos: dict[str, Any], info: dict[str, Any], row: int, n: int) -> dict[str, Any]:
@@ -367,13 +444,9 @@ def add_row_info(infos: dict[str, Any], info: dict[str, Any], row: int, n: int) 
 def _mark(infos: dict[str, Any], key: str, rows: Any, n: int) -> None:
     """Set the ``_key`` mask of vector infos of ``n`` rows at ``rows``."""
     mask = infos.get(f"_{key}")
-    if mask is not None:
-        mask[rows] = True
-    elif isinstance(rows, slice):  # every row
-        infos[f"_{key}"] = np.ones(n, np.bool_)
-    else:
+    if mask is None:
         mask = infos[f"_{key}"] = np.zeros(n, np.bool_)
-        mask[rows] = True
+    mask[rows] = True
 
 
 def vector_infos(

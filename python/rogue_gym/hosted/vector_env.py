@@ -32,7 +32,7 @@ from ..errors import EnvFailedError
 from ..settings import FAILURE_POLICIES, PoolSettings, parse_autoreset_mode
 from . import leases
 from .adapter import NO_SEED, decode_exception
-from .infos import InfoDecoder, vector_infos
+from .infos import HEAD, InfoDecoder, split_joined, vector_infos
 from .layout import SpaceLayout
 from .vector_adapter import check_vector_env
 
@@ -602,10 +602,13 @@ class PoolVectorEnv(VectorEnv):
             if self._final is not None
             else set()
         )
+        rows, data, size, ends = self._pool.take_extras(HEAD)
+        if size and not final and self._info_decoder.put_uniform(infos, data, rows, self.num_envs):
+            return infos  # the usual step: one typed info layout, decoded in one go
         return vector_infos(
             infos,
             self._info_decoder,
-            self._pool.take_extras(),
+            split_joined(rows, data, size, ends, self.num_envs),
             self.num_envs,
             lambda env, entries: self._env_info(env, entries, env in final),
             final,
