@@ -45,6 +45,9 @@ pub struct SharedBatchHolder {
     _buffer: std::sync::Arc<rogue_gym_ipc::SharedBuffer>,
 }
 
+/// What `take_extras` returns: `(rows, data, size, ends)` (see there).
+type JoinedExtras<'py> = (Option<Vec<usize>>, Bound<'py, PyBytes>, usize, Vec<usize>);
+
 /// The environment pool: `num_envs` envs stepped by `num_workers` worker processes.
 ///
 /// `Pool(settings_json, worker_command)`; `worker_command` is the program and its leading
@@ -309,12 +312,7 @@ impl PyPool {
     /// the other; `size`: the length of each when all have the same length and the same first
     /// `head` bytes, else 0; `ends`: where each one's bytes end in `data` (empty when `size`
     /// is not 0).
-    #[allow(clippy::type_complexity)]
-    fn take_extras<'py>(
-        &self,
-        py: Python<'py>,
-        head: usize,
-    ) -> PyResult<(Option<Vec<usize>>, Bound<'py, PyBytes>, usize, Vec<usize>)> {
+    fn take_extras<'py>(&self, py: Python<'py>, head: usize) -> PyResult<JoinedExtras<'py>> {
         let mut out = self
             .out
             .lock()

@@ -186,34 +186,37 @@ class InfoEncoder:
         pickled entries."""
         if len(entries) == 1:
             kind, info = entries[0]
-            flat = self._flat
-            if (
-                flat is not None
-                and tuple(map(type, info.values())) == flat[1]
-                and tuple(info) == flat[0]
-            ):
-                try:
-                    return flat[2].prefixes[KINDS.index(kind)] + flat[2].pack(*info.values())
-                except (struct.error, OverflowError):
-                    return pickle.dumps(entries, protocol=pickle.HIGHEST_PROTOCOL)
             try:
-                sig = _signature(info)
-                layout = self._layouts.get(sig, ...)
-                if layout is ...:
-                    try:
-                        layout = _Layout(info)
-                    except TypeError:
-                        layout = None
-                    if len(self._layouts) >= MAX_STRUCTURES:
-                        self._layouts.clear()
-                    self._layouts[sig] = layout
+                flat = self._flat
+                if (
+                    flat is not None
+                    and tuple(map(type, info.values())) == flat[1]
+                    and tuple(info) == flat[0]
+                ):
+                    layout: Optional[_Layout] = flat[2]
+                else:
+                    layout = self._layout_of(info)
                 if layout is not None:
-                    if layout.flat:
-                        self._flat = (sig[0], sig[1], layout)
                     return layout.encode(info, KINDS.index(kind))
             except (struct.error, OverflowError, TypeError):
                 pass  # e.g. an int beyond int64: pickled as it is
         return pickle.dumps(entries, protocol=pickle.HIGHEST_PROTOCOL)
+
+    def _layout_of(self, info: dict[str, Any]) -> Optional[_Layout]:
+        """The typed layout of ``info`` (made on first sight), or ``None`` if it has none."""
+        sig = _signature(info)
+        layout = self._layouts.get(sig, ...)
+        if layout is ...:
+            try:
+                layout = _Layout(info)
+            except TypeError:
+                layout = None
+            if len(self._layouts) >= MAX_STRUCTURES:
+                self._layouts.clear()
+            self._layouts[sig] = layout
+        if layout is not None and layout.flat:
+            self._flat = (sig[0], sig[1], layout)
+        return layout
 
 
 class _Step(NamedTuple):
@@ -311,14 +314,7 @@ class _Decoded:
                     else:
                         array = target[key] = np.zeros((n, *shape), dt)
                         array[rows] = records[name]
-                mask = target.get(mask_key)
-                if mask is not None:
-                    mask[every] = True
-                elif rows is None:
-                    target[mask_key] = np.ones(n, np.bool_)
-                else:
-                    mask = target[mask_key] = np.zeros(n, np.bool_)
-                    mask[rows] = True
+                _mark(target, mask_key, every, n)
 
         run(infos, self.plan)
 
@@ -437,16 +433,21 @@ def add_row_info(infos: dict[str, Any], info: dict[str, Any], row: int, n: int) 
                     array = np.full(n, None, dtype=object)
             array[row] = value
         infos[key] = array
-        _mark(infos, key, row, n)
+        _mark(infos, f"_{key}", row, n)
     return infos
 
 
-def _mark(infos: dict[str, Any], key: str, rows: Any, n: int) -> None:
-    """Set the ``_key`` mask of vector infos of ``n`` rows at ``rows``."""
-    mask = infos.get(f"_{key}")
-    if mask is None:
-        mask = infos[f"_{key}"] = np.zeros(n, np.bool_)
-    mask[rows] = True
+def _mark(infos: dict[str, Any], mask_key: str, rows: Any, n: int) -> None:
+    """Set the mask ``mask_key`` (``_key``) of vector infos of ``n`` rows at ``rows`` (a row,
+    an index array, or ``slice(None)`` for every row)."""
+    mask = infos.get(mask_key)
+    if mask is not None:
+        mask[rows] = True
+    elif isinstance(rows, slice):  # every row
+        infos[mask_key] = np.ones(n, np.bool_)
+    else:
+        mask = infos[mask_key] = np.zeros(n, np.bool_)
+        mask[rows] = True
 
 
 def vector_infos(
