@@ -145,6 +145,66 @@ class InfoEnv(RaisingEnv):
         return obs, float(action), bool(r.random() < 0.1), self.t >= 30, info
 
 
+class FlatInfoEnv(RaisingEnv):
+    """Flat per-step infos of every scalar kind a worker packs itself (Python and numpy floats,
+    ints of every width, bools, NaN); on some steps a value's type changes or the keys come in
+    another order (each a new layout). Observations are now and then views (strided, or at an
+    offset), and rewards and flags are numpy scalars. Episodes end at random or after 30
+    steps."""
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> Any:
+        super().reset(seed=seed)
+        return np.zeros(4, np.float32), {"lives": 3}
+
+    def step(self, action: Any) -> Any:
+        self.t += 1
+        r, t = self.np_random, self.t
+        info: dict[str, Any] = {
+            "x": float(r.normal()),
+            "x64": np.float64(r.normal()),
+            "x32": np.float32(r.normal()),
+            "n": int(r.integers(-(2**40), 2**40)),
+            "i64": np.int64(r.integers(-(2**62), 2**62)),
+            "u64": np.uint64(2**63 + t),
+            "i32": np.int32(-t),
+            "u32": np.uint32(t),
+            "i16": np.int16(-t),
+            "u16": np.uint16(t),
+            "i8": np.int8(-t),
+            "u8": np.uint8(t),
+            "flag": bool(t % 2),
+            "nan": float("nan") if t % 5 == 0 else 0.5,
+        }
+        if t % 4 == 0:
+            info["x"] = np.float32(info["x"])  # the same keys, another type
+        if t % 6 == 0:
+            info = dict(reversed(info.items()))  # the same keys, another order
+        obs = np.full(4, t / 100, np.float32)
+        if t % 3 == 0:
+            obs = np.full(8, t / 100, np.float32)[::2]  # not contiguous
+        elif t % 7 == 0:
+            obs = np.full(6, t / 100, np.float32)[2:]  # a view at an offset
+        terminated = np.bool_(r.random() < 0.05)
+        return obs, np.float32(r.normal()), terminated, t >= 30, info
+
+
+class BadStepEnv(RaisingEnv):
+    """An env whose ``step`` breaks the gymnasium API on action 1: four values (the old gym
+    API) for env 0 of a seed, a reward that is not a number for the others."""
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> Any:
+        self.old_api = seed == 0
+        return super().reset(seed=seed, options=options)
+
+    def step(self, action: Any) -> Any:
+        obs, reward, terminated, truncated, info = super().step(0)
+        if action == 1:
+            if self.old_api:
+                return obs, reward, terminated or truncated, info
+            return obs, "1.0", terminated, truncated, info
+        return obs, reward, terminated, truncated, info
+
+
 class GrowingInfoEnv(RaisingEnv):
     """Infos that outgrow the pool's default room per env (4096 bytes) as an episode goes on,
     some envs sooner than others: an array of ``300 t`` int64 values, on some steps of some

@@ -26,6 +26,8 @@ from rogue_gym.hosted.leases import LENDING_SLOTS
 
 from conftest import pid_alive, pool_files, wait_until
 from hosted_envs import (
+    BadStepEnv,
+    FlatInfoEnv,
     GrowingInfoEnv,
     InfoEnv,
     NestedEnv,
@@ -289,6 +291,21 @@ def test_env_exceptions_reach_the_caller_and_reset_recovers(pool) -> None:
     env.step(np.zeros(4, np.int64))
 
 
+def test_a_step_that_breaks_the_api_says_how_and_reset_recovers(pool) -> None:
+    """A step's output that is not gymnasium's (four values, a reward that is not a number)
+    is an error naming the problem, raised here; the pool works again after reset()."""
+    env = pool([BadStepEnv] * 2, num_workers=2)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="returned 4 values; expected 5"):
+        env.step(np.array([1, 0]))
+    env.reset(seed=0)
+    with pytest.raises(TypeError, match="reward of type str; expected a number"):
+        env.step(np.array([0, 1]))
+    env.reset(seed=0)
+    obs, rewards, *_ = env.step(np.array([0, 0]))
+    assert rewards.tolist() == [1.0, 1.0]
+
+
 def test_constructor_exceptions_reach_the_caller() -> None:
     with pytest.raises(SpecialError, match="no env in a worker"):
         PoolVectorEnv([functools.partial(fails_in_workers, os.getpid())] * 2, num_workers=1)
@@ -321,6 +338,17 @@ def test_numeric_infos_match_sync_vector_env_bit_for_bit(pool, mode) -> None:
             actions = np.full(6, t % 2, np.int64)
             ours.send(actions, ids)
         ref.close()
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_flat_infos_packed_by_the_workers_match_sync_vector_env(pool, mode) -> None:
+    """Flat infos of every scalar kind, which the workers pack without Python while their keys
+    and types repeat (and hand back to the adapter when they change), observations that are
+    views, numpy rewards and flags: all equal to SyncVectorEnv's."""
+    ours = pool([FlatInfoEnv] * 6, num_workers=2, autoreset_mode=mode)
+    ref = SyncVectorEnv([FlatInfoEnv] * 6, autoreset_mode=mode)
+    run_both(ours, ref, steps=90, seed=11)
+    ref.close()
 
 
 def test_infos_larger_than_the_room_travel_beside_the_block(pool) -> None:

@@ -2,7 +2,8 @@
 speaks the pool's flat bytes.
 
 The pool's Rust worker loop calls :class:`HostedEnv` (through ``python/src/hosted.rs``) for
-every reset and step of the env. Any exception of the env is raised as
+every reset of the env, and steps the env itself with the parts of :meth:`HostedEnv.step_parts`
+(the hot path has no Python frame of ours). Any exception of the env is raised as
 :class:`EncodedEnvError`, whose message carries the exception (type, message, worker-side
 traceback, and the exception itself pickled when it can be) to the caller, where
 :func:`decode_exception` rebuilds it.
@@ -21,7 +22,7 @@ from typing import Any, Optional
 import cloudpickle
 import numpy as np
 
-from .infos import InfoEncoder
+from .infos import FlatPlan, InfoEncoder
 from .layout import SpaceLayout
 
 __all__ = [
@@ -141,8 +142,6 @@ class HostedEnv:
         self._options: Optional[dict[str, Any]] = None
         #: The last observation (for :meth:`observe`).
         self._last: Any = None
-        #: The infos of the current command (a step, a reset, or a step and its autoreset).
-        self._infos: list[tuple[str, dict[str, Any]]] = []
         self._info_encoder = InfoEncoder()
         #: Observation writers by destination address (the layout's cache, looked up inline
         #: on the step path).
@@ -175,21 +174,16 @@ class HostedEnv:
                 )
         return cls(env, obs_space, action_space, cfg["discrete_start"])
 
-    def _write_obs(self, obs: Any, address: int) -> None:
-        """Write an observation straight into the pool's memory at ``address`` (the
-        destination the worker lends for this call: the observation's row of a batch slot)."""
-        self._obs.writer_at(address)(obs)
-        self._last = obs
-
-    def reset(self, seed: int, episode: int, fresh: bool, address: int) -> Optional[bytes]:
+    def reset(
+        self, seed: int, episode: int, step_info: Optional[dict[str, Any]], address: int
+    ) -> Optional[bytes]:
         """Start an episode and write its first observation at ``address``: seeded with
         ``seed`` if it is the schedule's first (episode 0) or this env was just built, unless it
         is :data:`NO_SEED`; otherwise the env continues its own generator (gymnasium's
-        convention). ``fresh``: this reset starts a command (not the autoreset after a step of
-        the same command). Returns the command's info bytes so far, or ``None``."""
+        convention). ``step_info``: the info of the step this reset follows in the same command
+        (an autoreset), if any. Returns the command's info bytes, or ``None``."""
         try:
-            if fresh:
-                self._infos = []
+            infos = [] if step_info is None else [("step", step_info)]
             use_seed = seed if (episode == 0 or self._fresh) and seed != NO_SEED else None
             self._fresh = False
             options, self._options = self._options, None
@@ -197,30 +191,42 @@ class HostedEnv:
                 obs, info = self.env.reset(seed=use_seed, options=options)
             else:
                 obs, info = self.env.reset(seed=use_seed)
-            self._write_obs(obs, address)
+            self.write_obs(obs, address)
             if info:
-                self._infos.append(("reset", info))
-            return self._info_encoder.encode(self._infos) if self._infos else None
+                infos.append(("reset", info))
+            return self._info_encoder.encode(infos) if infos else None
         except BaseException as exc:
             raise EncodedEnvError(encode_exception(exc)) from exc
 
-    def step(self, action: Any, address: int) -> tuple[float, bool, bool, Optional[bytes]]:
-        """Step with an action index (Discrete action spaces) or the action's bytes, and write
-        the observation at ``address``. Returns ``(reward, terminated, truncated, info bytes
-        or None)``."""
-        try:
-            action = self._decode(action) if self._discrete is None else self._discrete[action]
-            obs, reward, terminated, truncated, info = self.env.step(action)
-            (self._writers.get(address) or self._writer(address))(obs)
-            self._last = obs
-            if info:
-                self._infos = [("step", info)]
-                data = self._info_encoder.encode(self._infos)
-                return float(reward), bool(terminated), bool(truncated), data
-            self._infos = []
-            return float(reward), bool(terminated), bool(truncated), None
-        except BaseException as exc:
-            raise EncodedEnvError(encode_exception(exc)) from exc
+    def step_parts(self) -> tuple[Any, Any, Any, Optional[tuple[int, ...]]]:
+        """What the worker's Rust step calls directly (``python/src/hosted.rs``): the env, the
+        actions (a list of a Discrete space's actions by index, or a function from an action's
+        bytes to its value), the observation's dtype and shape when it is one array (which
+        the worker then copies itself from an ndarray of exactly that dtype and shape), or
+        ``None`` and ``None`` (every observation goes through :meth:`write_obs`)."""
+        if self._discrete is None:
+            actions: Any = self._decode
+        else:
+            table = self._discrete.table
+            actions = table if table is not None else self._discrete.__getitem__
+        leaf = self._obs.leaves[0] if self._obs.single else None
+        return (
+            self.env,
+            actions,
+            None if leaf is None else leaf.dtype,
+            None if leaf is None else leaf.shape,
+        )
+
+    def write_obs(self, obs: Any, address: int) -> None:
+        """Write an observation at ``address`` (any value of the space: casts, reshapes,
+        nested spaces) and keep it as the last one."""
+        (self._writers.get(address) or self._writer(address))(obs)
+        self._last = obs
+
+    def step_info(self, info: dict[str, Any]) -> tuple[bytes, Optional[FlatPlan]]:
+        """The bytes of a step's (non-empty) info, and the plan of its layout when it is a
+        flat row of scalars (which the worker then packs itself while infos keep it)."""
+        return self._info_encoder.encode_step(info)
 
     def call(self, request: bytes) -> bytes:
         """Answer a call from the caller (off the hot path): ``request`` is a pickled
@@ -279,7 +285,7 @@ class HostedEnv:
         """Write the current observation again, at ``address`` (for partial resets)."""
         if self._last is None:
             raise RuntimeError("the env has no observation yet: reset it first")
-        self._write_obs(self._last, address)
+        self.write_obs(self._last, address)
 
     def close(self) -> None:
         """Close the env (when the worker exits); errors are ignored."""

@@ -25,6 +25,7 @@ from typing import Any, Callable, NamedTuple, Optional
 import numpy as np
 
 __all__ = [
+    "FlatPlan",
     "InfoDecoder",
     "InfoEncoder",
     "add_row_info",
@@ -74,6 +75,10 @@ _PY_SCALARS: dict[type, tuple[str, str]] = {
 }
 _PY_SCALAR_OF_NAME = {name: t for t, (name, _) in _PY_SCALARS.items()}
 
+
+#: A flat layout as the worker's Rust step packs it: the keys in order, each value's exact type,
+#: the row's prefix (header and structure, for a step) and each value's struct code.
+FlatPlan = tuple[tuple[str, ...], tuple[type, ...], bytes, str]
 
 #: Value types whose signature needs more than the type (see :func:`_signature`).
 _DEEP_TYPES = frozenset((np.ndarray, dict))
@@ -141,6 +146,12 @@ class _Layout:
         digest = int.from_bytes(hashlib.blake2b(desc, digest_size=8).digest(), "little")
         pad = b"\0" * (-len(desc) % 8)
         self.prefixes = [_HEADER.pack(MAGIC, k, digest, len(desc)) + desc + pad for k in (0, 1)]
+        #: A flat layout's step rows as the worker packs them (see :data:`FlatPlan`).
+        self.plan: Optional[FlatPlan] = (
+            (tuple(info), tuple(map(type, info.values())), self.prefixes[1], "".join(scalars))
+            if self.flat
+            else None
+        )
 
     def encode(self, info: dict[str, Any], kind: int) -> bytes:
         if self.flat:
@@ -186,21 +197,36 @@ class InfoEncoder:
         pickled entries."""
         if len(entries) == 1:
             kind, info = entries[0]
-            try:
-                flat = self._flat
-                if (
-                    flat is not None
-                    and tuple(map(type, info.values())) == flat[1]
-                    and tuple(info) == flat[0]
-                ):
-                    layout: Optional[_Layout] = flat[2]
-                else:
-                    layout = self._layout_of(info)
-                if layout is not None:
-                    return layout.encode(info, KINDS.index(kind))
-            except (struct.error, OverflowError, TypeError):
-                pass  # e.g. an int beyond int64: pickled as it is
+            data, _ = self._typed(info, KINDS.index(kind))
+            if data is not None:
+                return data
         return pickle.dumps(entries, protocol=pickle.HIGHEST_PROTOCOL)
+
+    def encode_step(self, info: dict[str, Any]) -> tuple[bytes, Optional[FlatPlan]]:
+        """The bytes of a step's info, and its layout's :data:`FlatPlan` if it has one."""
+        data, layout = self._typed(info, 1)
+        if data is None:
+            return pickle.dumps([("step", info)], protocol=pickle.HIGHEST_PROTOCOL), None
+        return data, None if layout is None else layout.plan
+
+    def _typed(self, info: dict[str, Any], kind: int) -> tuple[Optional[bytes], Optional[_Layout]]:
+        """``info`` as a typed row of ``kind``, and its layout; ``(None, None)`` if it is not
+        typed."""
+        try:
+            flat = self._flat
+            if (
+                flat is not None
+                and tuple(map(type, info.values())) == flat[1]
+                and tuple(info) == flat[0]
+            ):
+                layout: Optional[_Layout] = flat[2]
+            else:
+                layout = self._layout_of(info)
+            if layout is not None:
+                return layout.encode(info, kind), layout
+        except (struct.error, OverflowError, TypeError):
+            pass  # e.g. an int beyond int64: pickled as it is
+        return None, None
 
     def _layout_of(self, info: dict[str, Any]) -> Optional[_Layout]:
         """The typed layout of ``info`` (made on first sight), or ``None`` if it has none."""

@@ -99,7 +99,8 @@ class SpaceLayout:
         self.nbytes = offset
         #: Bytes of one row of a batch (``nbytes`` rounded up to 8, at least 8).
         self.stride = max(ROW_ALIGN, -(-offset // ROW_ALIGN) * ROW_ALIGN)
-        self._single = len(self.leaves) == 1 and self.leaves[0].path == ()
+        #: The space is one array (no Dict or Tuple around it).
+        self.single = len(self.leaves) == 1 and self.leaves[0].path == ()
         #: :meth:`writer` by destination address (see :meth:`writer_at`).
         self.writers: dict[int, Callable[[Any], None]] = {}
         self._rows: dict[tuple[int, int], np.ndarray] = {}
@@ -131,7 +132,7 @@ class SpaceLayout:
                 )
             dst[...] = arr.reshape(leaf.shape)
 
-        if self._single:
+        if self.single:
             leaf, dst = views[0]
             shape = leaf.shape
 
@@ -176,7 +177,7 @@ class SpaceLayout:
     def decoder(self) -> Callable[[bytes], Any]:
         """:meth:`decode`, made short for a space of one array (the common Box action): it
         runs every env step."""
-        if not self._single or self.leaves[0].shape == ():
+        if not self.single or self.leaves[0].shape == ():
             return self.decode
         leaf = self.leaves[0]
         dtype, count, shape = leaf.dtype, leaf.count, leaf.shape
@@ -189,7 +190,7 @@ class SpaceLayout:
     def decode(self, data: bytes) -> Any:
         """One value from its bytes: writable arrays (a ``Discrete`` leaf as a numpy int)."""
         buf = bytearray(data)
-        if self._single:
+        if self.single:
             return self._leaf_value(buf, self.leaves[0])
         leaves = [self._leaf_value(buf, leaf) for leaf in self.leaves]
         return self._assemble(self.space, (), iter(leaves))
