@@ -45,6 +45,15 @@ pub struct SharedBatchHolder {
     _buffer: std::sync::Arc<rogue_gym_ipc::SharedBuffer>,
 }
 
+/// What `outcome` returns: `(rewards, terminated, truncated, restarted, final)` (see there).
+type Outcome<'py> = (
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<bool>>,
+    Bound<'py, PyArray1<bool>>,
+    Option<Bound<'py, PyArray1<bool>>>,
+    Vec<usize>,
+);
+
 /// What `take_extras` returns: `(rows, data, size, ends)` (see there).
 type JoinedExtras<'py> = (Option<Vec<usize>>, Bound<'py, PyBytes>, usize, Vec<usize>);
 
@@ -304,6 +313,47 @@ impl PyPool {
         })?;
         self.fill_outputs(py, recs_out, final_out)?;
         Ok(slot)
+    }
+
+    /// What the last sync call gave each env, in env order, as fresh arrays: `(rewards,
+    /// terminated, truncated, restarted, final)`; `restarted` is `None` when no env's worker
+    /// was restarted, `final` lists the envs whose final observation (SAME_STEP) is in the
+    /// final buffer. One call instead of a numpy operation per flag.
+    fn outcome<'py>(&self, py: Python<'py>) -> PyResult<Outcome<'py>> {
+        let out = self
+            .out
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        let n = self.num_envs;
+        let mut reward = vec![0.0; n];
+        let mut terminated = vec![false; n];
+        let mut truncated = vec![false; n];
+        let mut restarted = vec![false; n];
+        let mut fin = Vec::new();
+        for (r, &env) in out.env_ids.iter().enumerate() {
+            if env >= n {
+                continue;
+            }
+            reward[env] = out.reward[r];
+            terminated[env] = out.terminated[r];
+            truncated[env] = out.truncated[r];
+            restarted[env] = out.restarted[r];
+            if out.has_final_obs[r] {
+                fin.push(env);
+            }
+        }
+        drop(out);
+        fin.sort_unstable();
+        let restarted = restarted
+            .contains(&true)
+            .then(|| PyArray1::from_vec(py, restarted));
+        Ok((
+            PyArray1::from_vec(py, reward),
+            PyArray1::from_vec(py, terminated),
+            PyArray1::from_vec(py, truncated),
+            restarted,
+            fin,
+        ))
     }
 
     /// The extra info of the last sync call's envs that wrote some (hosted envs: their info

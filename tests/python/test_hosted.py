@@ -590,6 +590,44 @@ def test_discrete_actions_outside_the_space_are_named_in_the_callers_terms(pool)
     env.step(np.array([-1, 1]))
 
 
+class _EchoActionEnv(gym.Env):
+    """Observes the MultiDiscrete action it was given."""
+
+    observation_space = gym.spaces.Box(0.0, 10.0, (3,), np.float32)
+    action_space = gym.spaces.MultiDiscrete([2, 3, 4])
+
+    def reset(self, *, seed: Any = None, options: Any = None) -> Any:
+        super().reset(seed=seed)
+        return np.zeros(3, np.float32), {}
+
+    def step(self, action: Any) -> Any:
+        return np.asarray(action, np.float32), 0.0, False, False, {}
+
+
+def test_action_batches_of_any_layout_arrive_and_are_checked(pool) -> None:
+    """An action batch is sent as it is when it is a C-contiguous array of the space's dtype,
+    and converted otherwise (another dtype, Fortran order, a strided view, a list); either
+    way each env gets its row, and a row outside the space is refused, naming its env."""
+    env = pool([_EchoActionEnv] * 2, num_workers=2)
+    env.reset(seed=0)
+    good = np.array([[1, 2, 3], [0, 1, 2]], np.int64)
+    wide = np.zeros((2, 6), np.int64)
+    wide[:, ::2] = good
+    for batch in (
+        good,
+        good.astype(np.int32),
+        np.asfortranarray(good),
+        wide[:, ::2],
+        good.tolist(),
+    ):
+        obs, *_ = env.step(batch)
+        np.testing.assert_array_equal(obs, good.astype(np.float32))
+    with pytest.raises(ValueError, match=r"env 1: action \[0, 3, 0\] is outside"):
+        env.step(np.array([[1, 2, 3], [0, 3, 0]], np.int64))
+    obs, *_ = env.step(good[::-1].copy())
+    np.testing.assert_array_equal(obs, good[::-1].astype(np.float32))
+
+
 def test_actions_decode_to_fresh_writable_values_of_their_space() -> None:
     """What a worker hands an env for an action's bytes: the same value, as a writable array
     of its own (the env may keep or change it), for one-array and nested spaces."""

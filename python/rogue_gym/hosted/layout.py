@@ -238,6 +238,27 @@ class SpaceLayout:
             dest = rows[:, leaf.offset : leaf.offset + leaf.nbytes].view(leaf.dtype)
             dest.reshape((n, *leaf.shape))[...] = arr
 
+    def flat_batch(self, values: Any, rows: np.ndarray) -> np.ndarray:
+        """A batch's bytes, flat and checked (:meth:`check_batch`): the values' own memory
+        when the space is one array and ``values`` a C-contiguous ndarray of its dtype and
+        shape (the usual Box batch, no copy), else :meth:`write_batch` into ``rows``."""
+        n = rows.shape[0]
+        leaf = self.leaves[0]
+        own = (
+            self.single
+            and self.nbytes > 0
+            and type(values) is np.ndarray
+            and values.dtype == leaf.dtype
+            and values.shape == (n, *leaf.shape)
+            and values.flags.c_contiguous
+        )
+        if own:
+            rows = values.reshape(n, -1).view(np.uint8)
+        else:
+            self.write_batch(values, rows)
+        self.check_batch(rows)
+        return rows.reshape(-1)
+
     def check_batch(self, rows: np.ndarray) -> None:
         """Raise ``ValueError`` naming the first env whose value lies outside the space's
         bounds (Discrete, MultiDiscrete, MultiBinary and integer or finite-bounded Box)."""

@@ -27,7 +27,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .. import _native, _sigterm
-from .._records import FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED, RECORD_DTYPE
+from .._records import FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED, RECORD_DTYPE
 from ..errors import EnvFailedError
 from ..settings import FAILURE_POLICIES, PoolSettings, parse_autoreset_mode
 from . import leases
@@ -369,7 +369,8 @@ class PoolVectorEnv(VectorEnv):
             obs = self._shared(lambda: self._pool.reset_shared(recs))
             self._done[:] = False
             self._started = True
-        return obs, self._infos(recs)
+        _, _, _, restarted, final = self._pool.outcome()
+        return obs, self._infos(restarted, final)
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every env with ``actions`` (a batch of the action space)."""
@@ -384,18 +385,12 @@ class PoolVectorEnv(VectorEnv):
         recs = self._recs
         if self._discrete_start is not None:
             acts = self._discrete_indices(actions, range(self.num_envs))
-            obs = self._shared(lambda: self._pool.step_shared(acts, recs, self._final))
         else:
-            self._act_layout.write_batch(actions, self._act_rows)
-            self._act_layout.check_batch(self._act_rows)
-            flat = self._act_rows.reshape(-1)
-            obs = self._shared(lambda: self._pool.step_shared(flat, recs, self._final))
-        flags = recs["flags"]
-        terminated = (flags & FLAG_TERMINATED) != 0
-        truncated = (flags & FLAG_TRUNCATED) != 0
+            acts = self._act_layout.flat_batch(actions, self._act_rows)
+        obs = self._shared(lambda: self._pool.step_shared(acts, recs, self._final))
+        rewards, terminated, truncated, restarted, final = self._pool.outcome()
         self._done = terminated | truncated
-        rewards = recs["reward"].astype(np.float64)
-        return obs, rewards, terminated, truncated, self._infos(recs)
+        return obs, rewards, terminated, truncated, self._infos(restarted, final)
 
     def close_extras(self, **kwargs: Any) -> None:
         """Stop the workers and remove the pool's shared-memory files (idempotent; nothing to
@@ -432,9 +427,7 @@ class PoolVectorEnv(VectorEnv):
             self._call(lambda: self._pool.send(acts, env_ids))
         else:
             rows = np.zeros((len(env_ids), self._act_layout.nbytes), np.uint8)
-            self._act_layout.write_batch(actions, rows)
-            self._act_layout.check_batch(rows)
-            flat = rows.reshape(-1)
+            flat = self._act_layout.flat_batch(actions, rows)
             self._call(lambda: self._pool.send(flat, env_ids))
 
     def recv(self) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
@@ -590,18 +583,15 @@ class PoolVectorEnv(VectorEnv):
         lent = self._lender.lend(slot)
         return _copy_tree(self._slot_views[slot]) if lent is None else lent
 
-    def _infos(self, recs: np.ndarray) -> dict[str, Any]:
+    def _infos(self, restarted: Optional[np.ndarray], final_envs: list[int]) -> dict[str, Any]:
+        """The vector infos of the last call: ``restarted`` (envs whose worker was restarted,
+        or ``None``) and ``final_envs`` (SAME_STEP: envs whose episode ended) as
+        :meth:`_native.Pool.outcome` gives them."""
         infos: dict[str, Any] = {}
-        flags = recs["flags"]
-        restarted = (flags & FLAG_RESTARTED) != 0
-        if restarted.any():
-            infos["worker_restarted"] = restarted.copy()
+        if restarted is not None:
+            infos["worker_restarted"] = restarted
             infos["_worker_restarted"] = restarted.copy()
-        final = (
-            set(np.flatnonzero((flags & FLAG_FINAL_OBS) != 0).tolist())
-            if self._final is not None
-            else set()
-        )
+        final = set(final_envs) if self._final is not None else set()
         rows, data, size, ends = self._pool.take_extras(HEAD)
         if size and not final and self._info_decoder.put_uniform(infos, data, rows, self.num_envs):
             return infos  # the usual step: one typed info layout, decoded in one go
