@@ -199,17 +199,21 @@ pub(crate) fn build_adapter<'py>(
     let m = py
         .import(module)
         .map_err(|e| EnvError::new(format!("cannot import {module}: {e}")))?;
-    let encoded = py
-        .import(ADAPTER_MODULE)
-        .and_then(|a| a.getattr("EncodedEnvError"))
-        .map_err(|e| EnvError::new(e.to_string()))?
-        .unbind();
+    let encoded = adapter_attr(py, "EncodedEnvError")?;
     let adapter = m
         .getattr(class)
         .and_then(|cls| cls.call_method1("build", args))
         .map_err(|e| env_error(py, &encoded, e))?
         .unbind();
     Ok((adapter, encoded))
+}
+
+/// An attribute of the adapter module.
+fn adapter_attr(py: Python<'_>, name: &str) -> Result<Py<PyAny>, EnvError> {
+    py.import(ADAPTER_MODULE)
+        .and_then(|m| m.getattr(name))
+        .map(Bound::unbind)
+        .map_err(|e| EnvError::new(format!("{ADAPTER_MODULE}.{name}: {e}")))
 }
 
 /// Build env number `index` of a pool (the [`rogue_gym_pool::EnvCtor`] of [`KIND`]).
@@ -220,11 +224,7 @@ pub(crate) fn make_hosted_env(v: &Value, index: u64) -> Result<Box<dyn Env>, Env
             build_adapter(py, ADAPTER_MODULE, "HostedEnv", (adapter_cfg, index))?;
         let parts = step_parts(py, &adapter)
             .map_err(|e| EnvError::new(format!("the adapter's step_parts: {e}")))?;
-        let encode = py
-            .import(ADAPTER_MODULE)
-            .and_then(|m| m.getattr("encode_exception"))
-            .map_err(|e| EnvError::new(e.to_string()))?
-            .unbind();
+        let encode = adapter_attr(py, "encode_exception")?;
         let (env, actions, obs_array) = parts;
         Ok(Box::new(HostedEnv {
             adapter,

@@ -143,10 +143,6 @@ class HostedEnv:
         #: The last observation (for :meth:`observe`).
         self._last: Any = None
         self._info_encoder = InfoEncoder()
-        #: Observation writers by destination address (the layout's cache, looked up inline
-        #: on the step path).
-        self._writers = self._obs.writers
-        self._writer = self._obs.writer_at
         self._decode = self._act.decoder()
 
     @classmethod
@@ -220,7 +216,7 @@ class HostedEnv:
     def write_obs(self, obs: Any, address: int) -> None:
         """Write an observation at ``address`` (any value of the space: casts, reshapes,
         nested spaces) and keep it as the last one."""
-        (self._writers.get(address) or self._writer(address))(obs)
+        self._obs.writer_at(address)(obs)
         self._last = obs
 
     def step_info(self, info: dict[str, Any]) -> tuple[bytes, Optional[FlatPlan]]:

@@ -102,7 +102,7 @@ class SpaceLayout:
         #: The space is one array (no Dict or Tuple around it).
         self.single = len(self.leaves) == 1 and self.leaves[0].path == ()
         #: :meth:`writer` by destination address (see :meth:`writer_at`).
-        self.writers: dict[int, Callable[[Any], None]] = {}
+        self._writers: dict[int, Callable[[Any], None]] = {}
         self._rows: dict[tuple[int, int], np.ndarray] = {}
 
     # -- one value <-> memory (worker side) ---------------------------------------------
@@ -138,7 +138,7 @@ class SpaceLayout:
 
             def write_single(value: Any) -> None:
                 if type(value) is np.ndarray and value.shape == shape:
-                    dst[...] = value  # the common case, kept short: it runs every env step
+                    dst[...] = value  # one copy, casting to the leaf dtype
                 else:
                     put(leaf, dst, value)
 
@@ -155,12 +155,12 @@ class SpaceLayout:
 
     def writer_at(self, address: int) -> Callable[[Any], None]:
         """:meth:`writer` for ``address``, made once per destination and kept in
-        :attr:`writers` (hot loops look there first)."""
-        writer = self.writers.get(address)
+        a cache of up to :data:`MAX_DESTINATIONS`."""
+        writer = self._writers.get(address)
         if writer is None:
-            if len(self.writers) >= MAX_DESTINATIONS:
-                self.writers.clear()
-            writer = self.writers[address] = self.writer(address)
+            if len(self._writers) >= MAX_DESTINATIONS:
+                self._writers.clear()
+            writer = self._writers[address] = self.writer(address)
         return writer
 
     def rows_at(self, address: int, n: int) -> np.ndarray:
