@@ -336,6 +336,7 @@ impl HostedEnv {
         Ok(out)
     }
 
+    /// The step itself: an error is the env's own, or says what was wrong with its output.
     fn step_env(
         &mut self,
         py: Python<'_>,
