@@ -148,7 +148,6 @@ enum Actions {
 /// An observation space of one array: the dtype and shape an ndarray must have to be copied
 /// here with one `memcpy`.
 struct ObsArray {
-    ndarray: Py<PyType>,
     dtype: Py<PyArrayDescr>,
     shape: Vec<usize>,
     nbytes: usize,
@@ -263,11 +262,6 @@ fn step_parts(
     };
     let obs_array = match (dtype, shape) {
         (Some(dtype), Some(shape)) => Some(ObsArray {
-            ndarray: py
-                .import("numpy")?
-                .getattr("ndarray")?
-                .cast_into::<PyType>()?
-                .unbind(),
             nbytes: shape.iter().product::<usize>() * dtype.itemsize(),
             dtype: dtype.unbind(),
             shape,
@@ -425,7 +419,7 @@ impl HostedEnv {
     fn write_obs(&self, py: Python<'_>, o: &Bound<'_, PyAny>, dst: &mut [u8]) -> PyResult<()> {
         let adapter = self.adapter.bind(py);
         if let Some(a) = &self.obs_array
-            && o.get_type().is(a.ndarray.bind(py))
+            && o.is_exact_instance_of::<PyUntypedArray>()
             && a.nbytes <= dst.len()
         {
             let arr = o.cast::<PyUntypedArray>()?;

@@ -138,13 +138,17 @@ impl PyPool {
         })
     }
 
+    /// Write the last call's records into `recs` (if given: a caller that takes its outcome
+    /// from `outcome()` needs none) and its final observations into `fin`.
     fn fill_outputs(
         &self,
         py: Python<'_>,
-        recs: &Bound<'_, PyUntypedArray>,
+        recs: Option<&Bound<'_, PyUntypedArray>>,
         fin: Option<&Bound<'_, PyUntypedArray>>,
     ) -> PyResult<()> {
-        let recs = raw_bytes(recs, "record array", self.num_envs * RECORD_BYTES)?;
+        let recs = recs
+            .map(|r| raw_bytes(r, "record array", self.num_envs * RECORD_BYTES))
+            .transpose()?;
         let fin = fin
             .map(|f| {
                 raw_bytes(
@@ -161,7 +165,9 @@ impl PyPool {
         let _ = py;
         // SAFETY: both arrays are alive for this call and not otherwise borrowed by us.
         unsafe {
-            write_records(&out, self.n_info, recs.slice());
+            if let Some(r) = recs {
+                write_records(&out, self.n_info, r.slice());
+            }
             if let Some(f) = fin {
                 write_final(&out, self.obs_bytes, f.slice());
             }
@@ -256,7 +262,7 @@ impl PyPool {
         )?;
         // SAFETY: obs_out is alive for the call; the pool writes it while Python waits.
         self.with_pool(py, move |p, out| p.reset(unsafe { obs.slice() }, out))?;
-        self.fill_outputs(py, recs_out, None)
+        self.fill_outputs(py, Some(recs_out), None)
     }
 
     /// Sync step: `actions` (int64, one per env); observations into `obs_out`, records into
@@ -280,15 +286,16 @@ impl PyPool {
         self.with_pool(py, move |p, out| {
             p.step_actions(acts.as_actions(), unsafe { obs.slice() }, out)
         })?;
-        self.fill_outputs(py, recs_out, final_out)
+        self.fill_outputs(py, Some(recs_out), final_out)
     }
 
-    /// Sync reset straight into the next shared batch slot (no copy); records into `recs_out`.
-    /// Returns the slot index (see `shared_views()`).
+    /// Sync reset straight into the next shared batch slot (no copy); records into `recs_out`
+    /// (if given). Returns the slot index (see `shared_views()`).
+    #[pyo3(signature = (recs_out = None))]
     fn reset_shared(
         &self,
         py: Python<'_>,
-        recs_out: &Bound<'_, PyUntypedArray>,
+        recs_out: Option<&Bound<'_, PyUntypedArray>>,
     ) -> PyResult<usize> {
         let slot = self.with_pool(py, |p, out| p.reset_shared(out))?;
         self.fill_outputs(py, recs_out, None)?;
@@ -297,14 +304,15 @@ impl PyPool {
 
     /// Sync step straight into the next shared batch slot (no copy): `actions` (int64, one per
     /// env, or raw uint8 bytes for hosted envs whose actions travel so); records into
-    /// `recs_out`, (SAME_STEP) final observations into `final_out`. Returns the slot index. Slots alternate: slot `s` stays unchanged until the second following
+    /// `recs_out` (if given), (SAME_STEP) final observations into `final_out`. Returns the
+    /// slot index. Slots alternate: slot `s` stays unchanged until the second following
     /// `*_shared` call.
-    #[pyo3(signature = (actions, recs_out, final_out = None))]
+    #[pyo3(signature = (actions, recs_out = None, final_out = None))]
     fn step_shared(
         &self,
         py: Python<'_>,
         actions: &Bound<'_, PyAny>,
-        recs_out: &Bound<'_, PyUntypedArray>,
+        recs_out: Option<&Bound<'_, PyUntypedArray>>,
         final_out: Option<&Bound<'_, PyUntypedArray>>,
     ) -> PyResult<usize> {
         let acts = self.owned_actions(actions, self.num_envs)?;
@@ -409,12 +417,13 @@ impl PyPool {
     /// Partial sync reset (gymnasium `reset_mask`) straight into the next shared batch slot:
     /// envs with `mask[i]` start their next scheduled episode, the others keep their state and
     /// their current observation is written again. `mask`: bool array, one per env. Records of
-    /// every env into `recs_out`. Returns the slot index. Needs a full reset first.
+    /// every env into `recs_out` (if given). Returns the slot index. Needs a full reset first.
+    #[pyo3(signature = (mask, recs_out = None))]
     fn reset_envs_shared(
         &self,
         py: Python<'_>,
         mask: &Bound<'_, PyAny>,
-        recs_out: &Bound<'_, PyUntypedArray>,
+        recs_out: Option<&Bound<'_, PyUntypedArray>>,
     ) -> PyResult<usize> {
         let arr: PyReadonlyArray1<'_, bool> = mask.extract().map_err(|_| {
             PyValueError::new_err(format!(
@@ -480,7 +489,7 @@ impl PyPool {
         let slot = self.with_pool(py, move |p, out| {
             p.step_shared_actions(acts.as_actions(), out)
         })?;
-        self.fill_outputs(py, recs_out, final_out)?;
+        self.fill_outputs(py, Some(recs_out), final_out)?;
         let cols = self
             .columns
             .lock()

@@ -188,9 +188,9 @@ class InfoEncoder:
 
     def __init__(self) -> None:
         self._layouts: dict[tuple[Any, ...], Optional[_Layout]] = {}
-        #: The last flat layout used, with its keys and value types: most envs give the same
-        #: info on every step, which is then matched without hashing a signature.
-        self._flat: Optional[tuple[tuple[str, ...], tuple[type, ...], _Layout]] = None
+        #: The last flat layout used: most envs give the same info on every step, which is
+        #: then matched by its plan's keys and value types without hashing a signature.
+        self._flat: Optional[_Layout] = None
 
     def encode(self, entries: list[tuple[str, dict[str, Any]]]) -> bytes:
         """The bytes of one call's entries: a typed row for a single typed info, else the
@@ -213,13 +213,13 @@ class InfoEncoder:
         """``info`` as a typed row of ``kind``, and its layout; ``(None, None)`` if it is not
         typed."""
         try:
-            flat = self._flat
+            plan = None if self._flat is None else self._flat.plan
             if (
-                flat is not None
-                and tuple(map(type, info.values())) == flat[1]
-                and tuple(info) == flat[0]
+                plan is not None
+                and tuple(map(type, info.values())) == plan[1]
+                and tuple(info) == plan[0]
             ):
-                layout: Optional[_Layout] = flat[2]
+                layout: Optional[_Layout] = self._flat
             else:
                 layout = self._layout_of(info)
             if layout is not None:
@@ -241,7 +241,7 @@ class InfoEncoder:
                 self._layouts.clear()
             self._layouts[sig] = layout
         if layout is not None and layout.flat:
-            self._flat = (sig[0], sig[1], layout)
+            self._flat = layout
         return layout
 
 

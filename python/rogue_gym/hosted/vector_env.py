@@ -267,7 +267,6 @@ class PoolVectorEnv(VectorEnv):
         self._lender = (
             leases.SlotLender(self._slots, self._obs_layout.batch_views) if lend else None
         )
-        self._recs = np.zeros(n, RECORD_DTYPE)
         self._final = (
             np.zeros((n, stride), np.uint8) if self._settings["autoreset"] == "same_step" else None
         )
@@ -352,7 +351,6 @@ class PoolVectorEnv(VectorEnv):
         mask = options.pop("reset_mask", None)
         if options:  # for each env's next reset, as AsyncVectorEnv passes them
             self.call_envs("set_reset_options", "", [((options,), {})] * self.num_envs)
-        recs = self._recs
         if mask is not None:
             mask = np.asarray(mask)
             if mask.shape != (self.num_envs,) or mask.dtype != np.bool_:
@@ -361,12 +359,12 @@ class PoolVectorEnv(VectorEnv):
                 raise ValueError("reset(seed=...) cannot be combined with a reset_mask")
             if not self._started:
                 raise ValueError("a reset_mask needs a full reset() first")
-            obs = self._shared(lambda: self._pool.reset_envs_shared(mask, recs))
+            obs = self._shared(lambda: self._pool.reset_envs_shared(mask))
             self._done &= ~mask
         else:
             if seed is not None or not self._started:
                 self._pool.set_seeds(json.dumps(self._seeds(seed)))
-            obs = self._shared(lambda: self._pool.reset_shared(recs))
+            obs = self._shared(lambda: self._pool.reset_shared())
             self._done[:] = False
             self._started = True
         _, _, _, restarted, final = self._pool.outcome()
@@ -382,12 +380,11 @@ class PoolVectorEnv(VectorEnv):
             raise ValueError(
                 f"envs {envs} finished their episode: with autoreset_mode DISABLED, reset them with reset(options={{'reset_mask': mask}}) before stepping"
             )
-        recs = self._recs
         if self._discrete_start is not None:
             acts = self._discrete_indices(actions, range(self.num_envs))
         else:
             acts = self._act_layout.flat_batch(actions, self._act_rows)
-        obs = self._shared(lambda: self._pool.step_shared(acts, recs, self._final))
+        obs = self._shared(lambda: self._pool.step_shared(acts, None, self._final))
         rewards, terminated, truncated, restarted, final = self._pool.outcome()
         self._done = terminated | truncated
         return obs, rewards, terminated, truncated, self._infos(restarted, final)
