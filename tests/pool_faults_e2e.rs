@@ -181,25 +181,186 @@ fn env_failure_is_raised_with_its_env_and_message_and_reset_recovers() {
 }
 
 #[test]
-fn a_worker_that_keeps_dying_is_restarted_with_growing_delays() {
+fn a_worker_killed_between_answers_is_restarted_at_once_every_time() {
+    // Each restarted worker answers before the next kill: no streak, no backoff (a storm of
+    // external kills is not a worker that cannot start).
     let mut p = pool(config(EXE, test_env(), 2, 1));
     let _guard = PidGuard(p.worker_pids());
     let mut obs = vec![0u8; 2 * p.obs_bytes()];
     let mut out = BatchOutput::default();
     p.reset(&mut obs, &mut out).unwrap();
-    let mut took = Vec::new();
     for _ in 0..3 {
-        let victim = p.worker_pids()[0];
-        signal(victim, Signal::SIGKILL);
-        let t0 = Instant::now();
+        signal(p.worker_pids()[0], Signal::SIGKILL);
         p.step(&[0, 0], &mut obs, &mut out).unwrap();
-        took.push(t0.elapsed());
         assert!(out.restarted.iter().all(|&r| r), "both envs were cut");
     }
-    assert_eq!(p.restarts(), 3);
-    // The 2nd and 3rd restarts in a row wait 50 ms and 100 ms before respawning.
-    assert!(took[1] >= Duration::from_millis(50), "{took:?}");
-    assert!(took[2] >= Duration::from_millis(100), "{took:?}");
+    assert_eq!((p.restarts(), p.worker_deaths()), (3, 3));
+}
+
+/// Make every (re)start of the pool's workers fail (`e2e_worker`'s marker), or stop that.
+fn die_at_start(p: &rogue_gym_pool::Pool, on: bool) {
+    die_at_start_marker(p, "die-at-start", on)
+}
+
+fn die_at_start_marker(p: &rogue_gym_pool::Pool, name: &str, on: bool) {
+    let marker = p.id().aux_dir().join(name);
+    if on {
+        std::fs::write(&marker, b"").unwrap();
+    } else {
+        std::fs::remove_file(&marker).unwrap();
+    }
+}
+
+#[test]
+fn a_worker_that_dies_at_every_start_makes_the_call_raise_within_its_bound() {
+    // Worker 1 dies at every restart (with growing backoffs). The step raises NotBackInTime
+    // within step_timeout + start_timeout, naming the worker; once it can start, one reset
+    // recovers and every env steps again.
+    let mut c = config(EXE, test_env(), 4, 2);
+    c.step_timeout = Some(Duration::from_millis(300));
+    c.start_timeout = Duration::from_millis(1200);
+    let mut p = pool(c);
+    let bound = p.call_bound().unwrap();
+    assert_eq!(bound, Duration::from_millis(1500));
+    let mut guard = PidGuard(p.worker_pids());
+    let mut obs = vec![0u8; 4 * p.obs_bytes()];
+    let mut out = BatchOutput::default();
+    p.reset(&mut obs, &mut out).unwrap();
+    die_at_start(&p, true);
+    signal(p.worker_pids()[1], Signal::SIGKILL);
+    let t0 = Instant::now();
+    let e = p.step(&[0; 4], &mut obs, &mut out).unwrap_err();
+    let took = t0.elapsed();
+    assert!(
+        took <= bound,
+        "the call took {took:?}, over its bound {bound:?}"
+    );
+    assert!(
+        took >= Duration::from_millis(1000),
+        "it tried until near its bound: {took:?}"
+    );
+    let PoolError::NotBackInTime {
+        waiting, deaths, ..
+    } = &e
+    else {
+        panic!("expected NotBackInTime, got {e}");
+    };
+    assert_eq!(waiting.iter().map(|w| w.0).collect::<Vec<_>>(), [1], "{e}");
+    // 0, 50, 100, 200 ms backoffs (capped at start_timeout / 2) between quick deaths.
+    assert!(*deaths >= 4 && *deaths == p.worker_deaths(), "{e}");
+    let msg = e.to_string();
+    assert!(
+        msg.contains("worker 1 (") && msg.contains("call reset() to continue"),
+        "{msg}"
+    );
+    assert!(msg.contains("exited with code 3 while starting"), "{msg}");
+    // Still dying: the reset raises within the same bound.
+    let t0 = Instant::now();
+    assert!(matches!(
+        p.reset(&mut obs, &mut out),
+        Err(PoolError::NotBackInTime { .. })
+    ));
+    assert!(t0.elapsed() <= bound);
+    die_at_start(&p, false);
+    p.reset(&mut obs, &mut out).unwrap();
+    for t in 0..5 {
+        let actions: Vec<i64> = (0..4).map(|i| action(i, t, 5)).collect();
+        p.step(&actions, &mut obs, &mut out).unwrap();
+        assert!(!out.restarted.iter().any(|&r| r));
+    }
+    guard.0.extend(p.worker_pids());
+}
+
+#[test]
+fn dead_workers_come_back_side_by_side() {
+    // Worker 0 dies at every start and waits out ever longer backoffs (up to 800 ms); worker 1,
+    // killed meanwhile while idle (its block of the step already taken), is back at once, not
+    // after worker 0's backoff. Only worker 0 is reported.
+    let mut c = config(EXE, test_env(), 6, 3);
+    c.step_timeout = Some(Duration::from_millis(300));
+    c.start_timeout = Duration::from_millis(1600);
+    let mut p = pool(c);
+    let mut guard = PidGuard(p.worker_pids());
+    let mut obs = vec![0u8; 6 * p.obs_bytes()];
+    let mut out = BatchOutput::default();
+    p.reset(&mut obs, &mut out).unwrap();
+    die_at_start_marker(&p, "die-at-start.0", true);
+    signal(p.worker_pids()[0], Signal::SIGKILL);
+    let pids = p.pids_handle();
+    let killer = std::thread::spawn(move || {
+        use std::sync::atomic::Ordering::Relaxed;
+        std::thread::sleep(Duration::from_millis(700));
+        let old = pids[1].load(Relaxed);
+        signal(old, Signal::SIGKILL);
+        let t0 = Instant::now();
+        while pids[1].load(Relaxed) == old && t0.elapsed() < Duration::from_secs(3) {
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        (t0.elapsed(), pids[1].load(Relaxed))
+    });
+    let e = p.step(&[0; 6], &mut obs, &mut out).unwrap_err();
+    let (back_after, new_pid) = killer.join().unwrap();
+    guard.0.push(new_pid);
+    assert!(
+        back_after < Duration::from_millis(300),
+        "worker 1 came back after {back_after:?}: it waited for worker 0's backoff"
+    );
+    assert!(alive(new_pid), "its replacement runs");
+    let PoolError::NotBackInTime { waiting, .. } = &e else {
+        panic!("expected NotBackInTime, got {e}");
+    };
+    assert_eq!(waiting.iter().map(|w| w.0).collect::<Vec<_>>(), [0], "{e}");
+    die_at_start_marker(&p, "die-at-start.0", false);
+    p.reset(&mut obs, &mut out).unwrap();
+    p.step(&[0; 6], &mut obs, &mut out).unwrap();
+    assert!(
+        !out.restarted.iter().any(|&r| r),
+        "a reset starts every env afresh"
+    );
+    guard.0.extend(p.worker_pids());
+}
+
+#[test]
+fn a_worker_that_dies_at_every_start_spends_the_budget_and_says_so() {
+    let mut c = config(EXE, test_env(), 4, 2);
+    c.step_timeout = Some(Duration::from_millis(300));
+    c.start_timeout = Duration::from_secs(5);
+    c.max_restarts = 3;
+    let mut p = pool(c);
+    let mut guard = PidGuard(p.worker_pids());
+    let mut obs = vec![0u8; 4 * p.obs_bytes()];
+    let mut out = BatchOutput::default();
+    p.reset(&mut obs, &mut out).unwrap();
+    die_at_start(&p, true);
+    signal(p.worker_pids()[0], Signal::SIGKILL);
+    let t0 = Instant::now();
+    let e = p.step(&[0; 4], &mut obs, &mut out).unwrap_err();
+    assert!(
+        t0.elapsed() < Duration::from_secs(2),
+        "the budget ends it early"
+    );
+    assert!(
+        matches!(
+            e,
+            PoolError::RestartBudgetExceeded {
+                max_restarts: 3,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(
+        e.to_string()
+            .contains("restart budget exhausted (3 restarts)"),
+        "{e}"
+    );
+    // A spent budget stays spent.
+    die_at_start(&p, false);
+    assert!(matches!(
+        p.reset(&mut obs, &mut out),
+        Err(PoolError::RestartBudgetExceeded { .. })
+    ));
+    guard.0.extend(p.worker_pids());
 }
 
 #[test]

@@ -134,6 +134,17 @@ impl PoolError {
     }
 }
 
+fn describe_waiting(waiting: &[(usize, &'static str)]) -> String {
+    let parts: Vec<String> = waiting
+        .iter()
+        .map(|(k, what)| format!("worker {k} ({what})"))
+        .collect();
+    match parts.len() {
+        0 => "the workers".into(),
+        _ => parts.join(", "),
+    }
+}
+
 pub(crate) fn signal_name(s: i32) -> &'static str {
     nix::sys::signal::Signal::try_from(s)
         .map(|s| s.as_str())
@@ -219,6 +230,24 @@ pub enum PoolError {
     /// requests are abandoned: call a reset to go on.
     #[error("interrupted while waiting for the workers; call reset() to continue")]
     Interrupted,
+    /// A call reached its bound ([`crate::Pool::call_bound`]) while lost workers were still
+    /// coming back (a crash storm, a worker that dies at every start). The pool goes on
+    /// restarting them; call `reset` to go on.
+    #[error("{} could not be brought back within this call's bound of {bound}: {deaths} worker failure{} so far ({restarts} of {max_restarts} restarts used){}. The pool goes on restarting them: call reset() to continue (it waits at most the same bound). If this repeats, something keeps killing the workers or they cannot start: see the end of their stderr, the kernel log (the OOM killer), or raise start_timeout", describe_waiting(waiting), if *deaths == 1 { "" } else { "s" }, last.as_ref().map(|l| format!("; last failure: {l}")).unwrap_or_default())]
+    NotBackInTime {
+        /// The workers the call still waited for, and what each was doing.
+        waiting: Vec<(usize, &'static str)>,
+        /// The bound, with its formula.
+        bound: String,
+        /// Worker failures over the pool's life.
+        deaths: u32,
+        /// Restarts used.
+        restarts: u32,
+        /// The restart budget.
+        max_restarts: u32,
+        /// The last worker failure.
+        last: Option<Box<WorkerFailure>>,
+    },
     /// Several envs or workers failed in one call: the first failure, then the others (each
     /// an [`PoolError::EnvFailed`] or [`PoolError::WorkerFailed`]). One reset clears them all.
     #[error("{}{}", .0.first().map(ToString::to_string).unwrap_or_default(), several_tail(.0))]

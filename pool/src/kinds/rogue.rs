@@ -29,6 +29,9 @@ pub const ROGUE_INFO_NAMES: [&str; 8] = [
     "won",
 ];
 
+/// The info values of [`ROGUE_INFO_NAMES`] that are flags (0 or 1); the others are counts.
+pub const ROGUE_BOOL_INFO: [&str; 2] = ["died", "won"];
+
 /// A Rogue-Gym game with its observation spec.
 #[derive(Debug, Clone)]
 pub struct RogueEnv {

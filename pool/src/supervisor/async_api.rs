@@ -10,7 +10,7 @@ impl Pool {
     /// Async: reset every env (as [`Pool::reset`]; outstanding results are discarded); collect
     /// the results with [`Pool::recv`].
     pub fn async_reset(&mut self) -> Result<(), PoolError> {
-        self.check_usable()?;
+        self.begin_call()?;
         self.drain()?;
         for k in 0..self.core.slots.len() {
             self.core.send_reset(k, 0)?;
@@ -32,7 +32,7 @@ impl Pool {
         actions: Actions<'_>,
         env_ids: &[usize],
     ) -> Result<(), PoolError> {
-        self.check_usable()?;
+        self.begin_call()?;
         if self.core.must_reset {
             return Err(PoolError::State(
                 "call async_reset() before send() (after creation or after a worker failure)"
@@ -58,7 +58,8 @@ impl Pool {
                     "send() env ids {got:?} do not form worker block {block:?}: give each block's ids in order"
                 )));
             }
-            if !matches!(self.core.slots[k].state, SlotState::Idle)
+            let state = &self.core.slots[k].state;
+            if !(matches!(state, SlotState::Idle) || state.coming_back_idle())
                 || workers.iter().any(|&(w, _)| w == k)
             {
                 return Err(PoolError::State(format!(
@@ -68,6 +69,12 @@ impl Pool {
             workers.push((k, pos));
             pos += block.len();
         }
+        // Workers replaced while idle may still be coming back.
+        self.wait_until(|c| {
+            workers
+                .iter()
+                .all(|&(k, _)| !c.slots[k].state.coming_back_idle())
+        })?;
         let ab = self.core.spec.action_bytes;
         for &(k, pos) in &workers {
             let rows = pos..pos + self.core.blocks[k].len();
@@ -79,14 +86,14 @@ impl Pool {
     /// Async: wait for the next `batch_size` envs (whole blocks, in arrival order) and hand
     /// their blocks over (zero-copy; see [`Block`] for lifetimes).
     pub fn recv(&mut self) -> Result<Batch, PoolError> {
-        self.check_usable()?;
+        self.begin_call()?;
         // Blocks per batch: batch_size is num_envs, or a multiple of the (even) block size.
         let want = self.batch_size() * self.core.blocks.len() / self.core.cfg.num_envs;
         let outstanding = self
             .core
             .slots
             .iter()
-            .filter(|s| !matches!(s.state, SlotState::Idle))
+            .filter(|s| !matches!(s.state, SlotState::Idle) && !s.state.coming_back_idle())
             .count();
         if outstanding < want {
             return Err(PoolError::State(format!(

@@ -16,7 +16,7 @@ impl Pool {
         &mut self,
         requests: &[(usize, Vec<u8>)],
     ) -> Result<Vec<(usize, Vec<u8>)>, PoolError> {
-        self.check_usable()?;
+        self.begin_call()?;
         self.all_idle()?;
         let c = &mut self.core;
         let mut per_worker: Vec<Vec<(u32, &[u8])>> = vec![Vec::new(); c.blocks.len()];
@@ -53,10 +53,8 @@ impl Pool {
         }
         self.wait_until(|c| {
             asked.iter().all(|&(k, _)| {
-                !matches!(
-                    c.slots[k].state,
-                    SlotState::Pending { .. } | SlotState::Starting { .. }
-                )
+                !(c.slots[k].state.coming_back()
+                    || matches!(c.slots[k].state, SlotState::Pending { .. }))
             })
         })?;
         let c = &mut self.core;

@@ -22,7 +22,7 @@ use rogue_gym_ipc::{
 
 use crate::config::{AutoresetMode, PoolConfig};
 use crate::env::EnvSpec;
-use crate::error::PoolError;
+use crate::error::{PoolError, WorkerFailure};
 use crate::registry::EnvRegistry;
 use crate::seeds::SeedSchedule;
 use crate::wire::layout::BlockLayout;
@@ -44,6 +44,9 @@ struct Core {
     config_path: PathBuf,
     settings: ChannelSettings,
     slots: Vec<WorkerSlot>,
+    /// Each worker's current pid, readable from other threads during a call
+    /// ([`Pool::pids_handle`]).
+    pids: std::sync::Arc<[std::sync::atomic::AtomicU32]>,
     node: Option<rogue_gym_ipc::iceoryx2::node::Node<Svc>>,
     batch: Option<std::sync::Arc<rogue_gym_ipc::SharedBuffer>>,
     slot_bytes: usize,
@@ -66,6 +69,14 @@ struct Core {
     /// While draining stale answers before a reset: env errors of abandoned commands are
     /// dropped, not raised (the reset starts those envs afresh anyway); lost workers are not.
     discard_faults: bool,
+    /// Worker deaths and hangs over the pool's life (under either policy).
+    deaths: u32,
+    /// The last worker failure, for the report of a call that outlived its bound.
+    last_failure: Option<Box<WorkerFailure>>,
+    /// When the current call began, and when a worker first failed during it: its bound
+    /// ([`Core::call_deadline`]) counts from these.
+    call_started: Instant,
+    call_failed_at: Option<Instant>,
 }
 
 /// A pool of envs stepped by worker processes, with observations in shared memory.
@@ -87,6 +98,9 @@ pub type InterruptCheck = Box<dyn FnMut() -> bool + Send>;
 /// How long a wait must have lasted before the interrupt check runs (it runs between blocking
 /// wait slices, every `PoolConfig::wait.block_slice`, so the hot path never calls it).
 const INTERRUPT_AFTER: Duration = Duration::from_millis(5);
+
+/// How long before its bound a call gives up: time to build and raise the error.
+const DEADLINE_MARGIN: Duration = Duration::from_millis(20);
 
 impl std::fmt::Debug for Pool {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -200,6 +214,7 @@ impl Pool {
                 config_path,
                 settings,
                 slots: Vec::new(),
+                pids: (0..num_workers).map(|_| Default::default()).collect(),
                 node: None,
                 ready_order: VecDeque::new(),
                 cur_episode: vec![None; num_envs],
@@ -215,6 +230,10 @@ impl Pool {
                 started: false,
                 faults: Vec::new(),
                 discard_faults: false,
+                deaths: 0,
+                last_failure: None,
+                call_started: Instant::now(),
+                call_failed_at: None,
             },
         };
         // From here on, Drop cleans up whatever was created.
@@ -250,21 +269,19 @@ impl Pool {
                 seq: 0,
                 state: SlotState::Idle,
                 restarted: false,
-                last_restart: None,
+                cut: false,
                 restart_streak: 0,
                 stderr_path: PathBuf::new(),
                 target: 0,
             });
         }
         c.node = Some(node);
+        self.begin_call()?;
+        let c = &mut self.core;
         for k in 0..c.cfg.num_workers {
             c.spawn(k, false)?;
         }
-        self.wait_until(|c| {
-            !c.slots
-                .iter()
-                .any(|s| matches!(s.state, SlotState::Starting { .. }))
-        })?;
+        self.wait_until(|c| !c.slots.iter().any(|s| s.state.coming_back()))?;
         self.core.started = true;
         rogue_gym_ipc::verify_pool_files(&self.core.id)?;
         Ok(())
@@ -276,7 +293,7 @@ impl Pool {
     /// fresh pool created with `seeds` would (gymnasium's `reset(seed=...)`). Outstanding
     /// async results are discarded.
     pub fn set_seeds(&mut self, seeds: SeedSchedule) -> Result<(), PoolError> {
-        self.check_usable()?;
+        self.begin_call()?;
         seeds
             .validate(self.core.cfg.num_envs as u64)
             .map_err(PoolError::Config)?;
@@ -332,9 +349,30 @@ impl Pool {
     pub fn worker_pids(&self) -> Vec<u32> {
         self.core.slots.iter().map(|s| s.pid).collect()
     }
+    /// The workers' current pids (index = worker) as a shared handle that other threads may
+    /// read at any time, even while a call runs (a monitor, a chaos test); a worker is 0 before
+    /// its first start and after [`Pool::close`].
+    pub fn pids_handle(&self) -> std::sync::Arc<[std::sync::atomic::AtomicU32]> {
+        self.core.pids.clone()
+    }
     /// Worker restarts so far.
     pub fn restarts(&self) -> u32 {
         self.core.restarts
+    }
+    /// Worker deaths and hangs so far, under either failure policy.
+    pub fn worker_deaths(&self) -> u32 {
+        self.core.deaths
+    }
+    /// The longest any call may take before it returns or raises
+    /// [`PoolError::NotBackInTime`]: `step_timeout + start_timeout` (a command's own time, then
+    /// the time to bring a lost worker back: its backoff, start-up and the reset of its envs).
+    /// `None` when there is no `step_timeout`: a call then waits as long as live workers take,
+    /// but at most `start_timeout` from the first worker failure it sees.
+    pub fn call_bound(&self) -> Option<Duration> {
+        self.core
+            .cfg
+            .step_timeout
+            .map(|t| t + self.core.cfg.start_timeout)
     }
     /// The configuration.
     pub fn config(&self) -> &PoolConfig {
@@ -356,9 +394,17 @@ impl Pool {
         let interrupt = &mut self.interrupt;
         let policy = core.cfg.wait;
         let t0 = Instant::now();
-        let out = hybrid_wait::<PoolError>(listener.listener(), &policy, None, |call| {
+        let deadline = core.call_deadline();
+        let past_deadline = |core: &Core| core.call_deadline().is_some_and(|d| Instant::now() >= d);
+        let out = hybrid_wait::<PoolError>(listener.listener(), &policy, deadline, |call| {
             if call == WaitCall::Idle {
+                if past_deadline(core) {
+                    return Err(core.not_back_in_time());
+                }
                 core.check_liveness()?;
+                if past_deadline(core) {
+                    return Err(core.not_back_in_time());
+                }
                 if let Some(check) = interrupt.as_mut()
                     && t0.elapsed() >= INTERRUPT_AFTER
                     && check()
@@ -389,14 +435,19 @@ impl Pool {
             }
             Ok(done(core))
         })?;
-        debug_assert_eq!(out, WaitOutcome::Done);
-        Ok(())
+        match out {
+            WaitOutcome::Done => Ok(()),
+            WaitOutcome::TimedOut => Err(self.core.not_back_in_time()),
+        }
     }
 
-    fn check_usable(&self) -> Result<(), PoolError> {
+    /// Start a public call: the pool must be open; the call's bound counts from now.
+    fn begin_call(&mut self) -> Result<(), PoolError> {
         if self.core.closed {
             return Err(PoolError::Closed);
         }
+        self.core.call_started = Instant::now();
+        self.core.call_failed_at = None;
         Ok(())
     }
 
@@ -447,12 +498,9 @@ impl Pool {
     }
 
     fn all_idle(&mut self) -> Result<(), PoolError> {
-        // Respawned workers (raise policy) may still be starting.
-        self.wait_until(|c| {
-            !c.slots
-                .iter()
-                .any(|s| matches!(s.state, SlotState::Starting { .. }))
-        })?;
+        // Respawned workers (raise policy, or a call that outlived its bound) may still be
+        // coming back.
+        self.wait_until(|c| !c.slots.iter().any(|s| s.state.coming_back()))?;
         if self
             .core
             .slots
@@ -472,12 +520,9 @@ impl Pool {
         self.core.faults.clear();
         self.core.discard_faults = true;
         let drained = self.wait_until(|c| {
-            !c.slots.iter().any(|s| {
-                matches!(
-                    s.state,
-                    SlotState::Starting { .. } | SlotState::Pending { .. }
-                )
-            })
+            !c.slots
+                .iter()
+                .any(|s| s.state.coming_back() || matches!(s.state, SlotState::Pending { .. }))
         });
         self.core.discard_faults = false;
         drained?;
@@ -524,11 +569,68 @@ impl Pool {
         }
         c.ready_order.clear();
         c.slots.clear();
+        c.pids
+            .iter()
+            .for_each(|p| p.store(0, std::sync::atomic::Ordering::Relaxed));
         self.listener = None;
         c.node = None;
         c.batch = None;
         rogue_gym_ipc::remove_pool_files(&c.id)?;
         Ok(())
+    }
+}
+
+impl Core {
+    /// When the current call must give up (see [`Pool::call_bound`]): a little before its
+    /// bound, so that the error is raised within it.
+    fn call_deadline(&self) -> Option<Instant> {
+        let (from, bound) = match self.cfg.step_timeout {
+            Some(t) => (self.call_started, t + self.cfg.start_timeout),
+            None => (self.call_failed_at?, self.cfg.start_timeout),
+        };
+        Some(from + bound - (bound / 20).min(DEADLINE_MARGIN))
+    }
+
+    /// The error of a call that reached its deadline: the workers it still waits for go on
+    /// coming back, and the pool needs a reset.
+    fn not_back_in_time(&mut self) -> PoolError {
+        self.must_reset = true;
+        let waiting = self
+            .slots
+            .iter()
+            .enumerate()
+            .filter_map(|(k, s)| {
+                let what = match s.state {
+                    SlotState::Down { .. } => "waiting out its restart backoff",
+                    SlotState::Starting { .. } => "starting",
+                    SlotState::Pending { .. } => "not answering",
+                    _ => return None,
+                };
+                Some((k, what))
+            })
+            .collect();
+        let bound = match self.cfg.step_timeout {
+            Some(t) => format!(
+                "{:?} (step_timeout {t:?} + start_timeout {:?})",
+                t + self.cfg.start_timeout,
+                self.cfg.start_timeout
+            ),
+            None => format!(
+                "start_timeout {:?} after the first worker failure (no step_timeout)",
+                self.cfg.start_timeout
+            ),
+        };
+        let err = PoolError::NotBackInTime {
+            waiting,
+            bound,
+            deaths: self.deaths,
+            restarts: self.restarts,
+            max_restarts: self.cfg.max_restarts,
+            last: self.last_failure.clone(),
+        };
+        let mut all = vec![err];
+        all.append(&mut self.faults);
+        PoolError::collected(all).unwrap_or(PoolError::Interrupted)
     }
 }
 

@@ -53,7 +53,7 @@ impl Pool {
     /// (`num_envs x obs_bytes`, env-major) and the per-env arrays into `out`. Results of
     /// outstanding async requests (or of a step interrupted by an error) are discarded.
     pub fn reset(&mut self, obs_out: &mut [u8], out: &mut BatchOutput) -> Result<(), PoolError> {
-        self.check_usable()?;
+        self.begin_call()?;
         self.check_obs_buf(obs_out)?;
         self.drain()?;
         for k in 0..self.core.slots.len() {
@@ -102,7 +102,7 @@ impl Pool {
     /// slot of the pool's shared batch buffer (no copy at all); returns the slot index for
     /// [`Pool::shared_obs`].
     pub fn reset_shared(&mut self, out: &mut BatchOutput) -> Result<usize, PoolError> {
-        self.check_usable()?;
+        self.begin_call()?;
         self.drain()?;
         let slot = self.core.next_slot;
         for k in 0..self.core.slots.len() {
@@ -155,7 +155,7 @@ impl Pool {
         obs_out: Option<&mut [u8]>,
         out: &mut BatchOutput,
     ) -> Result<(), PoolError> {
-        self.check_usable()?;
+        self.begin_call()?;
         if mask.len() != self.core.cfg.num_envs {
             return Err(PoolError::BadBuffer {
                 what: "reset mask",
@@ -263,7 +263,7 @@ impl Pool {
     /// Checks before a sync step: the pool is open and started, there is one valid action
     /// per env, and no async request is outstanding.
     fn prepare_sync_step(&mut self, actions: Actions<'_>) -> Result<(), PoolError> {
-        self.check_usable()?;
+        self.begin_call()?;
         let all: Vec<usize> = (0..self.core.cfg.num_envs).collect();
         self.check_actions(actions, &all)?;
         if self.core.must_reset {

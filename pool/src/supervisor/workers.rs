@@ -22,6 +22,8 @@ use crate::wire::{
 };
 
 pub(super) enum SlotState {
+    /// Dead, waiting out its restart backoff; respawned at `until` (restart policy).
+    Down { until: Instant, then_reset: bool },
     /// Process started, waiting for its READY block.
     Starting { since: Instant, then_reset: bool },
     /// Nothing outstanding.
@@ -32,6 +34,26 @@ pub(super) enum SlotState {
     Ready(BlockSample),
 }
 
+impl SlotState {
+    /// Lost and not back yet: waiting out its backoff, or starting.
+    pub(super) fn coming_back(&self) -> bool {
+        matches!(self, SlotState::Down { .. } | SlotState::Starting { .. })
+    }
+    /// Coming back with no command to answer (it died while idle).
+    pub(super) fn coming_back_idle(&self) -> bool {
+        matches!(
+            self,
+            SlotState::Down {
+                then_reset: false,
+                ..
+            } | SlotState::Starting {
+                then_reset: false,
+                ..
+            }
+        )
+    }
+}
+
 pub(super) struct WorkerSlot {
     pub(super) ports: SupervisorPorts,
     pub(super) child: Option<Child>,
@@ -40,29 +62,34 @@ pub(super) struct WorkerSlot {
     pub(super) seq: u64,
     pub(super) state: SlotState,
     pub(super) restarted: bool,
+    /// It died while idle and was replaced (restart policy): its envs' episodes were cut, so
+    /// its next command resets them (and they report `restarted`).
+    pub(super) cut: bool,
     pub(super) stderr_path: PathBuf,
     /// Observation target of the last command (see `TARGET_SHIFT`).
     pub(super) target: u32,
-    /// When this worker was last restarted, and how many restarts in a row came within
-    /// [`RESTART_QUIET`] of the one before (see [`restart_backoff`]).
-    pub(super) last_restart: Option<Instant>,
+    /// Failures of this worker in a row, with no answer to a command in between (see
+    /// [`restart_backoff`]); an answer ends the streak.
     pub(super) restart_streak: u32,
 }
 
-/// A worker that has run this long since its last restart starts a fresh streak.
-pub(super) const RESTART_QUIET: Duration = Duration::from_secs(10);
 /// The longest wait before a restart.
 const MAX_BACKOFF: Duration = Duration::from_secs(2);
 
-/// How long to wait before the `streak`-th restart in a row of one worker: nothing for the
-/// first, then 50 ms, doubling up to [`MAX_BACKOFF`], so a worker that keeps crashing (a bad
-/// env, a full disk) cannot spin the machine before the restart budget ends it.
-pub(super) fn restart_backoff(streak: u32) -> Duration {
+/// How long to wait before restarting a worker that failed `streak` times in a row without
+/// answering a command in between: nothing for the first, then 50 ms, doubling up to
+/// [`MAX_BACKOFF`] or half of `start_timeout`, whichever is less (a lost worker has
+/// `start_timeout` to come back: the backoff leaves it half for its start-up and reset), so a
+/// worker that cannot come up (a bad env, a full disk) cannot spin the machine before the
+/// restart budget ends it. Each worker has its own streak and waits out its own backoff while
+/// the others run and restart.
+pub(super) fn restart_backoff(streak: u32, start_timeout: Duration) -> Duration {
     match streak {
         0 => Duration::ZERO,
         n => Duration::from_millis(50)
             .saturating_mul(1 << (n - 1).min(16))
-            .min(MAX_BACKOFF),
+            .min(MAX_BACKOFF)
+            .min(start_timeout / 2),
     }
 }
 
@@ -112,6 +139,7 @@ impl Core {
                 ),
                 stderr_tail: String::new(),
             })?;
+        self.pids[k].store(child.id(), std::sync::atomic::Ordering::Relaxed);
         let s = &mut self.slots[k];
         s.pid = child.id();
         s.child = Some(child);
@@ -136,6 +164,10 @@ impl Core {
         mask: Option<&[bool]>,
     ) -> Result<(), PoolError> {
         let range = self.env_range(k);
+        // A replaced worker resets all its envs; in a partial reset they say why.
+        let cut = std::mem::take(&mut self.slots[k].cut);
+        self.slots[k].restarted |= cut && mask.is_some();
+        let mask = mask.filter(|_| !cut);
         let eps: Vec<u64> = range
             .map(|i| {
                 if mask.is_some_and(|m| !m[i]) {
@@ -165,13 +197,18 @@ impl Core {
         Ok(())
     }
 
-    /// Step command to worker `k`; `actions` holds exactly its block's actions.
+    /// Step command to worker `k`; `actions` holds exactly its block's actions. A replaced
+    /// worker ([`WorkerSlot::cut`]) resets its envs instead, which report `restarted`.
     pub(super) fn send_step(
         &mut self,
         k: usize,
         actions: Actions<'_>,
         target: u32,
     ) -> Result<(), PoolError> {
+        if self.slots[k].cut {
+            self.slots[k].restarted = true;
+            return self.send_reset(k, target);
+        }
         let aw = self.spec.action_words();
         let s = &mut self.slots[k];
         s.seq += 1;
@@ -263,6 +300,7 @@ impl Core {
                         }
                     }
                     (SlotState::Pending { .. }, BLOCK_DATA) if h.seq == s.seq => {
+                        s.restart_streak = 0;
                         let same_step = self.cfg.autoreset == AutoresetMode::SameStep;
                         let first = self.blocks[k].start;
                         for j in 0..self.blocks[k].len() {
@@ -278,10 +316,12 @@ impl Core {
                         self.ready_order.push_back(k);
                     }
                     (SlotState::Pending { .. }, BLOCK_CALL) if h.seq == s.seq => {
+                        s.restart_streak = 0;
                         s.state = SlotState::Idle;
                     }
                     (SlotState::Pending { .. }, BLOCK_ERROR) if h.seq == s.seq => {
                         drop(sample);
+                        s.restart_streak = 0;
                         s.state = SlotState::Idle;
                         let path = env_fault_path(&self.id, k, s.generation);
                         let fault = EnvFault::take(&path).unwrap_or_else(|e| EnvFault {
@@ -311,11 +351,23 @@ impl Core {
         for k in 0..self.slots.len() {
             let range = self.env_range(k);
             let s = &mut self.slots[k];
+            if let SlotState::Down { until, then_reset } = s.state {
+                if Instant::now() >= until {
+                    self.respawn_now(k, then_reset)?;
+                }
+                continue;
+            }
             let (since, starting, then_reset) = match s.state {
                 SlotState::Starting { since, then_reset } => (since, true, then_reset),
                 SlotState::Pending { since } => (since, false, true),
+                // Restart policy: an idle worker that died is replaced now, not at its next
+                // command, so that it comes back while others are waited for.
+                SlotState::Idle if self.cfg.on_worker_failure == FailurePolicy::Restart => {
+                    (Instant::now(), false, false)
+                }
                 _ => continue,
             };
+            let idle = matches!(s.state, SlotState::Idle);
             let exited = match s.child.as_mut() {
                 Some(ch) => ch.try_wait().ok().flatten(),
                 None => None,
@@ -327,9 +379,10 @@ impl Core {
             };
             let lost = s.child.is_none();
             let hung = !lost && exited.is_none() && limit.is_some_and(|l| since.elapsed() > l);
-            if !lost && exited.is_none() && !hung {
+            if (idle && exited.is_none()) || (!lost && exited.is_none() && !hung) {
                 continue;
             }
+            s.cut |= idle;
             if hung && let Some(ch) = s.child.as_mut() {
                 let _ = ch.kill();
             }
@@ -396,22 +449,29 @@ impl Core {
         // Drop whatever the dead incarnation left in the queue.
         while self.slots[k].ports.try_recv()?.is_some() {}
         self.ready_order.retain(|&w| w != k);
+        // Its stderr's tail is in the failure report already: a storm must not pile up files.
+        let _ = fs::remove_file(&self.slots[k].stderr_path);
         self.slots[k].generation += 1;
         self.spawn(k, then_reset)
     }
 
     /// A worker died or hung (while starting, restarting or stepping). Restart policy: count it
-    /// against the budget and respawn it after the backoff; its envs, if an episode was cut
-    /// (`then_reset`), restart theirs and are flagged. Raise policy: respawn it and queue
-    /// [`PoolError::WorkerFailed`]. Either way the pool steps again after one reset.
+    /// against the budget and respawn it once its own backoff has passed (at once for a first
+    /// failure; meanwhile it is [`SlotState::Down`] and the other workers go on); its envs, if
+    /// an episode was cut (`then_reset`), restart theirs and are flagged. Raise policy: respawn
+    /// it and queue [`PoolError::WorkerFailed`]. Either way the pool steps again after one
+    /// reset.
     pub(super) fn handle_failure(
         &mut self,
         k: usize,
         failure: WorkerFailure,
         then_reset: bool,
     ) -> Result<(), PoolError> {
+        self.deaths += 1;
+        self.call_failed_at.get_or_insert_with(Instant::now);
         match self.cfg.on_worker_failure {
             FailurePolicy::Raise => {
+                self.last_failure = Some(Box::new(failure.clone()));
                 self.respawn_now(k, false)?;
                 self.must_reset = true;
                 self.faults.push(PoolError::WorkerFailed(Box::new(failure)));
@@ -420,21 +480,26 @@ impl Core {
             FailurePolicy::Restart => {
                 self.restarts += 1;
                 if self.restarts > self.cfg.max_restarts {
+                    self.must_reset = true;
                     return Err(PoolError::RestartBudgetExceeded {
                         max_restarts: self.cfg.max_restarts,
                         last: Box::new(failure),
                     });
                 }
+                self.last_failure = Some(Box::new(failure));
                 let s = &mut self.slots[k];
-                let now = Instant::now();
-                let quick = s
-                    .last_restart
-                    .is_some_and(|t| now.duration_since(t) < RESTART_QUIET);
-                s.restart_streak = if quick { s.restart_streak + 1 } else { 0 };
-                s.last_restart = Some(now);
+                let backoff = restart_backoff(s.restart_streak, self.cfg.start_timeout);
+                s.restart_streak = s.restart_streak.saturating_add(1);
                 s.restarted |= then_reset;
-                std::thread::sleep(restart_backoff(s.restart_streak));
-                self.respawn_now(k, then_reset)
+                if backoff.is_zero() {
+                    self.respawn_now(k, then_reset)
+                } else {
+                    s.state = SlotState::Down {
+                        until: Instant::now() + backoff,
+                        then_reset,
+                    };
+                    Ok(())
+                }
             }
         }
     }
@@ -446,9 +511,18 @@ mod tests {
 
     #[test]
     fn restart_backoff_doubles_from_nothing_up_to_its_cap() {
-        let ms = |n| restart_backoff(n).as_millis();
+        let start = Duration::from_secs(30);
+        let ms = |n| restart_backoff(n, start).as_millis();
         assert_eq!([ms(0), ms(1), ms(2), ms(3), ms(6)], [0, 50, 100, 200, 1600]);
-        assert_eq!(restart_backoff(7), MAX_BACKOFF);
-        assert_eq!(restart_backoff(u32::MAX), MAX_BACKOFF);
+        assert_eq!(restart_backoff(7, start), MAX_BACKOFF);
+        assert_eq!(restart_backoff(u32::MAX, start), MAX_BACKOFF);
+    }
+
+    #[test]
+    fn restart_backoff_leaves_half_the_start_timeout_for_the_start() {
+        let start = Duration::from_millis(600);
+        assert_eq!(restart_backoff(3, start), Duration::from_millis(200));
+        assert_eq!(restart_backoff(4, start), Duration::from_millis(300));
+        assert_eq!(restart_backoff(20, start), Duration::from_millis(300));
     }
 }

@@ -9,7 +9,8 @@ use crate::env::{EnvBlock, EnvSpec, StepOutcome};
 use crate::wire::layout::{EnvRecord, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED};
 use crate::wire::{CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE};
 
-use super::{BlockOut, Slot, SlotCtx, fault, place_extra};
+use super::hosted::BlockOut;
+use super::slot::{Slot, SlotCtx, fault, place_extra};
 
 /// An [`EnvBlock`] with the bookkeeping of its envs and the buffers of its calls.
 pub(crate) struct BlockHost {
@@ -167,7 +168,7 @@ mod tests {
     use crate::kinds::test_env::TestEnv;
     use crate::seeds::SeedSchedule;
     use crate::wire::layout::BlockLayout;
-    use crate::worker::{EnvOut, apply};
+    use crate::worker::slot::{EnvOut, apply};
 
     const N: usize = 3;
     const OB: usize = 4;

@@ -1,0 +1,347 @@
+//! One env of a worker and what a command does to it: reset, step, autoreset, episode
+//! bookkeeping, and where its answer goes in the block.
+
+use crate::config::AutoresetMode;
+use crate::env::Env;
+use crate::seeds::SeedSchedule;
+use crate::wire::layout::{
+    EnvRecord, FLAG_EXTRA_APART, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED,
+};
+use crate::wire::{CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE};
+
+/// One env of a worker with its episode bookkeeping (`E = ()` for the envs of an
+/// [`crate::EnvBlock`], which owns them).
+pub(crate) struct Slot<E = Box<dyn Env>> {
+    pub(crate) env: E,
+    /// Global env id.
+    pub(crate) global: u64,
+    pub(crate) episode: u64,
+    pub(crate) seed: u64,
+    pub(crate) ret: f64,
+    pub(crate) len: u32,
+    pub(crate) needs_reset: bool,
+}
+
+impl<E> Slot<E> {
+    pub(crate) fn new(env: E, global: u64) -> Self {
+        Slot {
+            env,
+            global,
+            episode: 0,
+            seed: 0,
+            ret: 0.0,
+            len: 0,
+            needs_reset: true,
+        }
+    }
+
+    /// Begin the episode `self.episode` (its seed from the schedule; return and length 0).
+    pub(crate) fn begin_episode(&mut self, ctx: &SlotCtx) {
+        self.seed = ctx.seeds.seed(self.global, self.episode, ctx.num_envs);
+        self.ret = 0.0;
+        self.len = 0;
+        self.needs_reset = false;
+    }
+
+    /// The record's episode bookkeeping.
+    pub(crate) fn stamp(&self, rec: &mut EnvRecord) {
+        rec.episode = self.episode;
+        rec.seed = self.seed;
+        rec.episode_return = self.ret;
+        rec.episode_length = self.len;
+    }
+
+    /// Fail if `value` is an action index out of range (envs of raw action bytes check their
+    /// actions themselves).
+    pub(crate) fn check_action(&self, value: u64, ctx: &SlotCtx) -> Result<(), EnvFault> {
+        if ctx.action_bytes > 0 || value < ctx.num_actions as u64 {
+            return Ok(());
+        }
+        let msg = format!(
+            "action {value} is out of range; valid actions are 0 to {} (range({}))",
+            ctx.num_actions.saturating_sub(1),
+            ctx.num_actions
+        );
+        Err(fault(self, "step".into(), msg))
+    }
+
+    /// The context of a failed step of this env.
+    pub(crate) fn step_context(&self) -> String {
+        format!(
+            "step (episode {}, seed {}, step {})",
+            self.episode, self.seed, self.len
+        )
+    }
+}
+
+/// What [`apply`] needs besides the slot.
+pub(crate) struct SlotCtx<'a> {
+    pub(crate) seeds: &'a SeedSchedule,
+    pub(crate) num_envs: u64,
+    pub(crate) autoreset: AutoresetMode,
+    pub(crate) num_actions: usize,
+    /// `EnvSpec::action_bytes` (0: action indices).
+    pub(crate) action_bytes: usize,
+    pub(crate) n_info: usize,
+}
+
+/// Where one env writes its answer to a command (parts of the block being filled).
+pub(crate) struct EnvOut<'a> {
+    pub(crate) obs: &'a mut [u8],
+    /// SAME_STEP final observation (empty in NEXT_STEP mode).
+    pub(crate) fin: &'a mut [u8],
+    /// Extra-info room (`EnvSpec::extra_bytes`).
+    pub(crate) extra: &'a mut [u8],
+    /// The env's extra info, whole; when it does not fit `extra`, the record is flagged
+    /// [`FLAG_EXTRA_APART`] and the caller sends these bytes apart.
+    pub(crate) info: &'a mut Vec<u8>,
+}
+
+pub(crate) fn fault<E>(s: &Slot<E>, context: String, message: impl std::fmt::Display) -> EnvFault {
+    EnvFault {
+        env: s.global,
+        context,
+        message: message.to_string(),
+    }
+}
+
+fn do_reset(s: &mut Slot, obs: &mut [u8], ctx: &SlotCtx) -> Result<(), EnvFault> {
+    s.begin_episode(ctx);
+    s.env.reset_episode(s.seed, s.episode, obs).map_err(|e| {
+        fault(
+            s,
+            format!("reset (episode {}, seed {})", s.episode, s.seed),
+            e,
+        )
+    })
+}
+
+/// Apply one command to one env: `CMD_RESET` (`words[0]` = episode index) or `CMD_STEP`
+/// (`words` = the action: an index, or `action_bytes` raw bytes), with autoreset. Writes the
+/// observation, the final observation (SAME_STEP, on an episode end) and the extra info into
+/// `out`. Returns the env's record.
+pub(crate) fn apply(
+    s: &mut Slot,
+    kind: u32,
+    words: &[u64],
+    out: EnvOut<'_>,
+    ctx: &SlotCtx,
+) -> Result<EnvRecord, EnvFault> {
+    let EnvOut {
+        obs,
+        fin,
+        extra,
+        info,
+    } = out;
+    let value = words.first().copied().unwrap_or(0);
+    let mut rec = EnvRecord::default();
+    match kind {
+        CMD_RESET if value == KEEP_EPISODE => {
+            // Partial reset, env not selected: no state change, same observation again.
+            s.env.observe(obs).map_err(|e| {
+                let c = format!(
+                    "a partial reset (episode {}, seed {}): cannot keep it",
+                    s.episode, s.seed
+                );
+                fault(s, c, e)
+            })?;
+        }
+        CMD_RESET => {
+            s.episode = value;
+            do_reset(s, obs, ctx)?;
+        }
+        CMD_STEP if s.needs_reset => {
+            // NEXT_STEP: this step only resets; the action is ignored.
+            s.episode += 1;
+            do_reset(s, obs, ctx)?;
+        }
+        CMD_STEP => {
+            s.check_action(value, ctx)?;
+            let result = if ctx.action_bytes > 0 {
+                let bytes = rogue_gym_ipc::words_as_bytes(words);
+                s.env
+                    .step_bytes(&bytes[..ctx.action_bytes.min(bytes.len())], obs)
+            } else {
+                s.env.step(value as usize, obs)
+            };
+            let out = result.map_err(|e| fault(s, s.step_context(), e))?;
+            s.ret += out.reward;
+            s.len += 1;
+            rec.reward = out.reward;
+            rec.flags = (u32::from(out.terminated) * FLAG_TERMINATED)
+                | (u32::from(out.truncated) * FLAG_TRUNCATED);
+        }
+        k => {
+            return Err(fault(
+                s,
+                "a command".into(),
+                format!("unknown command kind {k}"),
+            ));
+        }
+    }
+    s.stamp(&mut rec);
+    s.env.info(&mut rec.info[..ctx.n_info]);
+    if rec.flags & (FLAG_TERMINATED | FLAG_TRUNCATED) != 0 {
+        match ctx.autoreset {
+            AutoresetMode::NextStep => s.needs_reset = true,
+            AutoresetMode::SameStep => {
+                if fin.len() == obs.len() {
+                    fin.copy_from_slice(obs);
+                    rec.flags |= FLAG_FINAL_OBS;
+                }
+                s.episode += 1;
+                do_reset(s, obs, ctx)?;
+            }
+        }
+    }
+    if !extra.is_empty() {
+        // The env has extra info (`EnvSpec::extra_bytes` > 0, so it has room).
+        info.clear();
+        s.env
+            .extra_info(info)
+            .map_err(|e| fault(s, "extra info".into(), e))?;
+        place_extra(&mut rec, extra, info).map_err(|e| fault(s, "extra info".into(), e))?;
+    }
+    Ok(rec)
+}
+
+/// Put an env's extra info `info` in its room `extra`, or flag the record
+/// [`FLAG_EXTRA_APART`] when it does not fit (the worker then sends it beside the block).
+pub(crate) fn place_extra(
+    rec: &mut EnvRecord,
+    extra: &mut [u8],
+    info: &[u8],
+) -> Result<(), String> {
+    let n = info.len();
+    rec.extra_len = u32::try_from(n).map_err(|_| format!("{n} bytes of extra info"))?;
+    match extra.get_mut(..n) {
+        Some(room) => room.copy_from_slice(info),
+        None => rec.flags |= FLAG_EXTRA_APART,
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinds::test_env::TestEnv;
+
+    fn slot() -> Slot {
+        let env =
+            TestEnv::from_json(&serde_json::json!({"obs_shape": [4], "max_steps": 3})).unwrap();
+        Slot::new(Box::new(env), 5)
+    }
+
+    fn go(
+        s: &mut Slot,
+        kind: u32,
+        value: u64,
+        obs: &mut [u8],
+        fin: &mut [u8],
+        c: &SlotCtx,
+    ) -> Result<EnvRecord, EnvFault> {
+        let extra: &mut [u8] = &mut [];
+        let info = &mut Vec::new();
+        apply(
+            s,
+            kind,
+            &[value],
+            EnvOut {
+                obs,
+                fin,
+                extra,
+                info,
+            },
+            c,
+        )
+    }
+
+    fn ctx(seeds: &SeedSchedule, autoreset: AutoresetMode) -> SlotCtx<'_> {
+        SlotCtx {
+            seeds,
+            num_envs: 8,
+            autoreset,
+            num_actions: 5,
+            action_bytes: 0,
+            n_info: 2,
+        }
+    }
+
+    #[test]
+    fn next_step_autoreset_ignores_action_and_keeps_last_reward() {
+        let seeds = SeedSchedule::from_base(1);
+        let c = ctx(&seeds, AutoresetMode::NextStep);
+        let mut s = slot();
+        let (mut obs, mut fin) = ([0u8; 4], [0u8; 0]);
+        let r = go(&mut s, CMD_RESET, 0, &mut obs, &mut fin, &c).unwrap();
+        assert_eq!((r.episode, r.seed, r.flags), (0, seeds.seed(5, 0, 8), 0));
+        let mut total = 0.0;
+        for t in 1..=3 {
+            let r = go(&mut s, CMD_STEP, 1, &mut obs, &mut fin, &c).unwrap();
+            total += r.reward;
+            assert_eq!(r.episode_length, t);
+            if r.terminated() {
+                break;
+            }
+            assert_eq!(r.truncated(), t == 3, "max_steps 3 truncates at step 3");
+        }
+        // The episode ended: its last reward was reported; the next step only resets.
+        assert_eq!(s.ret, total);
+        let r = go(&mut s, CMD_STEP, 4, &mut obs, &mut fin, &c).unwrap();
+        assert_eq!(r.reward, 0.0);
+        assert!(!r.terminated() && !r.truncated());
+        assert_eq!(
+            (r.episode, r.seed, r.episode_length),
+            (1, seeds.seed(5, 1, 8), 0)
+        );
+        let mut fresh = [0u8; 4];
+        let mut e = TestEnv::from_json(&serde_json::json!({"obs_shape": [4]})).unwrap();
+        e.reset(seeds.seed(5, 1, 8), &mut fresh).unwrap();
+        assert_eq!(obs, fresh, "the reset obs is returned");
+    }
+
+    #[test]
+    fn same_step_autoreset_returns_reset_obs_and_final_obs() {
+        let seeds = SeedSchedule::from_base(1);
+        let c = ctx(&seeds, AutoresetMode::SameStep);
+        let mut s = slot();
+        let (mut obs, mut fin) = ([0u8; 4], [0u8; 4]);
+        go(&mut s, CMD_RESET, 0, &mut obs, &mut fin, &c).unwrap();
+        // Replay the same episode on a bare env to know the final obs.
+        let mut bare =
+            TestEnv::from_json(&serde_json::json!({"obs_shape": [4], "max_steps": 3})).unwrap();
+        let mut bobs = [0u8; 4];
+        bare.reset(seeds.seed(5, 0, 8), &mut bobs).unwrap();
+        loop {
+            let o = bare.step(2, &mut bobs).unwrap();
+            let r = go(&mut s, CMD_STEP, 2, &mut obs, &mut fin, &c).unwrap();
+            assert_eq!(r.reward, o.reward, "the final reward is kept");
+            if o.terminated || o.truncated {
+                assert_eq!((r.terminated(), r.truncated()), (o.terminated, o.truncated));
+                assert!(r.has_final_obs());
+                assert_eq!(fin, bobs, "final obs kept separately");
+                assert_eq!(r.episode, 0, "the record describes the finished episode");
+                bare.reset(seeds.seed(5, 1, 8), &mut bobs).unwrap();
+                assert_eq!(obs, bobs, "obs is the next episode's first");
+                assert_eq!(s.episode, 1);
+                break;
+            }
+            assert_eq!(obs, bobs);
+        }
+        // The next step acts normally in the new episode.
+        let r = go(&mut s, CMD_STEP, 0, &mut obs, &mut fin, &c).unwrap();
+        assert_eq!((r.episode, r.episode_length), (1, 1));
+    }
+
+    #[test]
+    fn bad_action_is_an_error_not_a_panic() {
+        let seeds = SeedSchedule::from_base(1);
+        let c = ctx(&seeds, AutoresetMode::NextStep);
+        let mut s = slot();
+        let (mut obs, mut fin) = ([0u8; 4], [0u8; 0]);
+        go(&mut s, CMD_RESET, 0, &mut obs, &mut fin, &c).unwrap();
+        let e = go(&mut s, CMD_STEP, 99, &mut obs, &mut fin, &c).unwrap_err();
+        assert_eq!(e.env, 5);
+        assert!(e.message.contains("action 99"), "{}", e.message);
+    }
+}
