@@ -24,20 +24,18 @@ from ._records import (
     RECORD_DTYPE,
 )
 from .envs.image import ObsSpec, observation_space
+from .envs.rogue_env import ACTIONS
 from .settings import PoolSettings, SeedsLike
-
-ACTIONS: str = _native.ACTION_KEYS
 
 __all__ = ["ActionHistory", "PoolCore", "PoolFacade", "SeedsLike", "screen_to_rgb"]
 
 #: Info values of the rogue env kind that are flags (the rest are integers).
-_BOOL_INFO = {"died", "won"}
-
+_BOOL_INFO = frozenset(_native.BOOL_INFO_NAMES)
 
 #: :meth:`PoolCore.step_columns` summary bit: some env's worker was restarted.
-SUMMARY_RESTARTED = 1 << 8
+SUMMARY_RESTARTED: int = _native.SUMMARY_RESTARTED
 #: :meth:`PoolCore.step_columns` summary bit: some env has a final observation (SAME_STEP).
-SUMMARY_FINAL = 1 << 9
+SUMMARY_FINAL: int = _native.SUMMARY_FINAL
 
 
 def _seed_set(seeds: SeedsLike, config: Mapping[str, Any]) -> Optional[dict[str, Any]]:
@@ -117,6 +115,7 @@ class PoolCore:
             "autoreset": "same_step" if self.same_step else "next_step",
             "on_worker_failure": st.on_worker_failure,
             "step_timeout": st.step_timeout,
+            "start_timeout": st.start_timeout,
             "max_restarts": st.max_restarts,
             "runtime_dir": None if st.runtime_dir is None else os.fspath(st.runtime_dir),
         }
@@ -244,6 +243,11 @@ class PoolCore:
     def worker_pids(self) -> list[int]:
         """Process ids of the live workers, one per worker (in worker order)."""
         return [] if self._pool is None else list(self._pool.worker_pids())
+
+    @property
+    def restarts(self) -> int:
+        """Worker restarts so far."""
+        return 0 if self._pool is None else int(self._pool.restarts())
 
     @property
     def native(self) -> Any:
@@ -509,6 +513,12 @@ class PoolFacade:
     def worker_pids(self) -> list[int]:
         """Process ids of the workers (worker ``k`` hosts envs ``envs_of_worker(k)``)."""
         return self._core.worker_pids
+
+    @property
+    def restarts(self) -> int:
+        """Worker restarts so far (``on_worker_failure="restart"``; ``max_restarts`` bounds
+        them)."""
+        return self._core.restarts
 
     def envs_of_worker(self, worker: int) -> range:
         """Indices of the envs hosted by ``worker``."""

@@ -7,6 +7,7 @@ from typing_extensions import Self
 
 __all__ = [
     "ACTION_KEYS",
+    "BOOL_INFO_NAMES",
     "FLAG_FINAL_OBS",
     "FLAG_RESTARTED",
     "FLAG_TERMINATED",
@@ -15,6 +16,8 @@ __all__ = [
     "NUM_ACTIONS",
     "PAPER_CONFIG_JSON",
     "RECORD_BYTES",
+    "SUMMARY_FINAL",
+    "SUMMARY_RESTARTED",
     "BlockHolder",
     "Game",
     "Pool",
@@ -38,6 +41,9 @@ FLAG_TRUNCATED: int
 FLAG_RESTARTED: int
 FLAG_FINAL_OBS: int
 PAPER_CONFIG_JSON: str
+SUMMARY_RESTARTED: int
+SUMMARY_FINAL: int
+BOOL_INFO_NAMES: list[str]
 
 def normalize_obs_spec(spec: Any) -> dict[str, Any]: ...
 def block_range(num_envs: int, parts: int, k: int) -> tuple[int, int]: ...
@@ -87,14 +93,6 @@ class Pool:
     obs_bytes: int
     info_names: list[str]
     def __new__(cls, settings_json: str, worker_command: Sequence[str]) -> Self: ...
-    def reset(self, obs_out: np.ndarray, recs_out: np.ndarray) -> None: ...
-    def step(
-        self,
-        actions: np.ndarray,
-        obs_out: np.ndarray,
-        recs_out: np.ndarray,
-        final_out: Optional[np.ndarray] = None,
-    ) -> None: ...
     def reset_shared(self, recs_out: Optional[np.ndarray] = None) -> int: ...
     def step_shared(
         self,

@@ -8,7 +8,10 @@ __all__ = ["EnvFailedError", "WorkerCrashedError"]
 
 
 class WorkerCrashedError(RuntimeError):
-    """A pool worker died or hung and the pool's policy is ``on_worker_failure="raise"``.
+    """A pool worker died or hung and the pool's policy is ``on_worker_failure="raise"``; or,
+    under either policy, the restart budget is spent, or a call reached its bound
+    (``step_timeout + start_timeout``) while lost workers were still coming back (a crash
+    storm, a worker that dies at every start).
 
     Attributes:
         env: index of the first env hosted by the dead worker.
@@ -18,8 +21,11 @@ class WorkerCrashedError(RuntimeError):
         signal: the signal that killed it (``None`` if it exited).
         exit_code: its exit code (``None`` if killed by a signal or hung).
         stderr_tail: the last lines the worker wrote to stderr.
+        restarting: the workers a call that reached its bound still waited for (the pool goes
+            on restarting them); empty otherwise.
+        deaths: worker failures over the pool's life, when a call reached its bound.
 
-    The pool can be used again after ``reset()``.
+    The pool can be used again after ``reset()`` (not once the restart budget is spent).
     """
 
     def __init__(
@@ -33,6 +39,8 @@ class WorkerCrashedError(RuntimeError):
         signal: Optional[int] = None,
         exit_code: Optional[int] = None,
         stderr_tail: str = "",
+        restarting: tuple[int, ...] = (),
+        deaths: Optional[int] = None,
     ) -> None:
         super().__init__(message)
         self.env = env
@@ -42,6 +50,8 @@ class WorkerCrashedError(RuntimeError):
         self.signal = signal
         self.exit_code = exit_code
         self.stderr_tail = stderr_tail
+        self.restarting = tuple(restarting)
+        self.deaths = deaths
 
 
 class EnvFailedError(RuntimeError):

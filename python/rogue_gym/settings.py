@@ -3,8 +3,9 @@
 :class:`PoolSettings` is what :func:`rogue_gym.make_vec`,
 :class:`rogue_gym.vector.RogueVectorEnv`, :class:`rogue_gym.sb3.RogueVecEnv` and the pool core
 take; the facades pass their keyword arguments through :meth:`PoolSettings.from_kwargs`, so a
-misspelt option is a ``TypeError`` that lists the valid ones. :meth:`PoolSettings.native` is the
-JSON object the native pool receives (keys as named here; the Rust side adds no defaults).
+misspelt option is a ``TypeError`` that lists the valid ones. The pool core turns the checked
+settings into the JSON object the native pool receives (keys as named here; the Rust side adds
+no defaults).
 """
 
 from __future__ import annotations
@@ -54,6 +55,9 @@ class PoolSettings:
             paper.
         on_worker_failure: ``"restart"`` or ``"raise"``.
         step_timeout: seconds after which a silent worker counts as hung (``None``: never).
+        start_timeout: seconds a lost worker has to come back (its restart backoff, start-up
+            and the reset of its envs); a worker not ready within it is killed. Every call
+            returns or raises within ``step_timeout + start_timeout``.
         max_restarts: worker restarts allowed over the pool's life.
         worker_command: program and leading args of a worker (default:
             ``[sys.executable, "-m", "rogue_gym.worker"]``).
@@ -84,6 +88,7 @@ class PoolSettings:
     stair_reward: float = 50.0
     on_worker_failure: str = "restart"
     step_timeout: Optional[float] = 60.0
+    start_timeout: float = 30.0
     max_restarts: Optional[int] = 100
     worker_command: Optional[Sequence[str]] = None
     shard: Optional[tuple[int, int]] = None
@@ -128,6 +133,7 @@ class PoolSettings:
             raise ValueError(f"max_steps must be positive, got {self.max_steps}")
         if self.step_timeout is not None and not float(self.step_timeout) > 0:
             raise ValueError(f"step_timeout must be positive or None, got {self.step_timeout}")
+        check_start_timeout(self.start_timeout)
         shard = self.shard
         if shard is not None:
             first, total = (int(x) for x in shard)
@@ -154,9 +160,23 @@ class PoolSettings:
             max_steps=int(self.max_steps),
             stair_reward=float(self.stair_reward),
             step_timeout=None if self.step_timeout is None else float(self.step_timeout),
+            start_timeout=float(self.start_timeout),
             max_restarts=None if self.max_restarts is None else int(self.max_restarts),
             worker_command=list(command),
         )
+
+
+def check_start_timeout(start_timeout: Any) -> float:
+    """``start_timeout`` as seconds; ``ValueError`` unless it is a positive number."""
+    try:
+        value = float(start_timeout)
+    except (TypeError, ValueError):
+        value = float("nan")
+    if not value > 0 or value == float("inf"):
+        raise ValueError(
+            f"start_timeout must be a positive number of seconds, got {start_timeout!r}"
+        )
+    return value
 
 
 def parse_autoreset_mode(

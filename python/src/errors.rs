@@ -14,6 +14,7 @@ pub(crate) fn pool_error(py: Python<'_>, e: PoolError) -> PyErr {
             &format!("restart budget exhausted ({max_restarts} restarts); last failure: {last}"),
             &last,
         ),
+        e @ PoolError::NotBackInTime { .. } => not_back_in_time(py, e),
         PoolError::EnvFailed { fault, worker, pid } => {
             let msg = format!(
                 "env {} failed in {} (worker {worker}, pid {pid}): {}; call reset() to continue",
@@ -70,13 +71,47 @@ fn several(py: Python<'_>, all: Vec<PoolError>) -> PyErr {
     first
 }
 
+/// A call that outlived its bound: a `WorkerCrashedError` naming the workers still coming
+/// back (`restarting`), the deaths so far, and the last failure's details.
+fn not_back_in_time(py: Python<'_>, e: PoolError) -> PyErr {
+    let msg = e.to_string();
+    let PoolError::NotBackInTime {
+        waiting,
+        deaths,
+        last,
+        ..
+    } = e
+    else {
+        return PyRuntimeError::new_err(msg);
+    };
+    let restarting: Vec<usize> = waiting.iter().map(|(k, _)| *k).collect();
+    crashed_kw(py, &msg, last.as_deref(), |kw| {
+        if last.is_none() {
+            kw.set_item("worker", restarting.first())?;
+        }
+        kw.set_item("restarting", restarting)?;
+        kw.set_item("deaths", deaths)
+    })
+    .unwrap_or_else(|e| e)
+}
+
 /// Build a `rogue_gym.errors.WorkerCrashedError` for a failure report.
 fn crashed(py: Python<'_>, msg: &str, f: &WorkerFailure) -> PyErr {
-    let build = || -> PyResult<PyErr> {
-        let cls = py
-            .import("rogue_gym.errors")?
-            .getattr("WorkerCrashedError")?;
-        let kw = PyDict::new(py);
+    crashed_kw(py, msg, Some(f), |_| Ok(())).unwrap_or_else(|e| e)
+}
+
+/// A `WorkerCrashedError` with the report's fields (if any) and the keywords `more` adds.
+fn crashed_kw(
+    py: Python<'_>,
+    msg: &str,
+    f: Option<&WorkerFailure>,
+    more: impl FnOnce(&Bound<'_, PyDict>) -> PyResult<()>,
+) -> PyResult<PyErr> {
+    let cls = py
+        .import("rogue_gym.errors")?
+        .getattr("WorkerCrashedError")?;
+    let kw = PyDict::new(py);
+    if let Some(f) = f {
         kw.set_item("env", f.env_ids.start)?;
         kw.set_item("envs", f.env_ids.clone().collect::<Vec<_>>())?;
         kw.set_item("worker", f.worker)?;
@@ -84,8 +119,8 @@ fn crashed(py: Python<'_>, msg: &str, f: &WorkerFailure) -> PyErr {
         kw.set_item("signal", f.signal)?;
         kw.set_item("exit_code", f.exit_code)?;
         kw.set_item("stderr_tail", &f.stderr_tail)?;
-        let err = cls.call((msg,), Some(&kw))?;
-        Ok(PyErr::from_value(err))
-    };
-    build().unwrap_or_else(|e| e)
+    }
+    more(&kw)?;
+    let err = cls.call((msg,), Some(&kw))?;
+    Ok(PyErr::from_value(err))
 }

@@ -83,5 +83,11 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     )?;
     m.add_function(wrap_pyfunction!(spec::normalize_obs_spec, m)?)?;
     m.add("NUM_ACTIONS", rogue_gym_engine::NUM_ACTIONS)?;
+    m.add("SUMMARY_RESTARTED", columns::SUMMARY_RESTARTED)?;
+    m.add("SUMMARY_FINAL", columns::SUMMARY_FINAL)?;
+    m.add(
+        "BOOL_INFO_NAMES",
+        rogue_gym_pool::kinds::rogue::ROGUE_BOOL_INFO.to_vec(),
+    )?;
     Ok(())
 }

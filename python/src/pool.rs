@@ -1,7 +1,8 @@
 //! `rogue_gym._native.Pool`: the environment pool (supervisor in this process, workers spawned
 //! as `python -m rogue_gym.worker`), with zero-copy views of worker blocks for the async API.
 
-use std::sync::{Arc, Mutex};
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard, TryLockError};
 
 use numpy::ndarray::ArrayView1;
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyUntypedArray};
@@ -67,6 +68,8 @@ type JoinedExtras<'py> = (Option<Vec<usize>>, Bound<'py, PyBytes>, usize, Vec<us
 pub struct PyPool {
     pool: Mutex<Option<Pool>>,
     out: Mutex<BatchOutput>,
+    /// The workers' pids, readable without the pool's lock (during a call too).
+    pids: Arc<[AtomicU32]>,
     num_envs: usize,
     num_workers: usize,
     obs_bytes: usize,
@@ -100,13 +103,25 @@ fn interrupt_check(slot: Arc<Mutex<Option<PyErr>>>) -> InterruptCheck {
     })
 }
 
+/// Lock `m` from a thread that holds the GIL, waiting with the GIL released: another thread
+/// may hold `m` through a long wait that takes the GIL now and then (the interrupt check), so
+/// waiting for `m` with the GIL held could deadlock both.
+fn lock_gil_free<'a, T: Send>(py: Python<'_>, m: &'a Mutex<T>) -> PyResult<MutexGuard<'a, T>> {
+    loop {
+        match m.try_lock() {
+            Ok(g) => return Ok(g),
+            Err(TryLockError::WouldBlock) => py.detach(|| drop(m.lock())),
+            Err(TryLockError::Poisoned(_)) => {
+                return Err(PyRuntimeError::new_err("the pool lock is poisoned"));
+            }
+        }
+    }
+}
+
 impl PyPool {
     /// Read something of the open pool (the type's default once it is closed).
-    fn peek<R: Default>(&self, f: impl FnOnce(&Pool) -> R) -> PyResult<R> {
-        let guard = self
-            .pool
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+    fn peek<R: Default>(&self, py: Python<'_>, f: impl FnOnce(&Pool) -> R) -> PyResult<R> {
+        let guard = lock_gil_free(py, &self.pool)?;
         Ok(guard.as_ref().map(f).unwrap_or_default())
     }
 
@@ -158,10 +173,7 @@ impl PyPool {
                 )
             })
             .transpose()?;
-        let out = self
-            .out
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        let out = lock_gil_free(py, &self.out)?;
         let _ = py;
         // SAFETY: both arrays are alive for this call and not otherwise borrowed by us.
         unsafe {
@@ -231,7 +243,9 @@ impl PyPool {
         let interrupted = Arc::new(Mutex::new(None));
         pool.set_interrupt_check(Some(interrupt_check(interrupted.clone())));
         let spec = pool.spec().clone();
+        let pids = pool.pids_handle();
         Ok(PyPool {
+            pids,
             num_envs: pool.num_envs(),
             num_workers: pool.num_workers(),
             obs_bytes: pool.obs_bytes(),
@@ -245,48 +259,6 @@ impl PyPool {
             pool: Mutex::new(Some(pool)),
             out: Mutex::new(BatchOutput::default()),
         })
-    }
-
-    /// Sync reset of every env: observations into `obs_out` (`num_envs x obs`, C-contiguous),
-    /// records into `recs_out` (`num_envs` records).
-    fn reset(
-        &self,
-        py: Python<'_>,
-        obs_out: &Bound<'_, PyUntypedArray>,
-        recs_out: &Bound<'_, PyUntypedArray>,
-    ) -> PyResult<()> {
-        let obs = raw_bytes(
-            obs_out,
-            "observation buffer",
-            self.num_envs * self.obs_bytes,
-        )?;
-        // SAFETY: obs_out is alive for the call; the pool writes it while Python waits.
-        self.with_pool(py, move |p, out| p.reset(unsafe { obs.slice() }, out))?;
-        self.fill_outputs(py, Some(recs_out), None)
-    }
-
-    /// Sync step: `actions` (int64, one per env); observations into `obs_out`, records into
-    /// `recs_out` and (SAME_STEP) final observations into `final_out`.
-    #[pyo3(signature = (actions, obs_out, recs_out, final_out = None))]
-    fn step(
-        &self,
-        py: Python<'_>,
-        actions: &Bound<'_, PyAny>,
-        obs_out: &Bound<'_, PyUntypedArray>,
-        recs_out: &Bound<'_, PyUntypedArray>,
-        final_out: Option<&Bound<'_, PyUntypedArray>>,
-    ) -> PyResult<()> {
-        let acts = self.owned_actions(actions, self.num_envs)?;
-        let obs = raw_bytes(
-            obs_out,
-            "observation buffer",
-            self.num_envs * self.obs_bytes,
-        )?;
-        // SAFETY: as in `reset`.
-        self.with_pool(py, move |p, out| {
-            p.step_actions(acts.as_actions(), unsafe { obs.slice() }, out)
-        })?;
-        self.fill_outputs(py, Some(recs_out), final_out)
     }
 
     /// Sync reset straight into the next shared batch slot (no copy); records into `recs_out`
@@ -328,10 +300,7 @@ impl PyPool {
     /// was restarted, `final` lists the envs whose final observation (SAME_STEP) is in the
     /// final buffer. One call instead of a numpy operation per flag.
     fn outcome<'py>(&self, py: Python<'py>) -> PyResult<Outcome<'py>> {
-        let out = self
-            .out
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        let out = lock_gil_free(py, &self.out)?;
         let n = self.num_envs;
         let mut reward = vec![0.0; n];
         let mut terminated = vec![false; n];
@@ -371,10 +340,7 @@ impl PyPool {
     /// `head` bytes, else 0; `ends`: where each one's bytes end in `data` (empty when `size`
     /// is not 0).
     fn take_extras<'py>(&self, py: Python<'py>, head: usize) -> PyResult<JoinedExtras<'py>> {
-        let mut out = self
-            .out
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        let mut out = lock_gil_free(py, &self.out)?;
         let extras = std::mem::take(&mut out.extras);
         drop(out);
         let every = extras.len() == self.num_envs
@@ -497,10 +463,7 @@ impl PyPool {
         let &(_, ptr) = cols.get(slot).ok_or_else(|| {
             PyRuntimeError::new_err("step_columns needs bind_columns() with one buffer per slot")
         })?;
-        let out = self
-            .out
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        let out = lock_gil_free(py, &self.out)?;
         // SAFETY: the buffer is kept alive by `cols` and was checked (size, alignment,
         // writeable) by `bind_columns`; we hold the GIL, so Python cannot touch it meanwhile.
         let summary = unsafe { write_columns(&out, self.num_envs, self.n_info, ptr as *mut u8) };
@@ -510,10 +473,7 @@ impl PyPool {
     /// Zero-copy uint8 views of the shared batch slots (`num_envs x obs_bytes` bytes each), in
     /// slot order. Their base owns the mapping, so they stay valid after `close()`.
     fn shared_views<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-        let guard = self
-            .pool
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        let guard = lock_gil_free(py, &self.pool)?;
         let pool = guard
             .as_ref()
             .ok_or_else(|| PyRuntimeError::new_err("the pool is closed"))?;
@@ -645,42 +605,41 @@ impl PyPool {
 
     /// The envs worker `k` hosts, as `(start, end)` (contiguous blocks differing by at most one
     /// env, the larger first).
-    fn worker_envs(&self, k: usize) -> PyResult<(usize, usize)> {
-        let guard = self
-            .pool
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+    fn worker_envs(&self, py: Python<'_>, k: usize) -> PyResult<(usize, usize)> {
+        let guard = lock_gil_free(py, &self.pool)?;
         let r = guard.as_ref().map(|p| p.worker_envs(k)).unwrap_or(0..0);
         Ok((r.start, r.end))
     }
 
-    /// Current worker process ids (index = worker).
+    /// Current worker process ids (index = worker; 0 once closed). Readable from any thread,
+    /// also while another one is inside a call.
     fn worker_pids(&self) -> PyResult<Vec<u32>> {
-        self.peek(Pool::worker_pids)
+        Ok(self
+            .pids
+            .iter()
+            .map(|p| p.load(Ordering::Relaxed))
+            .collect())
     }
 
     /// Worker restarts so far.
-    fn restarts(&self) -> PyResult<u32> {
-        self.peek(Pool::restarts)
+    fn restarts(&self, py: Python<'_>) -> PyResult<u32> {
+        self.peek(py, Pool::restarts)
     }
 
     /// The runtime directory that holds the pool's directories (`""` once closed).
-    fn runtime_dir(&self) -> PyResult<String> {
-        self.peek(|p| p.id().base().display().to_string())
+    fn runtime_dir(&self, py: Python<'_>) -> PyResult<String> {
+        self.peek(py, |p| p.id().base().display().to_string())
     }
 
     /// The pool's name (the prefix of its shared-memory files).
-    fn name(&self) -> PyResult<String> {
-        self.peek(|p| p.id().name().to_string())
+    fn name(&self, py: Python<'_>) -> PyResult<String> {
+        self.peek(py, |p| p.id().name().to_string())
     }
 
     /// Stop the workers and remove the pool's files (idempotent; GIL released).
     fn close(&self, py: Python<'_>) -> PyResult<()> {
         let taken = {
-            let mut guard = self
-                .pool
-                .lock()
-                .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+            let mut guard = lock_gil_free(py, &self.pool)?;
             guard.take()
         };
         if let Some(mut p) = taken {
@@ -692,8 +651,8 @@ impl PyPool {
 
     /// Whether `close()` was called.
     #[getter]
-    fn closed(&self) -> bool {
-        self.pool.lock().map(|g| g.is_none()).unwrap_or(true)
+    fn closed(&self, py: Python<'_>) -> bool {
+        lock_gil_free(py, &self.pool).map_or(true, |g| g.is_none())
     }
 
     /// Number of envs.

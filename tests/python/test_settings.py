@@ -93,3 +93,27 @@ def test_obs_specs_are_parsed_by_the_engine() -> None:
         ObsSpec("gray", "uint8", 1 << 12).validated()
     with pytest.raises(ValueError, match="status must be a bit mask"):
         ObsSpec("gray", "uint8", -1).validated()
+
+
+def test_start_timeout_is_checked_and_reaches_the_pool_through_every_class() -> None:
+    """Every class takes ``start_timeout``: a start that cannot finish within it raises within
+    ``step_timeout + start_timeout``, naming the setting."""
+    import gymnasium as gym
+    from rogue_gym import PoolVectorEnv, WorkerCrashedError
+    from rogue_gym.sb3 import PoolVecEnv, RogueVecEnv
+
+    with pytest.raises(ValueError, match="start_timeout must be a positive number"):
+        PoolSettings(start_timeout=0).checked()
+    with pytest.raises(ValueError, match="start_timeout must be a positive number"):
+        PoolVectorEnv([lambda: gym.make("CartPole-v1")], start_timeout=-1.0)
+    opts = {"num_workers": 1, "step_timeout": 0.3, "start_timeout": 0.002, "max_restarts": 10}
+    makers = {
+        "make_vec": lambda: rogue_gym.make_vec(2, **opts),
+        "RogueVecEnv": lambda: RogueVecEnv(2, **opts),
+        "PoolVectorEnv": lambda: PoolVectorEnv([lambda: gym.make("CartPole-v1")] * 2, **opts),
+        "PoolVecEnv": lambda: PoolVecEnv([lambda: gym.make("CartPole-v1")] * 2, **opts),
+    }
+    for name, make in makers.items():
+        with pytest.raises(WorkerCrashedError, match="start_timeout 2ms") as info:
+            make()
+        assert "restart budget exhausted" in str(info.value) or info.value.restarting, name

@@ -15,6 +15,7 @@ import textwrap
 import zipfile
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Optional
 
 import pytest
 
@@ -140,3 +141,95 @@ def test_the_installed_wheel_runs_without_rust(venv: Path, tmp_path: Path) -> No
         timeout=120,
     )
     assert h.returncode == 0 and "--suite" in h.stdout, h.stdout + h.stderr
+
+
+def _python(version: str) -> Optional[str]:
+    """An interpreter of ``version`` (``"3.9"``) on this machine: pyenv's, else on PATH."""
+    pyenv = Path(os.environ.get("PYENV_ROOT", Path.home() / ".pyenv")) / "versions"
+    for root in sorted(pyenv.glob(f"{version}.*"), reverse=True):
+        exe = root / "bin" / f"python{version}"
+        if exe.exists():
+            return str(exe)
+    found = shutil.which(f"python{version}")
+    if found:
+        probe = subprocess.run([found, "--version"], capture_output=True, text=True, timeout=60)
+        if probe.returncode == 0:
+            return found
+    return None
+
+
+def _declared(wheel: Path) -> tuple[str, list[str]]:
+    """The wheel's oldest Python and its dependencies pinned to their declared floors
+    (``numpy>=1.24`` becomes ``numpy==1.24``), from its own metadata."""
+    with zipfile.ZipFile(wheel) as z:
+        meta = z.read(next(n for n in z.namelist() if n.endswith(".dist-info/METADATA")))
+    python, pins = "", []
+    for line in meta.decode().splitlines():
+        if line.startswith("Requires-Python:"):
+            python = line.split(">=")[1].strip()
+        elif line.startswith("Requires-Dist:") and "extra ==" not in line:
+            spec = line.split(":", 1)[1].strip()
+            name, rest = spec.split(">=", 1)
+            pins.append(f"{name.strip()}=={rest.split(',')[0].strip()}")
+    return python, pins
+
+
+#: Both kinds stepped with the installed wheel: the native game and a hosted gymnasium env.
+_BOTH_KINDS = textwrap.dedent(
+    """
+    import gymnasium as gym, numpy as np, rogue_gym
+    for envs in (
+        rogue_gym.make_vec(4, num_workers=2, seed=0),
+        rogue_gym.PoolVectorEnv([lambda: gym.make("CartPole-v1")] * 4, num_workers=2),
+    ):
+        try:
+            envs.reset(seed=0)
+            for _ in range(10):
+                envs.step(envs.action_space.sample())
+        finally:
+            envs.close()
+    print("ok", np.__version__, gym.__version__)
+    """
+)
+
+
+@pytest.mark.parametrize("end", ["oldest", "newest"])
+def test_the_wheel_works_at_both_ends_of_its_declared_ranges(
+    end: str, wheel: Path, tmp_path: Path
+) -> None:
+    """The oldest declared Python with the declared floor of every dependency, and Python 3.13
+    with the newest of each: both kinds step."""
+    oldest_python, floors = _declared(wheel)
+    version = oldest_python if end == "oldest" else "3.13"
+    exe = _python(version)
+    if exe is None:
+        pytest.skip(f"no Python {version} on this machine (pyenv or PATH)")
+    root = tmp_path / f"venv-{end}"
+    subprocess.run([exe, "-m", "venv", str(root)], check=True, timeout=120)
+    env = _clean_env(root)
+    deps = floors if end == "oldest" else ["--upgrade", *(p.split("==")[0] for p in floors)]
+    pip = [str(root / "bin" / "python"), "-m", "pip", "install", "-q"]
+    install = subprocess.run(
+        [*pip, "--disable-pip-version-check", str(wheel), *deps],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=env,
+    )
+    assert install.returncode == 0, install.stdout[-3000:] + install.stderr[-3000:]
+    r = subprocess.run(
+        [str(root / "bin" / "python"), "-c", _BOTH_KINDS],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert r.stdout.startswith("ok "), r.stdout
+    if end == "oldest":
+        # The floors themselves ran: "numpy==1.24" installs 1.24.0.
+        pinned = dict(p.split("==") for p in floors)
+        numpy_version, gym_version = r.stdout.split()[1:3]
+        assert numpy_version.startswith(pinned["numpy"]), (numpy_version, pinned)
+        assert gym_version.startswith(pinned["gymnasium"]), (gym_version, pinned)

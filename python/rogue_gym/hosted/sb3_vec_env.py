@@ -173,6 +173,11 @@ class PoolVecEnv(VecEnv):
         self.venv.close()
 
     @property
+    def restarts(self) -> int:
+        """Worker restarts so far."""
+        return self.venv.restarts
+
+    @property
     def worker_pids(self) -> list[int]:
         """Process ids of the workers."""
         return self.venv.worker_pids

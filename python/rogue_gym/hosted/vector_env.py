@@ -29,7 +29,7 @@ from gymnasium.vector.utils import batch_space
 from .. import _native, _sigterm
 from .._records import FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED, RECORD_DTYPE
 from ..errors import EnvFailedError
-from ..settings import FAILURE_POLICIES, PoolSettings, parse_autoreset_mode
+from ..settings import FAILURE_POLICIES, PoolSettings, check_start_timeout, parse_autoreset_mode
 from . import leases
 from .adapter import NO_SEED, decode_exception
 from .infos import HEAD, InfoDecoder, split_joined, vector_infos
@@ -107,6 +107,8 @@ class PoolVectorEnv(VectorEnv):
             ``truncated`` plus ``info["worker_restarted"]``) or ``"raise"``
             (:class:`rogue_gym.WorkerCrashedError`).
         step_timeout: seconds after which a worker that has not answered is treated as hung.
+        start_timeout: seconds a lost worker has to come back (backoff, start-up and the reset
+            of its envs). Every call returns or raises within ``step_timeout + start_timeout``.
         max_restarts: worker restarts allowed over the pool's life.
         info_bytes: room per env and step for the env's info in shared memory (typed rows of
             numbers and arrays, or pickles); a longer info travels beside it, more slowly.
@@ -138,6 +140,7 @@ class PoolVectorEnv(VectorEnv):
         autoreset_mode: Union[str, AutoresetMode] = AutoresetMode.NEXT_STEP,
         on_worker_failure: str = PoolSettings.on_worker_failure,
         step_timeout: Optional[float] = PoolSettings.step_timeout,
+        start_timeout: float = PoolSettings.start_timeout,
         max_restarts: Optional[int] = PoolSettings.max_restarts,
         info_bytes: int = DEFAULT_INFO_BYTES,
         worker_command: Optional[Sequence[str]] = None,
@@ -244,6 +247,7 @@ class PoolVectorEnv(VectorEnv):
             else "next_step",
             "on_worker_failure": on_worker_failure,
             "step_timeout": step_timeout,
+            "start_timeout": check_start_timeout(start_timeout),
             "max_restarts": max_restarts,
             "batch_size": batch_size,
             "batch_slots": leases.LENDING_SLOTS if lend else None,
@@ -532,6 +536,12 @@ class PoolVectorEnv(VectorEnv):
     def worker_pids(self) -> list[int]:
         """Process ids of the workers (in worker order)."""
         return [] if self.closed else list(self._pool.worker_pids())
+
+    @property
+    def restarts(self) -> int:
+        """Worker restarts so far (``on_worker_failure="restart"``; ``max_restarts`` bounds
+        them)."""
+        return int(self._pool.restarts())
 
     # -- helpers ---------------------------------------------------------------------------
 
