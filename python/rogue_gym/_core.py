@@ -306,21 +306,6 @@ class PoolCore:
         np.copyto(self._actions, a, casting="unsafe")
         return self._actions
 
-    def check_mask(self, mask: Any) -> Optional[np.ndarray]:
-        """Validate a gymnasium ``reset_mask``; returns it (bool, shape ``(num_envs,)``), or
-        ``None`` when it selects every env (a full reset)."""
-        if not isinstance(mask, np.ndarray):
-            raise ValueError(
-                f"reset_mask must be a numpy bool array of shape ({self.num_envs},), got {type(mask).__name__}"
-            )
-        if mask.shape != (self.num_envs,) or mask.dtype != np.bool_:
-            raise ValueError(
-                f"reset_mask must be a bool array of shape ({self.num_envs},), got {mask.dtype} {mask.shape}"
-            )
-        if not mask.any():
-            raise ValueError("reset_mask selects no env: at least one entry must be True")
-        return None if mask.all() else mask
-
     def reset(
         self, seed: Optional[int] = None, mask: Optional[np.ndarray] = None
     ) -> tuple[np.ndarray, np.ndarray]:
@@ -329,20 +314,12 @@ class PoolCore:
 
         With ``seed``, the episode schedule restarts from base seed ``seed`` (env ``i``'s episode
         ``e`` plays the same dungeon whatever the worker count), as in a fresh pool. With a
-        partial ``mask`` (see :meth:`check_mask`), the masked envs start their next scheduled
-        episode and the others keep their state; their current observation and records are
-        returned again (reward 0, no flags). A partial reset cannot take a ``seed`` (the seed
-        restarts every env's schedule) and needs a full reset before it.
+        partial ``mask`` (checked by :func:`rogue_gym.reset_mask.partial_mask`, never with a
+        ``seed``), the masked envs start their next scheduled episode and the others keep their
+        state; their current observation and records are returned again (reward 0, no flags).
         """
         self._check_open()
         if mask is not None:
-            mask = self.check_mask(mask)
-        if mask is not None:
-            if seed is not None:
-                raise ValueError(
-                    "reset(seed=...) restarts every env's seed schedule and cannot be combined "
-                    "with a partial reset_mask; reset with the seed first, then use the mask"
-                )
             recs = self._recs[1 - self._slot]
             slot = self._slot = self._pool.reset_envs_shared(mask, recs)
             if self._recs[slot] is not recs:

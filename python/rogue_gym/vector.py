@@ -16,6 +16,7 @@ from ._core import SUMMARY_FINAL, SUMMARY_RESTARTED, ActionHistory, PoolCore, Po
 from ._records import RECORD_DTYPE
 from .envs.rogue_env import ACTIONS
 from .registration import ENV_ID
+from .reset_mask import partial_mask
 from .settings import PoolSettings, parse_autoreset_mode
 
 __all__ = ["RogueVectorEnv", "make_vec"]
@@ -132,17 +133,13 @@ class RogueVectorEnv(gym.vector.VectorEnv, PoolFacade):
                 f"seed must be an int (the base of every env's episode-seed schedule), got {type(seed).__name__}; "
                 "use make_vec(seeds=[...]) to choose the dungeons"
             )
-        raw_mask = (
-            None if not options or options.get("reset_mask") is None else options["reset_mask"]
-        )
-        mask = None if raw_mask is None else self._core.check_mask(raw_mask)
+        raw_mask = None if not options else options.get("reset_mask")
+        mask = partial_mask(raw_mask, self.num_envs, started=self._last_recs is not None)
         if mask is not None and seed is not None:
             raise ValueError(
                 "reset(seed=...) restarts every env's seed schedule and cannot be combined with a "
                 "partial reset_mask; reset with the seed first, then use the mask"
             )
-        if mask is not None and self._last_recs is None:
-            raise RuntimeError("call reset() (all envs) before a partial reset")
         super().reset(seed=None if seed is None else int(seed))
         carry = None
         if mask is not None and self._history is not None:

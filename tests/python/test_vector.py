@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gc
 import os
+import re
 import signal
 
 import gymnasium as gym
@@ -476,29 +477,58 @@ def test_partial_reset_is_the_same_for_one_and_two_workers(make_vec) -> None:
         assert all(np.array_equal(a[4][k], b[4][k]) for k in a[4])
 
 
+@pytest.mark.parametrize("kind", ["native", "hosted"])
 @pytest.mark.parametrize(
-    "mask",
+    ("mask", "error", "message"),
     [
-        np.array([True, False, True]),
-        np.ones((4, 1), bool),
-        np.array([1, 0, 1, 0]),
-        np.array([1.0, 0.0, 1.0, 0.0]),
-        [True, False, True, False],
-        np.zeros(4, bool),
+        (np.array([True, False, True]), ValueError, "must have shape `(4,)`, got (3,)"),
+        (np.ones((4, 1), bool), ValueError, "must have shape `(4,)`, got (4, 1)"),
+        (np.array([1, 0, 1, 0]), TypeError, "must have `dtype=np.bool_`, got int64"),
+        (np.array([1.0, 0.0, 1.0, 0.0]), TypeError, "must have `dtype=np.bool_`, got float64"),
+        ([True, False, True, False], TypeError, "must be a numpy array, got <class 'list'>"),
+        (np.zeros(4, bool), ValueError, "must contain a boolean array with at least one True"),
     ],
 )
-def test_bad_reset_masks_are_value_errors(make_vec, mask) -> None:
-    env = make_vec(4, num_workers=2)
-    env.reset(seed=1)
-    with pytest.raises(ValueError, match="reset_mask"):
-        env.reset(options={"reset_mask": mask})
-    env.step(np.zeros(4, np.int64))  # still usable
+def test_bad_reset_masks_raise_gymnasiums_errors(kind, make_vec, mask, error, message) -> None:
+    """Both kinds check ``reset_mask`` as gymnasium's vector envs do (types and messages)."""
+    env = make_kind(kind, make_vec)
+    try:
+        env.reset(seed=1)
+        with pytest.raises(error, match=re.escape(f"`options['reset_mask']` {message}")):
+            env.reset(options={"reset_mask": mask})
+        env.step(env.action_space.sample())  # still usable
+    finally:
+        if kind == "hosted":  # the fixture closes the native pool and checks for leaks
+            env.close()
+
+
+@pytest.mark.parametrize("kind", ["native", "hosted"])
+def test_a_partial_reset_needs_a_full_one_first(kind, make_vec) -> None:
+    """Before the first full reset a partial mask is refused; a mask of every env is a full
+    reset."""
+    env = make_kind(kind, make_vec)
+    try:
+        with pytest.raises(ValueError, match="needs a full reset"):
+            env.reset(options={"reset_mask": np.array([True, False, False, False])})
+        env.reset(options={"reset_mask": np.ones(4, bool)})
+        env.step(env.action_space.sample())
+    finally:
+        if kind == "hosted":  # the fixture closes the native pool and checks for leaks
+            env.close()
+
+
+def make_kind(kind: str, make_vec) -> rogue_gym.vector.RogueVectorEnv | rogue_gym.PoolVectorEnv:
+    """4 envs of the native game (closed and leak-checked by the fixture) or of hosted
+    CartPole."""
+    if kind == "native":
+        return make_vec(4, num_workers=2)
+    return rogue_gym.PoolVectorEnv([lambda: gym.make("CartPole-v1")] * 4, num_workers=2)
 
 
 def test_partial_reset_rules(make_vec) -> None:
     env = make_vec(4, num_workers=2, max_steps=3)
     m = np.array([True, False, False, False])
-    with pytest.raises(RuntimeError, match="before a partial reset"):
+    with pytest.raises(ValueError, match="needs a full reset"):
         env.reset(options={"reset_mask": m})
     env.reset(seed=1)
     with pytest.raises(ValueError, match="seed"):

@@ -29,6 +29,7 @@ from gymnasium.vector.utils import batch_space
 from .. import _native, _sigterm
 from .._records import FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED, RECORD_DTYPE
 from ..errors import EnvFailedError
+from ..reset_mask import partial_mask
 from ..settings import FAILURE_POLICIES, PoolSettings, check_start_timeout, parse_autoreset_mode
 from . import leases
 from .adapter import NO_SEED, decode_exception
@@ -355,14 +356,10 @@ class PoolVectorEnv(VectorEnv):
         mask = options.pop("reset_mask", None)
         if options:  # for each env's next reset, as AsyncVectorEnv passes them
             self.call_envs("set_reset_options", "", [((options,), {})] * self.num_envs)
+        mask = partial_mask(mask, self.num_envs, self._started)
         if mask is not None:
-            mask = np.asarray(mask)
-            if mask.shape != (self.num_envs,) or mask.dtype != np.bool_:
-                raise ValueError(f"reset_mask must be a bool array of shape ({self.num_envs},)")
             if seed is not None:
                 raise ValueError("reset(seed=...) cannot be combined with a reset_mask")
-            if not self._started:
-                raise ValueError("a reset_mask needs a full reset() first")
             obs = self._shared(lambda: self._pool.reset_envs_shared(mask))
             self._done &= ~mask
         else:
