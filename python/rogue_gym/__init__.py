@@ -29,7 +29,7 @@ from .envs import (
     StairRewardEnv,
     StatusFlag,
 )
-from .errors import EnvFailedError, WorkerCrashedError
+from .errors import EnvFailedError, PoolClosedError, WorkerCrashedError
 from .hosted import PoolVectorEnv
 from .registration import ENV_ID, register_envs
 from .vector import RogueVectorEnv, make_vec
@@ -42,6 +42,7 @@ __all__ = [
     "EnvFailedError",
     "FirstFloorEnv",
     "ImageSetting",
+    "PoolClosedError",
     "PoolVectorEnv",
     "RogueEnv",
     "RogueVecEnv",

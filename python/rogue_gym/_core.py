@@ -25,6 +25,7 @@ from ._records import (
 )
 from .envs.image import ObsSpec, observation_space
 from .envs.rogue_env import ACTIONS
+from .errors import CLOSED_MESSAGE, PoolClosedError
 from .settings import PoolSettings, SeedsLike
 
 __all__ = ["ActionHistory", "PoolCore", "PoolFacade", "SeedsLike", "screen_to_rgb"]
@@ -146,7 +147,7 @@ class PoolCore:
     def start(self, seed: Optional[int] = None) -> None:
         """(Re)start the workers, with base seed ``seed`` if given (episode counters restart)."""
         if self._closed:
-            raise RuntimeError("the environment pool is closed")
+            raise PoolClosedError(CLOSED_MESSAGE)
         if seed is not None:
             self.base_seed = int(seed)
             self._settings["seeds"]["base"] = self.base_seed
@@ -262,7 +263,7 @@ class PoolCore:
 
     def _check_open(self) -> None:
         if self._closed or self._pool is None:
-            raise RuntimeError("the environment pool is closed")
+            raise PoolClosedError(CLOSED_MESSAGE)
 
     def validate_actions(self, actions: Any, check_range: bool = True) -> np.ndarray:
         """Check a batch of actions; returns them as ``int64`` (one per env).

@@ -4,7 +4,17 @@ from __future__ import annotations
 
 from typing import Optional
 
-__all__ = ["EnvFailedError", "WorkerCrashedError"]
+from gymnasium.error import ClosedEnvironmentError
+
+__all__ = ["EnvFailedError", "PoolClosedError", "WorkerCrashedError"]
+
+#: The message of every call on a closed pool, whatever the env kind.
+CLOSED_MESSAGE = "the pool is closed: its workers are stopped for good; create a new one"
+
+
+class PoolClosedError(ClosedEnvironmentError, RuntimeError):
+    """A call on a closed pool: gymnasium's ``ClosedEnvironmentError`` (what its vector envs
+    raise), and a ``RuntimeError`` as before."""
 
 
 class WorkerCrashedError(RuntimeError):

@@ -33,6 +33,11 @@ pub(crate) fn pool_error(py: Python<'_>, e: PoolError) -> PyErr {
             build().unwrap_or_else(|e| e)
         }
         PoolError::Several(all) => several(py, all),
+        PoolError::Closed => py
+            .import("rogue_gym.errors")
+            .and_then(|m| Ok((m.getattr("PoolClosedError")?, m.getattr("CLOSED_MESSAGE")?)))
+            .and_then(|(cls, msg)| Ok(PyErr::from_value(cls.call1((msg,))?)))
+            .unwrap_or_else(|e| e),
         e @ PoolError::Ipc(rogue_gym_ipc::IpcError::Insecure { .. }) => {
             PyPermissionError::new_err(e.to_string())
         }

@@ -11,6 +11,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import rogue_gym
+from gymnasium.error import ClosedEnvironmentError
 from gymnasium.vector import AutoresetMode
 from gymnasium.wrappers.vector import DictInfoToList, RecordEpisodeStatistics
 from rogue_gym import WorkerCrashedError
@@ -626,3 +627,22 @@ def test_ctrl_c_interrupts_a_long_wait_and_reset_recovers(make_vec, sigint_handl
     obs, rew, term, trunc, infos = env.step(np.zeros(4, np.int64))
     assert (infos["episode_length"] == 1).all()
     assert env.worker_pids[0] == pid  # the worker was not restarted
+
+
+@pytest.mark.parametrize("kind", ["native", "hosted"])
+def test_a_closed_pool_raises_gymnasiums_closed_error(kind, make_vec) -> None:
+    """Every kind raises gymnasium's ``ClosedEnvironmentError`` (still a ``RuntimeError``)
+    with one message, from Python and from the native pool alike."""
+    env = make_kind(kind, make_vec)
+    env.reset(seed=0)
+    native = env._core._pool if kind == "native" else env._pool
+    env.close()
+    for call in (
+        env.reset,
+        lambda: env.step(env.action_space.sample()),
+        lambda: native.select_slot(0),
+    ):
+        with pytest.raises(ClosedEnvironmentError, match="the pool is closed") as info:
+            call()
+        assert isinstance(info.value, RuntimeError), "still what it was before"
+        assert isinstance(info.value, rogue_gym.PoolClosedError)

@@ -28,7 +28,7 @@ from gymnasium.vector.utils import batch_space
 
 from .. import _native, _sigterm
 from .._records import FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED, RECORD_DTYPE
-from ..errors import EnvFailedError
+from ..errors import CLOSED_MESSAGE, EnvFailedError, PoolClosedError
 from ..reset_mask import partial_mask
 from ..settings import FAILURE_POLICIES, PoolSettings, check_start_timeout, parse_autoreset_mode
 from . import leases
@@ -544,7 +544,7 @@ class PoolVectorEnv(VectorEnv):
 
     def _check_open(self) -> None:
         if self.closed:
-            raise RuntimeError("the vector env is closed")
+            raise PoolClosedError(CLOSED_MESSAGE)
 
     def _call(self, fn: Callable[[], Any]) -> Any:
         """Run a native call; an env's own exception is re-raised as itself."""
