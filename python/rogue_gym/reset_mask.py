@@ -1,4 +1,5 @@
-"""The ``reset_mask`` option of a vector env's ``reset``, checked once for every env kind.
+"""The ``reset_mask`` option of a vector env's ``reset``, checked once for every env kind, and
+the ``DISABLED`` autoreset rule that relies on it.
 
 The checks, exception types and messages are gymnasium's own (``SyncVectorEnv`` 1.4), so code
 written against gymnasium's vector envs sees the same errors from the pool.
@@ -10,7 +11,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-__all__ = ["check_reset_mask", "partial_mask"]
+__all__ = ["check_reset_mask", "partial_mask", "refuse_finished"]
 
 
 def check_reset_mask(mask: Any, num_envs: int) -> np.ndarray:
@@ -31,6 +32,17 @@ def check_reset_mask(mask: Any, num_envs: int) -> np.ndarray:
             f"value, got reset_mask={mask}"
         )
     return mask
+
+
+def refuse_finished(done: np.ndarray) -> None:
+    """Autoreset mode ``DISABLED``: stepping an env whose episode ended is a ``ValueError``
+    naming the envs (the caller resets them with ``reset_mask``)."""
+    if done.any():
+        envs = np.flatnonzero(done).tolist()
+        raise ValueError(
+            f"envs {envs} finished their episode: with autoreset_mode DISABLED, reset them with "
+            "reset(options={'reset_mask': mask}) before stepping"
+        )
 
 
 def partial_mask(mask: Any, num_envs: int, started: bool) -> Optional[np.ndarray]:

@@ -16,7 +16,7 @@ from ._core import SUMMARY_FINAL, SUMMARY_RESTARTED, ActionHistory, PoolCore, Po
 from ._records import RECORD_DTYPE
 from .envs.rogue_env import ACTIONS
 from .registration import ENV_ID
-from .reset_mask import partial_mask
+from .reset_mask import partial_mask, refuse_finished
 from .settings import PoolSettings, parse_autoreset_mode
 
 __all__ = ["RogueVectorEnv", "make_vec"]
@@ -49,7 +49,8 @@ class RogueVectorEnv(gym.vector.VectorEnv, PoolFacade):
     Args:
         num_envs, config: the number of games and their config (see
             :class:`rogue_gym.settings.PoolSettings`).
-        autoreset_mode: ``NEXT_STEP`` (default) or ``SAME_STEP``.
+        autoreset_mode: ``NEXT_STEP`` (default), ``SAME_STEP`` or ``DISABLED`` (finished envs
+            wait for ``reset(options={"reset_mask": ...})``; stepping them is a ``ValueError``).
         copy: return a fresh observation array each call instead of the shared-memory view.
         render_mode: ``None``, ``"ansi"`` or ``"human"`` (records actions to replay screens).
         **options: any other field of :class:`rogue_gym.settings.PoolSettings` (``num_workers``,
@@ -83,9 +84,7 @@ class RogueVectorEnv(gym.vector.VectorEnv, PoolFacade):
         render_mode: Optional[str] = None,
         **options: Any,
     ) -> None:
-        mode = parse_autoreset_mode(
-            autoreset_mode, (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
-        )
+        mode = parse_autoreset_mode(autoreset_mode)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}"
@@ -95,6 +94,10 @@ class RogueVectorEnv(gym.vector.VectorEnv, PoolFacade):
         self.metadata = {**type(self).metadata, "autoreset_mode": mode}
         self.autoreset_mode = mode
         self.num_envs = self._core.num_envs
+        #: DISABLED: which envs finished their episode and wait for a reset_mask.
+        self._done: Optional[np.ndarray] = (
+            np.zeros(self.num_envs, bool) if mode == AutoresetMode.DISABLED else None
+        )
         self.single_observation_space = self._core.single_observation_space
         self.single_action_space = spaces.Discrete(len(ACTIONS))
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
@@ -146,6 +149,8 @@ class RogueVectorEnv(gym.vector.VectorEnv, PoolFacade):
             carry = self._prev_done() & ~mask  # unmasked envs still to be autoreset
         obs, recs = self._core.reset(seed, mask)
         self._last_recs = recs
+        if self._done is not None:  # the reset envs may step again
+            self._done = np.zeros_like(self._done) if mask is None else self._done & ~mask
         _, _, restarted, _ = PoolCore.flags(recs)
         if mask is None:
             reset_envs = np.ones(self.num_envs, bool)
@@ -186,6 +191,8 @@ class RogueVectorEnv(gym.vector.VectorEnv, PoolFacade):
         """
         if self._last_recs is None:
             raise RuntimeError("call reset() before step()")
+        if self._done is not None:  # DISABLED
+            refuse_finished(self._done)
         history = self._history
         prev_done = self._prev_done() if history is not None else None
         core = self._core
@@ -217,13 +224,10 @@ class RogueVectorEnv(gym.vector.VectorEnv, PoolFacade):
             infos["_final_info"] = has_final.copy()
             if history is not None:
                 history.on_reset(recs, has_final, seed_known=False)
-        return (
-            self._out(obs),
-            cols["reward"].copy(),
-            cols["terminated"].copy(),
-            cols["truncated"].copy(),
-            infos,
-        )
+        terminated, truncated = cols["terminated"].copy(), cols["truncated"].copy()
+        if self._done is not None:
+            self._done = terminated | truncated
+        return self._out(obs), cols["reward"].copy(), terminated, truncated, infos
 
     def _prev_done(self) -> np.ndarray:
         if self._last_recs is None or self.autoreset_mode == AutoresetMode.SAME_STEP:

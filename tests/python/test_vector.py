@@ -646,3 +646,36 @@ def test_a_closed_pool_raises_gymnasiums_closed_error(kind, make_vec) -> None:
             call()
         assert isinstance(info.value, RuntimeError), "still what it was before"
         assert isinstance(info.value, rogue_gym.PoolClosedError)
+
+
+@pytest.mark.parametrize("kind", ["native", "hosted"])
+def test_disabled_autoreset_waits_for_a_reset_mask(kind, make_vec) -> None:
+    """``AutoresetMode.DISABLED`` in both kinds: a finished env is not stepped until a
+    ``reset_mask`` resets it (stepping it is a ``ValueError`` naming it); the others go on."""
+    mode = AutoresetMode.DISABLED
+    if kind == "native":
+        env = make_vec(4, num_workers=2, max_steps=3, autoreset_mode=mode)
+    else:
+        env = rogue_gym.PoolVectorEnv(
+            [lambda: gym.make("CartPole-v1")] * 4, num_workers=2, autoreset_mode=mode
+        )
+    try:
+        assert env.metadata["autoreset_mode"] == mode
+        env.reset(seed=0)
+        env.action_space.seed(0)
+        done = np.zeros(4, bool)
+        for _ in range(500):
+            last, _, term, trunc, _ = env.step(env.action_space.sample())
+            done = term | trunc
+            if done.any():
+                break
+        assert done.any()
+        finished = np.flatnonzero(done).tolist()
+        with pytest.raises(ValueError, match=re.escape(f"envs {finished} finished their episode")):
+            env.step(env.action_space.sample())
+        obs, _ = env.reset(options={"reset_mask": done})
+        assert np.array_equal(obs[~done], last[~done]), "the others keep their state"
+        env.step(env.action_space.sample())  # every env may step again
+    finally:
+        if kind == "hosted":
+            env.close()

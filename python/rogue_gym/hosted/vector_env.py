@@ -29,7 +29,7 @@ from gymnasium.vector.utils import batch_space
 from .. import _native, _sigterm
 from .._records import FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED, RECORD_DTYPE
 from ..errors import CLOSED_MESSAGE, EnvFailedError, PoolClosedError
-from ..reset_mask import partial_mask
+from ..reset_mask import partial_mask, refuse_finished
 from ..settings import FAILURE_POLICIES, PoolSettings, check_start_timeout, parse_autoreset_mode
 from . import leases
 from .adapter import NO_SEED, decode_exception
@@ -376,11 +376,8 @@ class PoolVectorEnv(VectorEnv):
         self._check_open()
         if not self._started:
             raise RuntimeError("call reset() before step()")
-        if self.autoreset_mode == AutoresetMode.DISABLED and self._done.any():
-            envs = np.flatnonzero(self._done).tolist()
-            raise ValueError(
-                f"envs {envs} finished their episode: with autoreset_mode DISABLED, reset them with reset(options={{'reset_mask': mask}}) before stepping"
-            )
+        if self.autoreset_mode == AutoresetMode.DISABLED:
+            refuse_finished(self._done)
         if self._discrete_start is not None:
             acts = self._discrete_indices(actions, range(self.num_envs))
         else:
