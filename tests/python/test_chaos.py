@@ -240,3 +240,38 @@ def test_a_spent_restart_budget_is_reported_as_such(hosted, tmp_path: Path) -> N
     with pytest.raises(WorkerCrashedError, match=r"restart budget exhausted \(3 restarts\)"):
         envs.step(envs.action_space.sample())
     assert time.monotonic() - start < 2.0, "the budget ends the call before its bound"
+
+
+@pytest.mark.timeout(120)
+def test_every_class_shows_restarts_and_worker_pids(make_vec) -> None:
+    """After a worker is killed and replaced, ``restarts`` counts it and ``worker_pids`` shows
+    the new process, through the gymnasium and the SB3 classes of both kinds."""
+    pytest.importorskip("stable_baselines3")
+    from rogue_gym.sb3 import PoolVecEnv, RogueVecEnv
+    from stable_baselines3.common.vec_env import VecEnv
+
+    made = {
+        "RogueVectorEnv": make_vec(4, num_workers=2),
+        "RogueVecEnv": RogueVecEnv(4, num_workers=2, seed=0),
+        "PoolVectorEnv": PoolVectorEnv([cartpole] * 4, num_workers=2),
+        "PoolVecEnv": PoolVecEnv([cartpole] * 4, num_workers=2),
+    }
+    try:
+        for name, env in made.items():
+            env.reset()
+            before = list(env.worker_pids)
+            assert env.restarts == 0 and len(before) == 2 and all(map(pid_alive, before)), name
+            os.kill(before[1], signal.SIGKILL)
+            assert wait_until(lambda b=before[1]: not pid_alive(b))
+            if isinstance(env, VecEnv):
+                env.step_async(np.zeros(4, np.int64))
+                env.step_wait()
+            else:
+                env.step(np.zeros(4, np.int64))
+            after = env.worker_pids
+            assert env.restarts == 1, name
+            assert after[0] == before[0] and after[1] != before[1] and pid_alive(after[1]), name
+    finally:
+        for name, env in made.items():
+            if name != "RogueVectorEnv":  # the fixture closes that one
+                env.close()
