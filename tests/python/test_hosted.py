@@ -7,6 +7,7 @@ from __future__ import annotations
 import functools
 import gc
 import os
+import re
 import select
 import signal
 import subprocess
@@ -713,3 +714,16 @@ def test_info_rows_are_typed_when_they_can_be() -> None:
     # The pool's joined extras, split again: rows of one size, or of any sizes (their ends).
     assert split_joined(None, b"aabbcc", 2, [], 3) == [(0, b"aa"), (1, b"bb"), (2, b"cc")]
     assert split_joined([1, 4], b"abbb", 0, [1, 4], 5) == [(1, b"a"), (4, b"bbb")]
+
+
+@pytest.mark.parametrize(
+    ("mode", "message"),
+    [
+        ("invalid", "Invalid `observation_mode`, expected: 'same' or 'different'"),
+        ("different", "observation_mode='different' (per-env observation spaces) is not"),
+    ],
+)
+def test_observation_modes_other_than_same_are_refused_clearly(mode: str, message: str) -> None:
+    """An unknown mode gets gymnasium's own message; per-env spaces are not carried yet."""
+    with pytest.raises(ValueError, match=re.escape(message)):
+        PoolVectorEnv([lambda: gym.make("CartPole-v1")] * 2, observation_mode=mode)

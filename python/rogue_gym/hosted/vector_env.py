@@ -68,6 +68,15 @@ class _VectorEnvFn:
             raise ValueError(f"num_envs must be at least 1, got {self.num_envs}")
 
 
+def _is_space_pair(mode: Any) -> bool:
+    """Whether ``mode`` is a ``(single, batch)`` pair of spaces (an ``observation_mode``)."""
+    return (
+        isinstance(mode, tuple)
+        and len(mode) == 2
+        and all(isinstance(m, spaces.Space) for m in mode)
+    )
+
+
 def _b64(data: bytes) -> str:
     return base64.b64encode(data).decode("ascii")
 
@@ -159,9 +168,15 @@ class PoolVectorEnv(VectorEnv):
         env_fns = [] if hosted is not None else list(env_fns)
         if hosted is None and not env_fns:
             raise ValueError("env_fns is empty: give one callable per env")
+        if not (observation_mode in ("same", "different") or _is_space_pair(observation_mode)):
+            raise ValueError(  # gymnasium's message
+                "Invalid `observation_mode`, expected: 'same' or 'different' or tuple of single "
+                f"and batch observation space, actual got {observation_mode}"
+            )
         if observation_mode != "same":
             raise ValueError(
-                f"observation_mode={observation_mode!r} is not supported: every env must have the same observation space"
+                f"observation_mode={observation_mode!r} (per-env observation spaces) is not "
+                "supported yet: every env must have the same observation space"
             )
         if on_worker_failure not in FAILURE_POLICIES:
             raise ValueError(
