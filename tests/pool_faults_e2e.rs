@@ -321,6 +321,51 @@ fn dead_workers_come_back_side_by_side() {
 }
 
 #[test]
+fn recv_and_calls_keep_their_bound_when_a_worker_dies_at_every_start() {
+    // The async API (send + recv) and env calls wait for the same lost worker as a step does:
+    // each raises within step_timeout + start_timeout, and one reset recovers afterwards.
+    let mut c = config(EXE, test_env(), 4, 2);
+    c.batch_size = Some(2);
+    c.step_timeout = Some(Duration::from_millis(300));
+    c.start_timeout = Duration::from_millis(900);
+    let mut p = pool(c);
+    let bound = p.call_bound().unwrap();
+    let mut guard = PidGuard(p.worker_pids());
+    p.async_reset().unwrap();
+    let (b0, b1) = (p.recv().unwrap(), p.recv().unwrap());
+    let (ids0, ids1) = (b0.env_ids(), b1.env_ids());
+    drop((b0, b1));
+    die_at_start(&p, true);
+    signal(p.worker_pids()[1], Signal::SIGKILL);
+    p.send(&[1, 1], &ids0).unwrap();
+    p.send(&[1, 1], &ids1).unwrap();
+    let t0 = Instant::now();
+    let mut outcome = Ok(());
+    for _ in 0..2 {
+        if let Err(e) = p.recv() {
+            outcome = Err(e);
+            break;
+        }
+    }
+    assert!(t0.elapsed() <= bound, "recv took {:?}", t0.elapsed());
+    assert!(
+        matches!(outcome, Err(PoolError::NotBackInTime { .. })),
+        "{outcome:?}"
+    );
+    // An env call needs every worker idle: it waits for the lost one within the same bound.
+    let t0 = Instant::now();
+    let e = p.call_envs(&[(0, b"t".to_vec())]).unwrap_err();
+    assert!(t0.elapsed() <= bound, "the call took {:?}", t0.elapsed());
+    assert!(matches!(e, PoolError::NotBackInTime { .. }), "{e}");
+    die_at_start(&p, false);
+    let mut obs = vec![0u8; 4 * p.obs_bytes()];
+    let mut out = BatchOutput::default();
+    p.reset(&mut obs, &mut out).unwrap();
+    assert_eq!(p.call_envs(&[(3, b"t".to_vec())]).unwrap().len(), 1);
+    guard.0.extend(p.worker_pids());
+}
+
+#[test]
 fn a_worker_that_dies_at_every_start_spends_the_budget_and_says_so() {
     let mut c = config(EXE, test_env(), 4, 2);
     c.step_timeout = Some(Duration::from_millis(300));
