@@ -27,8 +27,8 @@ mod hosted;
 mod slot;
 
 use block::BlockHost;
-use hosted::{BlockOut, Hosted, answer_calls};
-use slot::{Slot, SlotCtx};
+use hosted::{Hosted, answer_calls};
+use slot::{BlockOut, Slot, SlotCtx};
 
 #[derive(Debug, thiserror::Error)]
 enum WorkerError {

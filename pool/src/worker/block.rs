@@ -9,8 +9,7 @@ use crate::env::{EnvBlock, EnvSpec, StepOutcome};
 use crate::wire::layout::{EnvRecord, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED};
 use crate::wire::{CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE};
 
-use super::hosted::BlockOut;
-use super::slot::{Slot, SlotCtx, fault, place_extra};
+use super::slot::{BlockOut, Slot, SlotCtx, fault, place_extra};
 
 /// An [`EnvBlock`] with the bookkeeping of its envs and the buffers of its calls.
 pub(crate) struct BlockHost {

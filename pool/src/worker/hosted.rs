@@ -4,8 +4,7 @@
 use rogue_gym_ipc::PoolId;
 
 use super::block::BlockHost;
-use super::slot::{EnvOut, Slot, SlotCtx, apply};
-use crate::wire::layout::{EnvRecord, write_record_words};
+use super::slot::{BlockOut, Slot, SlotCtx, apply};
 use crate::wire::{EnvFault, calls};
 
 /// A worker's envs: one [`Env`] each, or one [`crate::EnvBlock`] for them all.
@@ -46,42 +45,6 @@ impl Hosted {
             out.finish(j, &rec);
         }
         Ok(())
-    }
-}
-
-/// Where one command's answers go: the parts of the worker's block being filled.
-pub(crate) struct BlockOut<'a> {
-    pub(crate) records: &'a mut [u64],
-    pub(crate) obs: &'a mut [u8],
-    pub(crate) final_obs: &'a mut [u8],
-    pub(crate) extra: &'a mut [u8],
-    pub(crate) obs_bytes: usize,
-    pub(crate) final_bytes: usize,
-    pub(crate) extra_bytes: usize,
-    /// One env's extra info (a buffer reused from env to env).
-    pub(crate) info: &'a mut Vec<u8>,
-    /// The envs whose info did not fit their room, with that info.
-    pub(crate) apart: &'a mut Vec<(u32, Vec<u8>)>,
-}
-
-impl BlockOut<'_> {
-    /// Env `j`'s parts.
-    fn env(&mut self, j: usize) -> EnvOut<'_> {
-        let (ob, fb, xb) = (self.obs_bytes, self.final_bytes, self.extra_bytes);
-        EnvOut {
-            obs: &mut self.obs[j * ob..(j + 1) * ob],
-            fin: &mut self.final_obs[j * fb..(j + 1) * fb],
-            extra: &mut self.extra[j * xb..(j + 1) * xb],
-            info: &mut *self.info,
-        }
-    }
-
-    /// Write env `j`'s record; keep its info apart if the record says it did not fit.
-    pub(crate) fn finish(&mut self, j: usize, rec: &EnvRecord) {
-        write_record_words(self.records, j, rec);
-        if rec.extra_apart() {
-            self.apart.push((j as u32, std::mem::take(self.info)));
-        }
     }
 }
 

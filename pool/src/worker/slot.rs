@@ -1,11 +1,12 @@
 //! One env of a worker and what a command does to it: reset, step, autoreset, episode
-//! bookkeeping, and where its answer goes in the block.
+//! bookkeeping, and where its answer goes in the block ([`EnvOut`], [`BlockOut`]).
 
 use crate::config::AutoresetMode;
 use crate::env::Env;
 use crate::seeds::SeedSchedule;
 use crate::wire::layout::{
     EnvRecord, FLAG_EXTRA_APART, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED,
+    write_record_words,
 };
 use crate::wire::{CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE};
 
@@ -219,6 +220,42 @@ pub(crate) fn place_extra(
         None => rec.flags |= FLAG_EXTRA_APART,
     }
     Ok(())
+}
+
+/// Where one command's answers go: the parts of the worker's block being filled.
+pub(crate) struct BlockOut<'a> {
+    pub(crate) records: &'a mut [u64],
+    pub(crate) obs: &'a mut [u8],
+    pub(crate) final_obs: &'a mut [u8],
+    pub(crate) extra: &'a mut [u8],
+    pub(crate) obs_bytes: usize,
+    pub(crate) final_bytes: usize,
+    pub(crate) extra_bytes: usize,
+    /// One env's extra info (a buffer reused from env to env).
+    pub(crate) info: &'a mut Vec<u8>,
+    /// The envs whose info did not fit their room, with that info.
+    pub(crate) apart: &'a mut Vec<(u32, Vec<u8>)>,
+}
+
+impl BlockOut<'_> {
+    /// Env `j`'s parts.
+    pub(crate) fn env(&mut self, j: usize) -> EnvOut<'_> {
+        let (ob, fb, xb) = (self.obs_bytes, self.final_bytes, self.extra_bytes);
+        EnvOut {
+            obs: &mut self.obs[j * ob..(j + 1) * ob],
+            fin: &mut self.final_obs[j * fb..(j + 1) * fb],
+            extra: &mut self.extra[j * xb..(j + 1) * xb],
+            info: &mut *self.info,
+        }
+    }
+
+    /// Write env `j`'s record; keep its info apart if the record says it did not fit.
+    pub(crate) fn finish(&mut self, j: usize, rec: &EnvRecord) {
+        write_record_words(self.records, j, rec);
+        if rec.extra_apart() {
+            self.apart.push((j as u32, std::mem::take(self.info)));
+        }
+    }
 }
 
 #[cfg(test)]
