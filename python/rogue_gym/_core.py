@@ -211,13 +211,37 @@ class PoolCore:
         until the second following step. ``summary``: :data:`SUMMARY_RESTARTED` /
         :data:`SUMMARY_FINAL` bits. The actions actually sent are kept in ``last_actions``.
         """
+        a = self._int_actions(actions)
+        recs = self._recs[1 - self._slot]
+        return self._columns_result(self._pool.step_columns(a, recs, self._final), recs)
+
+    def send_step(self, actions: Any) -> None:
+        """The first half of :meth:`step_columns` (gymnasium's ``step_async``): check and send
+        the actions; the workers step while the caller goes on."""
+        self._pool.step_shared_send(self._int_actions(actions))
+
+    def wait_columns(
+        self, timeout: Optional[float]
+    ) -> Optional[tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], dict[str, Any], int]]:
+        """The second half of :meth:`send_step`: what :meth:`step_columns` returns, or ``None``
+        when ``timeout`` seconds passed first (the step stays pending)."""
+        self._check_open()
+        recs = self._recs[1 - self._slot]
+        r = self._pool.wait_columns(timeout, recs, self._final)
+        return None if r is None else self._columns_result(r, recs)
+
+    def _int_actions(self, actions: Any) -> np.ndarray:
+        """The actions as int64, one per env (kept in ``last_actions``)."""
         self._check_open()
         a = actions
         if not (type(a) is np.ndarray and a.dtype == np.int64 and a.shape == (self.num_envs,)):
             a = self.validate_actions(a, check_range=False)
         self.last_actions = a
-        recs = self._recs[1 - self._slot]
-        r = self._pool.step_columns(a, recs, self._final)
+        return a
+
+    def _columns_result(
+        self, r: int, recs: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], dict[str, Any], int]:
         slot = self._slot = r & 0xFF
         if self._recs[slot] is not recs:
             self._recs.reverse()
@@ -326,6 +350,15 @@ class PoolCore:
             if self._recs[slot] is not recs:
                 self._recs.reverse()
             return self._bufs[slot], recs
+        self.send_reset(seed)
+        got = self.wait_reset(None)
+        assert got is not None  # no timeout
+        return got
+
+    def send_reset(self, seed: Optional[int] = None) -> None:
+        """The first half of a full :meth:`reset` (gymnasium's ``reset_async``): the workers
+        reset while the caller goes on; :meth:`wait_reset` collects it."""
+        self._check_open()
         if seed is not None:
             seed = int(seed)
             if not 0 <= seed < 2**64:
@@ -334,8 +367,17 @@ class PoolCore:
                 self.base_seed = seed
                 self._settings["seeds"]["base"] = seed
                 self._pool.set_seeds(json.dumps(self._settings["seeds"]))
+        self._pool.reset_shared_send()
+
+    def wait_reset(self, timeout: Optional[float]) -> Optional[tuple[np.ndarray, np.ndarray]]:
+        """The second half of :meth:`send_reset`: (obs batch, records), or ``None`` when
+        ``timeout`` seconds passed first (the reset stays pending)."""
+        self._check_open()
         recs = self._recs[1 - self._slot]
-        slot = self._slot = self._pool.reset_shared(recs)
+        slot = self._pool.wait_shared(timeout, recs, None)
+        if slot is None:
+            return None
+        self._slot = slot
         if self._recs[slot] is not recs:
             self._recs.reverse()
         self._fresh = False

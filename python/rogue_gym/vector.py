@@ -14,6 +14,7 @@ from gymnasium.vector.utils import batch_space
 from ._config import ConfigLike
 from ._core import SUMMARY_FINAL, SUMMARY_RESTARTED, ActionHistory, PoolCore, PoolFacade
 from ._records import RECORD_DTYPE
+from .async_calls import already_pending, no_async_call, timed_out, warn_close_pending
 from .envs.rogue_env import ACTIONS
 from .registration import ENV_ID
 from .reset_mask import partial_mask, refuse_finished
@@ -106,6 +107,8 @@ class RogueVectorEnv(gym.vector.VectorEnv, PoolFacade):
         self.copy = bool(copy)
         self._last_recs: Optional[np.ndarray] = None
         self._history = ActionHistory(self._core) if render_mode is not None else None
+        #: The split call in flight (``step_async``/``reset_async``) and what its wait needs.
+        self._pending: Optional[tuple[str, Any]] = None
 
     # ------------------------------------------------------------------------------------
     @property
@@ -131,6 +134,18 @@ class RogueVectorEnv(gym.vector.VectorEnv, PoolFacade):
         still autoreset by the next step). ``infos`` describe the reset envs only (the ``_key``
         masks are the reset mask; other entries are 0). A partial reset cannot take ``seed``.
         """
+        self.reset_async(seed=seed, options=options)
+        return self.reset_wait()
+
+    def reset_async(
+        self,
+        seed: Optional[Union[int, Sequence[int]]] = None,
+        options: Optional[dict[str, Any]] = None,
+    ) -> None:
+        """The first half of :meth:`reset` (gymnasium's ``AsyncVectorEnv.reset_async``): a full
+        reset is sent and the workers reset while you do something else; :meth:`reset_wait`
+        collects it. A partial reset (``reset_mask``) runs here, whole."""
+        self._not_pending("reset_async")
         if seed is not None and not isinstance(seed, (int, np.integer)):
             raise TypeError(
                 f"seed must be an int (the base of every env's episode-seed schedule), got {type(seed).__name__}; "
@@ -147,7 +162,23 @@ class RogueVectorEnv(gym.vector.VectorEnv, PoolFacade):
         carry = None
         if mask is not None and self._history is not None:
             carry = self._prev_done() & ~mask  # unmasked envs still to be autoreset
-        obs, recs = self._core.reset(seed, mask)
+        if mask is not None:
+            self._pending = ("reset", (mask, carry, self._core.reset(None, mask)))
+        else:
+            self._core.send_reset(None if seed is None else int(seed))
+            self._pending = ("reset", (None, carry, None))
+
+    def reset_wait(self, timeout: Optional[float] = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """The second half of :meth:`reset_async`: wait at most ``timeout`` seconds (``None``:
+        the pool's own bound) and return ``(obs, infos)``. On a timeout
+        (``multiprocessing.TimeoutError``) the reset stays pending: call it again."""
+        mask, carry, done = self._take_pending("reset", timeout)
+        if done is None:
+            done = self._core.wait_reset(timeout)
+            if done is None:
+                self._pending = ("reset", (mask, carry, None))
+                raise timed_out("reset", timeout)
+        obs, recs = done
         self._last_recs = recs
         if self._done is not None:  # the reset envs may step again
             self._done = np.zeros_like(self._done) if mask is None else self._done & ~mask
@@ -189,14 +220,58 @@ class RogueVectorEnv(gym.vector.VectorEnv, PoolFacade):
         arrays; rewards, terminations and truncations are fresh copies (as gymnasium's), the
         info value arrays are reused (see the class docs for their lifetime).
         """
+        prev_done = self._before_step("step")
+        return self._after_step(prev_done, self._core.step_columns(actions))
+
+    def step_async(self, actions: Any) -> None:
+        """The first half of :meth:`step` (gymnasium's ``AsyncVectorEnv.step_async``): send
+        ``actions`` and return at once; the workers step while you do something else."""
+        prev_done = self._before_step("step_async")
+        self._core.send_step(actions)
+        self._pending = ("step", prev_done)
+
+    def step_wait(
+        self, timeout: Optional[float] = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """The second half of :meth:`step_async`: wait at most ``timeout`` seconds (``None``:
+        the pool's own bound) and return what :meth:`step` returns. On a timeout
+        (``multiprocessing.TimeoutError``) the step stays pending: call it again."""
+        prev_done = self._take_pending("step", timeout)
+        got = self._core.wait_columns(timeout)
+        if got is None:
+            self._pending = ("step", prev_done)
+            raise timed_out("step", timeout)
+        return self._after_step(prev_done, got)
+
+    def _not_pending(self, caller: str) -> None:
+        if self._pending is not None:
+            raise already_pending(caller, self._pending[0])
+
+    def _take_pending(self, what: str, timeout: Optional[float]) -> Any:
+        """The state kept by ``{what}_async``; ``NoAsyncCallError`` if there is none."""
+        if self._pending is None or self._pending[0] != what:
+            raise no_async_call(what)
+        state, self._pending = self._pending[1], None
+        return state
+
+    def _before_step(self, caller: str) -> Optional[np.ndarray]:
+        """Checks before a step; the envs whose episode had ended (for the render history)."""
+        self._not_pending(caller)
         if self._last_recs is None:
             raise RuntimeError("call reset() before step()")
         if self._done is not None:  # DISABLED
             refuse_finished(self._done)
+        return self._prev_done() if self._history is not None else None
+
+    def _after_step(
+        self,
+        prev_done: Optional[np.ndarray],
+        stepped: tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], dict[str, Any], int],
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """What a step returns, from the core's columns."""
         history = self._history
-        prev_done = self._prev_done() if history is not None else None
         core = self._core
-        obs, recs, cols, template, summary = core.step_columns(actions)
+        obs, recs, cols, template, summary = stepped
         self._last_recs = recs
         infos = template.copy()
         infos.update(dict.fromkeys(core.mask_keys, np.ones(self.num_envs, bool)))
@@ -372,7 +447,12 @@ class RogueVectorEnv(gym.vector.VectorEnv, PoolFacade):
 
     # ------------------------------------------------------------------------------------
     def close_extras(self, **kwargs: Any) -> None:
-        """Stop all workers and remove the pool's shared-memory files."""
+        """Stop all workers and remove the pool's shared-memory files. A pending
+        ``step_async`` or ``reset_async`` is abandoned with a warning."""
+        pending = getattr(self, "_pending", None)
+        if pending is not None and not self._core.closed:
+            warn_close_pending(pending[0])
+        self._pending = None
         self._core.close()
 
     def __del__(self) -> None:

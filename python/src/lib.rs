@@ -12,6 +12,8 @@ use pyo3::prelude::*;
 mod columns;
 mod errors;
 mod game;
+mod gil;
+mod holders;
 mod hosted;
 mod hosted_vector;
 mod pool;
@@ -62,8 +64,8 @@ pub(crate) fn registry() -> rogue_gym_pool::EnvRegistry {
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<game::PyGame>()?;
     m.add_class::<pool::PyPool>()?;
-    m.add_class::<pool::BlockHolder>()?;
-    m.add_class::<pool::SharedBatchHolder>()?;
+    m.add_class::<holders::BlockHolder>()?;
+    m.add_class::<holders::SharedBatchHolder>()?;
     m.add("RECORD_BYTES", columns::RECORD_BYTES)?;
     m.add_function(wrap_pyfunction!(game::action_from_key, m)?)?;
     m.add_function(wrap_pyfunction!(worker_main, m)?)?;

@@ -2,49 +2,22 @@
 //! as `python -m rogue_gym.worker`), with zero-copy views of worker blocks for the async API.
 
 use std::sync::atomic::{AtomicU32, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard, TryLockError};
+use std::sync::{Arc, Mutex};
 
 use numpy::ndarray::ArrayView1;
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyUntypedArray};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyList};
-use rogue_gym_pool::{
-    Actions, Batch, BatchOutput, Block, EnvRecord, InterruptCheck, Pool, PoolError, SeedSchedule,
-};
+use rogue_gym_pool::{Actions, Batch, BatchOutput, EnvRecord, Pool, PoolError, SeedSchedule};
 
 use crate::columns::{
     RECORD_BYTES, column_layout, raw_bytes, write_columns, write_final, write_records,
 };
 use crate::errors::pool_error;
+use crate::gil::{interrupt_check, lock_gil_free};
+use crate::holders::{BlockHolder, SharedBatchHolder};
 use crate::settings;
-
-/// Owner of one worker block (an iceoryx2 sample) behind zero-copy numpy views.
-///
-/// The views returned by `Pool.recv()` have this object as their base: the shared-memory
-/// sample stays mapped and unchanged for as long as any view (or this object) lives, even after
-/// the pool is closed. There is no way to release it early (a dangling view is impossible).
-#[pyclass(module = "rogue_gym._native", name = "BlockHolder", frozen)]
-pub struct BlockHolder {
-    block: Mutex<Block>,
-}
-
-#[pymethods]
-impl BlockHolder {
-    /// The worker that produced the block.
-    #[getter]
-    fn worker(&self) -> usize {
-        self.block.lock().map(|b| b.worker()).unwrap_or(usize::MAX)
-    }
-}
-
-/// Owner of the pool's shared batch buffer (the observation slots written by the workers)
-/// behind the zero-copy views returned by `Pool.shared_views()`. The mapping stays valid for
-/// as long as a view (or this object) lives, even after the pool is closed.
-#[pyclass(module = "rogue_gym._native", name = "SharedBatchHolder", frozen)]
-pub struct SharedBatchHolder {
-    _buffer: std::sync::Arc<rogue_gym_ipc::SharedBuffer>,
-}
 
 /// What `outcome` returns: `(rewards, terminated, truncated, restarted, final)` (see there).
 type Outcome<'py> = (
@@ -86,39 +59,24 @@ pub struct PyPool {
     interrupted: Arc<Mutex<Option<PyErr>>>,
 }
 
-/// The pool's interrupt check: between the slices of a long wait (GIL released), re-acquire
-/// the GIL briefly and run Python's signal handlers; an exception (KeyboardInterrupt from
-/// Ctrl-C) is kept in `slot` and aborts the wait.
-fn interrupt_check(slot: Arc<Mutex<Option<PyErr>>>) -> InterruptCheck {
-    Box::new(move || {
-        Python::attach(|py| match py.check_signals() {
-            Ok(()) => false,
-            Err(e) => {
-                if let Ok(mut s) = slot.lock() {
-                    *s = Some(e);
-                }
-                true
-            }
-        })
-    })
-}
-
-/// Lock `m` from a thread that holds the GIL, waiting with the GIL released: another thread
-/// may hold `m` through a long wait that takes the GIL now and then (the interrupt check), so
-/// waiting for `m` with the GIL held could deadlock both.
-fn lock_gil_free<'a, T: Send>(py: Python<'_>, m: &'a Mutex<T>) -> PyResult<MutexGuard<'a, T>> {
-    loop {
-        match m.try_lock() {
-            Ok(g) => return Ok(g),
-            Err(TryLockError::WouldBlock) => py.detach(|| drop(m.lock())),
-            Err(TryLockError::Poisoned(_)) => {
-                return Err(PyRuntimeError::new_err("the pool lock is poisoned"));
-            }
-        }
-    }
-}
-
 impl PyPool {
+    /// Decode the last call's records into the column buffer of `slot`; returns `slot |`
+    /// the `SUMMARY_*` bits.
+    fn decode_columns(&self, py: Python<'_>, slot: usize) -> PyResult<usize> {
+        let cols = self
+            .columns
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+        let &(_, ptr) = cols.get(slot).ok_or_else(|| {
+            PyRuntimeError::new_err("step_columns needs bind_columns() with one buffer per slot")
+        })?;
+        let out = lock_gil_free(py, &self.out)?;
+        // SAFETY: the buffer is kept alive by `cols` and was checked (size, alignment,
+        // writeable) by `bind_columns`; we hold the GIL, so Python cannot touch it meanwhile.
+        let summary = unsafe { write_columns(&out, self.num_envs, self.n_info, ptr as *mut u8) };
+        Ok(slot | summary)
+    }
+
     /// Read something of the open pool (the type's default once it is closed).
     fn peek<R: Default>(&self, py: Python<'_>, f: impl FnOnce(&Pool) -> R) -> PyResult<R> {
         let guard = lock_gil_free(py, &self.pool)?;
@@ -456,18 +414,58 @@ impl PyPool {
             p.step_shared_actions(acts.as_actions(), out)
         })?;
         self.fill_outputs(py, Some(recs_out), final_out)?;
-        let cols = self
-            .columns
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
-        let &(_, ptr) = cols.get(slot).ok_or_else(|| {
-            PyRuntimeError::new_err("step_columns needs bind_columns() with one buffer per slot")
-        })?;
-        let out = lock_gil_free(py, &self.out)?;
-        // SAFETY: the buffer is kept alive by `cols` and was checked (size, alignment,
-        // writeable) by `bind_columns`; we hold the GIL, so Python cannot touch it meanwhile.
-        let summary = unsafe { write_columns(&out, self.num_envs, self.n_info, ptr as *mut u8) };
-        Ok(slot | summary)
+        self.decode_columns(py, slot)
+    }
+
+    /// The first half of a sync step (gymnasium's `step_async`): check `actions` (int64 or
+    /// raw action bytes, one per env) and send them; the workers step meanwhile. Returns the
+    /// slot they write. Collect with `wait_shared` or `wait_columns`.
+    fn step_shared_send(&self, py: Python<'_>, actions: &Bound<'_, PyAny>) -> PyResult<usize> {
+        let acts = self.owned_actions(actions, self.num_envs)?;
+        self.with_pool(py, move |p, _| p.send_step_shared(acts.as_actions()))
+    }
+
+    /// The first half of a full sync reset (gymnasium's `reset_async`); returns the slot.
+    fn reset_shared_send(&self, py: Python<'_>) -> PyResult<usize> {
+        self.with_pool(py, |p, _| p.send_reset_shared())
+    }
+
+    /// The second half of `step_shared_send`/`reset_shared_send`: wait at most `timeout`
+    /// seconds (`None`: the call's own bound) for every worker; the slot, with the records and
+    /// final observations written as `step_shared` writes them, or `None` when `timeout`
+    /// passed first (the request stays pending: wait again).
+    #[pyo3(signature = (timeout = None, recs_out = None, final_out = None))]
+    fn wait_shared(
+        &self,
+        py: Python<'_>,
+        timeout: Option<f64>,
+        recs_out: Option<&Bound<'_, PyUntypedArray>>,
+        final_out: Option<&Bound<'_, PyUntypedArray>>,
+    ) -> PyResult<Option<usize>> {
+        let timeout = timeout
+            .map(|t| settings::duration("timeout", t))
+            .transpose()?;
+        let slot = self.with_pool(py, move |p, out| p.wait_shared(timeout, out))?;
+        if slot.is_some() {
+            self.fill_outputs(py, recs_out, final_out)?;
+        }
+        Ok(slot)
+    }
+
+    /// `wait_shared` for the native facade: the slot `| summary` with the values decoded into
+    /// the slot's column buffer, as `step_columns` returns them; `None` on `timeout`.
+    #[pyo3(signature = (timeout, recs_out, final_out = None))]
+    fn wait_columns(
+        &self,
+        py: Python<'_>,
+        timeout: Option<f64>,
+        recs_out: &Bound<'_, PyUntypedArray>,
+        final_out: Option<&Bound<'_, PyUntypedArray>>,
+    ) -> PyResult<Option<usize>> {
+        match self.wait_shared(py, timeout, Some(recs_out), final_out)? {
+            Some(slot) => self.decode_columns(py, slot).map(Some),
+            None => Ok(None),
+        }
     }
 
     /// Zero-copy uint8 views of the shared batch slots (`num_envs x obs_bytes` bytes each), in

@@ -50,7 +50,7 @@ pub(crate) struct PyPoolSettings {
     worker_poll_us: Option<u64>,
 }
 
-fn duration(what: &str, secs: f64) -> PyResult<Duration> {
+pub(crate) fn duration(what: &str, secs: f64) -> PyResult<Duration> {
     Duration::try_from_secs_f64(secs).map_err(|_| {
         PyValueError::new_err(format!(
             "{what} must be a non-negative number of seconds, got {secs}"

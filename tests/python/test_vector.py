@@ -679,3 +679,73 @@ def test_disabled_autoreset_waits_for_a_reset_mask(kind, make_vec) -> None:
     finally:
         if kind == "hosted":
             env.close()
+
+
+@pytest.mark.parametrize("kind", ["native", "hosted"])
+def test_the_split_async_api_matches_step_and_reset(kind, make_vec) -> None:
+    """``reset_async``/``reset_wait`` and ``step_async``/``step_wait`` give what ``reset`` and
+    ``step`` give, in both kinds, and calls out of order raise gymnasium's errors."""
+    from gymnasium.error import AlreadyPendingCallError, NoAsyncCallError
+
+    split, plain = make_kind(kind, make_vec), make_kind(kind, make_vec)
+    try:
+        with pytest.raises(NoAsyncCallError, match=re.escape("Calling `step_wait` without")):
+            split.step_wait()
+        split.reset_async(seed=3)
+        with pytest.raises(AlreadyPendingCallError, match="pending call to `reset`"):
+            split.step_async(split.action_space.sample())
+        with pytest.raises(AlreadyPendingCallError, match="pending call to `reset`"):
+            split.reset_async()
+        obs, _ = split.reset_wait()
+        assert np.array_equal(obs, plain.reset(seed=3)[0])
+        rng = np.random.default_rng(0)
+        for _ in range(30):
+            actions = rng.integers(0, split.single_action_space.n, 4)
+            split.step_async(actions)
+            with pytest.raises(NoAsyncCallError, match="`reset_wait` without"):
+                split.reset_wait()
+            got, want = split.step_wait(), plain.step(actions)
+            for a, b in zip(got[:4], want[:4]):
+                assert np.array_equal(a, b)
+        split.step_async(split.action_space.sample())
+        with pytest.warns(UserWarning, match="while waiting for a pending call to `step`"):
+            split.close()
+    finally:
+        if kind == "hosted":
+            for env in (split, plain):
+                env.close()
+
+
+class SlowEnv(gym.Env):
+    """Sleeps 0.2 s per step."""
+
+    observation_space = gym.spaces.Box(0, 1, (2,))
+    action_space = gym.spaces.Discrete(2)
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        return np.zeros(2, np.float32), {}
+
+    def step(self, action):
+        import time
+
+        time.sleep(0.2)
+        return np.zeros(2, np.float32), 1.0, False, False, {}
+
+
+def test_step_wait_times_out_and_the_step_stays_pending() -> None:
+    import multiprocessing as mp
+    import time
+
+    env = rogue_gym.PoolVectorEnv([SlowEnv] * 2, num_workers=2)
+    try:
+        env.reset(seed=0)
+        start = time.monotonic()
+        env.step_async(np.zeros(2, np.int64))
+        assert time.monotonic() - start < 0.1, "step_async returns before the envs step"
+        with pytest.raises(mp.TimeoutError, match=re.escape("timed out after 0.05 second")):
+            env.step_wait(timeout=0.05)
+        _, rewards, *_ = env.step_wait(timeout=5)
+        assert rewards.tolist() == [1.0, 1.0]
+    finally:
+        env.close()

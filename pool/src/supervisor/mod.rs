@@ -77,6 +77,9 @@ struct Core {
     /// ([`Core::call_deadline`]) counts from these.
     call_started: Instant,
     call_failed_at: Option<Instant>,
+    /// The shared slot of a sync step or reset that was sent and not yet collected
+    /// ([`Pool::send_step_shared`], [`Pool::wait_shared`]).
+    split: Option<usize>,
 }
 
 /// A pool of envs stepped by worker processes, with observations in shared memory.
@@ -234,6 +237,7 @@ impl Pool {
                 last_failure: None,
                 call_started: Instant::now(),
                 call_failed_at: None,
+                split: None,
             },
         };
         // From here on, Drop cleans up whatever was created.
@@ -389,12 +393,25 @@ impl Pool {
     }
 
     fn wait_until(&mut self, done: impl Fn(&Core) -> bool) -> Result<(), PoolError> {
+        self.wait_until_or(done, None).map(|_| ())
+    }
+
+    /// [`Pool::wait_until`], giving up at `until` too: `Ok(false)` then (nothing is abandoned;
+    /// wait again later). The call's own bound still raises.
+    fn wait_until_or(
+        &mut self,
+        done: impl Fn(&Core) -> bool,
+        until: Option<Instant>,
+    ) -> Result<bool, PoolError> {
         let listener = self.listener.as_ref().ok_or(PoolError::Closed)?;
         let core = &mut self.core;
         let interrupt = &mut self.interrupt;
         let policy = core.cfg.wait;
         let t0 = Instant::now();
-        let deadline = core.call_deadline();
+        let deadline = match (core.call_deadline(), until) {
+            (Some(d), Some(u)) => Some(d.min(u)),
+            (d, u) => d.or(u),
+        };
         let past_deadline = |core: &Core| core.call_deadline().is_some_and(|d| Instant::now() >= d);
         let out = hybrid_wait::<PoolError>(listener.listener(), &policy, deadline, |call| {
             if call == WaitCall::Idle {
@@ -436,8 +453,9 @@ impl Pool {
             Ok(done(core))
         })?;
         match out {
-            WaitOutcome::Done => Ok(()),
-            WaitOutcome::TimedOut => Err(self.core.not_back_in_time()),
+            WaitOutcome::Done => Ok(true),
+            WaitOutcome::TimedOut if past_deadline(&self.core) => Err(self.core.not_back_in_time()),
+            WaitOutcome::TimedOut => Ok(false),
         }
     }
 
@@ -517,6 +535,7 @@ impl Pool {
     /// Wait for every outstanding request (and starting worker) and discard the results,
     /// env errors of those requests included.
     fn drain(&mut self) -> Result<(), PoolError> {
+        self.core.split = None;
         self.core.faults.clear();
         self.core.discard_faults = true;
         let drained = self.wait_until(|c| {

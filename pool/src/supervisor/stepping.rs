@@ -203,6 +203,65 @@ impl Pool {
         Ok(slot)
     }
 
+    /// The first half of [`Pool::step_shared_actions`] (gymnasium's `step_async`): check the
+    /// actions and send each worker its block, to be written into the next shared slot, which
+    /// it returns; the workers step while the caller does something else. Collect the answers
+    /// with [`Pool::wait_shared`]; a sync call in between fails (a reset abandons the step).
+    pub fn send_step_shared(&mut self, actions: Actions<'_>) -> Result<usize, PoolError> {
+        self.prepare_sync_step(actions)?;
+        let slot = self.core.next_slot;
+        self.send_steps(actions, slot as u32 + 1)?;
+        self.core.split = Some(slot);
+        Ok(slot)
+    }
+
+    /// The first half of [`Pool::reset_shared`] (gymnasium's `reset_async`); collect the
+    /// answers with [`Pool::wait_shared`].
+    pub fn send_reset_shared(&mut self) -> Result<usize, PoolError> {
+        self.begin_call()?;
+        self.drain()?;
+        let slot = self.core.next_slot;
+        for k in 0..self.core.slots.len() {
+            self.core.send_reset(k, slot as u32 + 1)?;
+        }
+        self.core.must_reset = false;
+        self.core.split = Some(slot);
+        Ok(slot)
+    }
+
+    /// The second half of a step or reset sent by [`Pool::send_step_shared`] or
+    /// [`Pool::send_reset_shared`]: wait for every worker's answer, at most `timeout` (and
+    /// always within the call's bound, [`Pool::call_bound`]). `Some(slot)` with `out` filled
+    /// when all answered; `None` when `timeout` passed first: the request stays pending, so
+    /// wait again. An error abandons it (a reset recovers).
+    pub fn wait_shared(
+        &mut self,
+        timeout: Option<std::time::Duration>,
+        out: &mut BatchOutput,
+    ) -> Result<Option<usize>, PoolError> {
+        self.begin_call()?;
+        let Some(slot) = self.core.split else {
+            return Err(PoolError::State(
+                "no step or reset is pending: send_step_shared() or send_reset_shared() first"
+                    .into(),
+            ));
+        };
+        let until = timeout.map(|t| std::time::Instant::now() + t);
+        let workers = self.core.slots.len();
+        match self.wait_until_or(|c| c.ready_order.len() == workers, until) {
+            Ok(false) => return Ok(None),
+            Ok(true) => {}
+            Err(e) => {
+                self.core.split = None;
+                return Err(e);
+            }
+        }
+        self.core.split = None;
+        self.gather_all(None, out)?;
+        self.core.next_slot = (slot + 1) % self.core.cfg.batch_slots;
+        Ok(Some(slot))
+    }
+
     /// Make the next `*_shared` call write slot `slot` (then the turns go on from there): a
     /// caller that keeps the observations of some slots without copying them (all but one of
     /// the [`crate::PoolConfig::batch_slots`]) steers the workers to a slot it no longer holds.

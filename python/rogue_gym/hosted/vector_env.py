@@ -28,6 +28,7 @@ from gymnasium.vector.utils import batch_space
 
 from .. import _native, _sigterm
 from .._records import FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED, RECORD_DTYPE
+from ..async_calls import already_pending, no_async_call, timed_out, warn_close_pending
 from ..errors import CLOSED_MESSAGE, EnvFailedError, PoolClosedError
 from ..reset_mask import partial_mask, refuse_finished
 from ..settings import FAILURE_POLICIES, PoolSettings, check_start_timeout, parse_autoreset_mode
@@ -294,6 +295,10 @@ class PoolVectorEnv(VectorEnv):
         self._done = np.zeros(n, bool)
         self._info_decoder = InfoDecoder()
         self._started = False
+        #: The split call in flight (gymnasium's ``step_async``/``reset_async``), if any.
+        self._pending: Optional[str] = None
+        #: A partial reset's result, done in ``reset_async`` and returned by ``reset_wait``.
+        self._partial: Optional[tuple[Any, dict[str, Any]]] = None
         self.closed = False
 
     @classmethod
@@ -366,7 +371,19 @@ class PoolVectorEnv(VectorEnv):
         ``i`` with ``seed + i``, a list seeds each env; ``None`` keeps each env's generator
         (and a first reset without a seed reseeds nothing, as gymnasium's vector envs).
         Other ``options`` go to every env's next reset."""
+        self.reset_async(seed=seed, options=options)
+        return self.reset_wait()
+
+    def reset_async(
+        self,
+        seed: Union[int, Sequence[Optional[int]], None] = None,
+        options: Optional[dict[str, Any]] = None,
+    ) -> None:
+        """The first half of :meth:`reset` (gymnasium's ``AsyncVectorEnv.reset_async``): a full
+        reset is sent and the workers reset while you do something else; :meth:`reset_wait`
+        collects it. A partial reset (``reset_mask``) runs here, whole."""
         self._check_open()
+        self._not_pending("reset_async")
         options = dict(options or {})
         mask = options.pop("reset_mask", None)
         if options:  # for each env's next reset, as AsyncVectorEnv passes them
@@ -377,34 +394,100 @@ class PoolVectorEnv(VectorEnv):
                 raise ValueError("reset(seed=...) cannot be combined with a reset_mask")
             obs = self._shared(lambda: self._pool.reset_envs_shared(mask))
             self._done &= ~mask
-        else:
-            if seed is not None or not self._started:
-                self._pool.set_seeds(json.dumps(self._seeds(seed)))
-            obs = self._shared(lambda: self._pool.reset_shared())
-            self._done[:] = False
-            self._started = True
+            _, _, _, restarted, final = self._pool.outcome()
+            self._pending, self._partial = "reset", (obs, self._infos(restarted, final))
+            return
+        if seed is not None or not self._started:
+            self._pool.set_seeds(json.dumps(self._seeds(seed)))
+        self._steer()
+        self._call(self._pool.reset_shared_send)
+        self._pending, self._partial = "reset", None
+
+    def reset_wait(self, timeout: Optional[float] = None) -> tuple[Any, dict[str, Any]]:
+        """The second half of :meth:`reset_async`: wait at most ``timeout`` seconds (``None``:
+        the pool's own bound) and return ``(obs, infos)``. On a timeout (``TimeoutError``) the
+        reset stays pending: call ``reset_wait`` again."""
+        self._check_open()
+        if self._pending != "reset":
+            raise no_async_call("reset")
+        if self._partial is not None:
+            self._pending, (obs, infos), self._partial = None, self._partial, None
+            return obs, infos
+        obs = self._collect("reset", timeout)
+        self._done[:] = False
+        self._started = True
         _, _, _, restarted, final = self._pool.outcome()
         return obs, self._infos(restarted, final)
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every env with ``actions`` (a batch of the action space)."""
+        acts = self._step_actions(actions, "step")
+        obs = self._shared(lambda: self._pool.step_shared(acts, None, self._final))
+        return self._step_result(obs)
+
+    def step_async(self, actions: Any) -> None:
+        """The first half of :meth:`step` (gymnasium's ``AsyncVectorEnv.step_async``): send
+        ``actions`` and return at once; the workers step while you do something else."""
+        acts = self._step_actions(actions, "step_async")
+        self._steer()
+        self._call(lambda: self._pool.step_shared_send(acts))
+        self._pending = "step"
+
+    def step_wait(
+        self, timeout: Optional[float] = None
+    ) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """The second half of :meth:`step_async`: wait at most ``timeout`` seconds (``None``:
+        the pool's own bound) and return what :meth:`step` returns. On a timeout
+        (``TimeoutError``) the step stays pending: call ``step_wait`` again."""
         self._check_open()
+        if self._pending != "step":
+            raise no_async_call("step")
+        return self._step_result(self._collect("step", timeout))
+
+    def _step_actions(self, actions: Any, caller: str) -> Any:
+        """Checks before a step; the actions as the pool takes them."""
+        self._check_open()
+        self._not_pending(caller)
         if not self._started:
             raise RuntimeError("call reset() before step()")
         if self.autoreset_mode == AutoresetMode.DISABLED:
             refuse_finished(self._done)
         if self._discrete_start is not None:
-            acts = self._discrete_indices(actions, range(self.num_envs))
-        else:
-            acts = self._act_layout.flat_batch(actions, self._act_rows)
-        obs = self._shared(lambda: self._pool.step_shared(acts, None, self._final))
+            return self._discrete_indices(actions, range(self.num_envs))
+        return self._act_layout.flat_batch(actions, self._act_rows)
+
+    def _step_result(
+        self, obs: Any
+    ) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         rewards, terminated, truncated, restarted, final = self._pool.outcome()
         self._done = terminated | truncated
         return obs, rewards, terminated, truncated, self._infos(restarted, final)
 
+    def _not_pending(self, caller: str) -> None:
+        if self._pending is not None:
+            raise already_pending(caller, self._pending)
+
+    def _collect(self, what: str, timeout: Optional[float]) -> Any:
+        """Wait for the pending ``what`` (step or reset); its observations. A timeout keeps it
+        pending; an error ends it."""
+        try:
+            slot = self._call(lambda: self._pool.wait_shared(timeout, None, self._final))
+        except BaseException:
+            self._pending = None
+            raise
+        if slot is None:
+            raise timed_out(what, timeout)
+        self._pending = None
+        return self._lend(int(slot))
+
     def close_extras(self, **kwargs: Any) -> None:
         """Stop the workers and remove the pool's shared-memory files (idempotent; nothing to
-        do if the constructor failed before the pool existed)."""
+        do if the constructor failed before the pool existed). A pending ``step_async`` or
+        ``reset_async`` is abandoned with a warning."""
+        pending = getattr(self, "_pending", None)
+        if pending is not None and not self.closed:
+            warn_close_pending(pending)
+            self._pending = None
         finalizer = getattr(self, "_finalizer", None)
         if finalizer is not None:
             finalizer()
@@ -588,11 +671,18 @@ class PoolVectorEnv(VectorEnv):
     def _shared(self, call: Callable[[], int]) -> Any:
         """Run a ``*_shared`` call of the pool into a slot no returned array still uses;
         returns the observations it wrote (lent, copied, or views with ``copy=False``)."""
+        self._steer()
+        return self._lend(int(self._call(call)))
+
+    def _steer(self) -> None:
+        """Make the next ``*_shared`` call write a slot no lent array still uses."""
         if self._lender is not None:
             free = self._lender.steer()
             if free is not None:
                 self._call(lambda: self._pool.select_slot(free))
-        slot = int(self._call(call))
+
+    def _lend(self, slot: int) -> Any:
+        """The observations of ``slot`` as returned: lent, copied, or views (``copy=False``)."""
         if self._lender is None:
             views = self._slot_views[slot]
             return _copy_tree(views) if self.copy else views
