@@ -10,6 +10,7 @@ import math
 import subprocess
 import sys
 from pathlib import Path
+from typing import Optional
 
 import pytest
 
@@ -383,13 +384,17 @@ def _workers(pid: int) -> dict[int, str]:
     return found
 
 
-def _start_cli_run(out: Path, frames: int, *extra: str) -> subprocess.Popen:
+def _start_cli_run(
+    out: Path, frames: int, *extra: str, env: Optional[dict[str, str]] = None
+) -> subprocess.Popen:
     """A tiny CLI training run (8 envs x 32 steps, one epoch) in a child process."""
     args = [sys.executable, "-m", "rogue_gym.train", "--frames", str(frames), "--out", str(out)]
     args += ["--num-envs", "8", "--num-steps", "32", "--epochs", "1", "--minibatch-size", "64"]
     args += ["--eval-seeds", "2", "--eval-episodes", "1", "--eval-envs", "2"]
     args += ["--random-episodes", "10", "--threads", "1", "--no-progress", *extra]
-    return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
+    )
 
 
 def _wait_for_rows(proc: subprocess.Popen, out: Path, rows: int, timeout: float = 180) -> None:
@@ -444,15 +449,22 @@ def test_training_survives_a_killed_worker(tmp_path: Path) -> None:
 def test_sigterm_stops_training_and_leaves_nothing_behind(tmp_path: Path) -> None:
     import os
     import signal
+    import tempfile
     import time
 
-    shm_before = set(os.listdir("/dev/shm"))
+    # The run's pools live in a runtime directory of its own, so that its files are told from
+    # those of other pools on the machine (/dev/shm is shared). Short: iceoryx2's socket paths
+    # are limited.
+    short = tempfile.TemporaryDirectory(prefix="rgt", dir="/tmp")
+    runtime = Path(short.name) / "rt"
     out = tmp_path / "run"
-    proc = _start_cli_run(out, 100000)
+    proc = _start_cli_run(out, 100000, env={**os.environ, "ROGUE_GYM_RUNTIME_DIR": str(runtime)})
     try:
         _wait_for_rows(proc, out, 1)
         workers = _workers(proc.pid)
         assert workers, "no training workers"
+        pools = {entry.name.split(".")[0] for entry in runtime.iterdir()}
+        assert pools, "the run's pools are not in its runtime directory"
         proc.send_signal(signal.SIGTERM)
         _, stderr = proc.communicate(timeout=120)
     finally:
@@ -462,8 +474,10 @@ def test_sigterm_stops_training_and_leaves_nothing_behind(tmp_path: Path) -> Non
     time.sleep(0.5)
     for pid in workers:
         assert not pid_alive(pid), f"worker {pid} outlived the trainer"
-    leaked = set(os.listdir("/dev/shm")) - shm_before
+    leaked = [f for f in os.listdir("/dev/shm") if f.split("_")[0] in pools]
     assert not leaked, f"left in /dev/shm: {sorted(leaked)[:5]}"
+    assert not list(runtime.iterdir()), "left in the runtime directory"
+    short.cleanup()
 
 
 def test_saved_checkpoints_are_rescored_post_hoc_as_in_training_and_resume(tmp_path: Path) -> None:
