@@ -102,16 +102,10 @@ impl Pool {
     /// slot of the pool's shared batch buffer (no copy at all); returns the slot index for
     /// [`Pool::shared_obs`].
     pub fn reset_shared(&mut self, out: &mut BatchOutput) -> Result<usize, PoolError> {
-        self.begin_call()?;
-        self.drain()?;
-        let slot = self.core.next_slot;
-        for k in 0..self.core.slots.len() {
-            self.core.send_reset(k, slot as u32 + 1)?;
-        }
-        self.core.must_reset = false;
-        self.gather_all(None, out)?;
-        self.core.next_slot = (slot + 1) % self.core.cfg.batch_slots;
-        Ok(slot)
+        // One call, one bound: the collecting half does not start a new call.
+        self.send_reset_shared()?;
+        self.collect_split(None, out)?
+            .ok_or_else(|| PoolError::State("a reset without a timeout timed out".into()))
     }
 
     /// Partial sync reset (gymnasium's `reset(options={"reset_mask": mask})`), into the next
@@ -240,6 +234,15 @@ impl Pool {
         out: &mut BatchOutput,
     ) -> Result<Option<usize>, PoolError> {
         self.begin_call()?;
+        self.collect_split(timeout, out)
+    }
+
+    /// The body of [`Pool::wait_shared`], within the current call's bound.
+    fn collect_split(
+        &mut self,
+        timeout: Option<std::time::Duration>,
+        out: &mut BatchOutput,
+    ) -> Result<Option<usize>, PoolError> {
         let Some(slot) = self.core.split else {
             return Err(PoolError::State(
                 "no step or reset is pending: send_step_shared() or send_reset_shared() first"
