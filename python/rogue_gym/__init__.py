@@ -30,9 +30,8 @@ from .envs import (
     StatusFlag,
 )
 from .errors import EnvFailedError, PoolClosedError, WorkerCrashedError
-from .hosted import PoolVectorEnv
 from .registration import ENV_ID, register_envs
-from .vector import RogueVectorEnv, make_vec
+from .vector import PoolVectorEnv, RogueVectorEnv, make_vec
 
 __all__ = [
     "ACTIONS",
@@ -60,10 +59,10 @@ register_envs()
 
 def __getattr__(name: str) -> Any:
     # SB3 (and torch) load only when the SB3 facade is asked for.
-    if name == "RogueVecEnv":
-        from .sb3 import RogueVecEnv
+    if name in ("RogueVecEnv", "PoolVecEnv"):
+        from . import sb3
 
-        return RogueVecEnv
+        return getattr(sb3, name)
     if name == "sb3":
         from . import sb3
 

@@ -3,9 +3,10 @@
 :class:`PoolSettings` is what :func:`rogue_gym.make_vec`,
 :class:`rogue_gym.vector.RogueVectorEnv`, :class:`rogue_gym.sb3.RogueVecEnv` and the pool core
 take; the facades pass their keyword arguments through :meth:`PoolSettings.from_kwargs`, so a
-misspelt option is a ``TypeError`` that lists the valid ones. The pool core turns the checked
-settings into the JSON object the native pool receives (keys as named here; the Rust side adds
-no defaults).
+misspelt option is a ``TypeError`` that lists the valid ones. Its base :class:`PoolOptions` holds
+the options of the pool itself, which hosted envs take too. The env kinds
+(:mod:`rogue_gym.kinds`) turn the checked settings into the JSON object the native pool
+receives (keys as named here; the Rust side adds no defaults).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from gymnasium.vector import AutoresetMode
 
 from ._config import ConfigLike
 
-__all__ = ["FAILURE_POLICIES", "SEED_POLICIES", "PoolSettings", "SeedsLike"]
+__all__ = ["FAILURE_POLICIES", "SEED_POLICIES", "PoolOptions", "PoolSettings", "SeedsLike"]
 
 #: ``seeds=``: a list, a ``range`` or ``(lo, hi)``.
 SeedsLike = Union[None, Sequence[int], range, tuple]
@@ -31,8 +32,86 @@ SEED_POLICIES = ("sample", "sequential")
 
 
 @dataclasses.dataclass
-class PoolSettings:
-    """Every option of a pool, with its default.
+class PoolOptions:
+    """The options of the pool itself, whatever env kind it hosts (see :class:`PoolSettings`
+    for each one's meaning); :class:`PoolSettings` adds the native game's."""
+
+    num_workers: Optional[int] = None
+    on_worker_failure: str = "restart"
+    step_timeout: Optional[float] = 60.0
+    start_timeout: float = 30.0
+    max_restarts: Optional[int] = 100
+    worker_command: Optional[Sequence[str]] = None
+    batch_size: Optional[int] = None
+    runtime_dir: Optional[str] = None
+    poll_us: Optional[int] = None
+    worker_poll_us: Optional[int] = None
+
+    @classmethod
+    def from_kwargs(cls, options: Mapping[str, Any]) -> Any:
+        """Options from keyword arguments; an unknown name is a ``TypeError`` listing the
+        valid ones."""
+        names = [f.name for f in dataclasses.fields(cls)]
+        unknown = sorted(set(options) - set(names))
+        if unknown:
+            raise TypeError(
+                f"unknown pool option(s) {', '.join(map(repr, unknown))}; valid options: "
+                + ", ".join(names)
+            )
+        return cls(**options)
+
+    def checked_pool(self, num_envs: int) -> dict[str, Any]:
+        """The pool-level options for ``num_envs`` envs, checked (``ValueError`` names the
+        option) and with their defaults resolved, as keyword values."""
+        num_workers = self.num_workers
+        if num_workers is None:
+            num_workers = min(num_envs, os.cpu_count() or 1)
+        if not 1 <= int(num_workers) <= num_envs:
+            raise ValueError(
+                f"num_workers must be between 1 and num_envs ({num_envs}), got {num_workers}"
+            )
+        if self.on_worker_failure not in FAILURE_POLICIES:
+            raise ValueError(
+                f"on_worker_failure must be one of {FAILURE_POLICIES}, got {self.on_worker_failure!r}"
+            )
+        if self.step_timeout is not None and not float(self.step_timeout) > 0:
+            raise ValueError(f"step_timeout must be positive or None, got {self.step_timeout}")
+        for name in ("poll_us", "worker_poll_us"):
+            value = getattr(self, name)
+            if value is not None and int(value) < 0:
+                raise ValueError(f"{name} must be a number of microseconds >= 0, got {value}")
+        command = self.worker_command
+        if command is None:
+            command = [sys.executable, "-m", "rogue_gym.worker"]
+        return {
+            "num_workers": int(num_workers),
+            "step_timeout": None if self.step_timeout is None else float(self.step_timeout),
+            "start_timeout": check_start_timeout(self.start_timeout),
+            "max_restarts": None if self.max_restarts is None else int(self.max_restarts),
+            "worker_command": list(command),
+            "poll_us": None if self.poll_us is None else int(self.poll_us),
+            "worker_poll_us": None if self.worker_poll_us is None else int(self.worker_poll_us),
+        }
+
+    def pool_json(self, num_envs: int) -> dict[str, Any]:
+        """The pool-level part of the native pool's settings JSON (checked options)."""
+        return {
+            "num_envs": int(num_envs),
+            "num_workers": int(self.num_workers or 1),
+            "batch_size": self.batch_size,
+            "on_worker_failure": self.on_worker_failure,
+            "step_timeout": self.step_timeout,
+            "start_timeout": self.start_timeout,
+            "max_restarts": self.max_restarts,
+            "poll_us": self.poll_us,
+            "worker_poll_us": self.worker_poll_us,
+            "runtime_dir": None if self.runtime_dir is None else os.fspath(self.runtime_dir),
+        }
+
+
+@dataclasses.dataclass
+class PoolSettings(PoolOptions):
+    """Every option of a pool of the native game, with its default.
 
     Attributes:
         num_envs: number of games.
@@ -71,11 +150,12 @@ class PoolSettings:
             yours that no one else can enter (created 0700 if missing; refused otherwise).
             Default: ``$ROGUE_GYM_RUNTIME_DIR``, else ``$XDG_RUNTIME_DIR/rogue-gym``, else
             ``/tmp/rogue-gym-<uid>`` (see docs/security.md).
+        poll_us, worker_poll_us: how long the caller and the workers poll (yielding the CPU)
+            before they block when waiting for each other, in µs (default: the pool's).
     """
 
     num_envs: int = 8
     config: ConfigLike = "paper"
-    num_workers: Optional[int] = None
     seed: Optional[int] = None
     seeds: SeedsLike = None
     seed_policy: str = "sample"
@@ -86,27 +166,7 @@ class PoolSettings:
     history: bool = False
     max_steps: int = 500
     stair_reward: float = 50.0
-    on_worker_failure: str = "restart"
-    step_timeout: Optional[float] = 60.0
-    start_timeout: float = 30.0
-    max_restarts: Optional[int] = 100
-    worker_command: Optional[Sequence[str]] = None
     shard: Optional[tuple[int, int]] = None
-    batch_size: Optional[int] = None
-    runtime_dir: Optional[str] = None
-
-    @classmethod
-    def from_kwargs(cls, options: Mapping[str, Any]) -> PoolSettings:
-        """Settings from keyword arguments; an unknown name is a ``TypeError`` listing the
-        valid ones."""
-        names = [f.name for f in dataclasses.fields(cls)]
-        unknown = sorted(set(options) - set(names))
-        if unknown:
-            raise TypeError(
-                f"unknown pool option(s) {', '.join(map(repr, unknown))}; valid options: "
-                + ", ".join(names)
-            )
-        return cls(**options)
 
     def checked(self) -> PoolSettings:
         """A copy with the defaults resolved (``num_workers``, ``seed``, ``worker_command``) and
@@ -114,26 +174,13 @@ class PoolSettings:
         num_envs = int(self.num_envs)
         if num_envs <= 0:
             raise ValueError(f"num_envs must be positive, got {self.num_envs}")
-        num_workers = self.num_workers
-        if num_workers is None:
-            num_workers = min(num_envs, os.cpu_count() or 1)
-        if not 1 <= int(num_workers) <= num_envs:
-            raise ValueError(
-                f"num_workers must be between 1 and num_envs ({num_envs}), got {num_workers}"
-            )
-        if self.on_worker_failure not in FAILURE_POLICIES:
-            raise ValueError(
-                f"on_worker_failure must be one of {FAILURE_POLICIES}, got {self.on_worker_failure!r}"
-            )
+        pool = self.checked_pool(num_envs)
         if self.seed_policy not in SEED_POLICIES:
             raise ValueError(
                 f"seed_policy must be one of {SEED_POLICIES}, got {self.seed_policy!r}"
             )
         if int(self.max_steps) <= 0:
             raise ValueError(f"max_steps must be positive, got {self.max_steps}")
-        if self.step_timeout is not None and not float(self.step_timeout) > 0:
-            raise ValueError(f"step_timeout must be positive or None, got {self.step_timeout}")
-        check_start_timeout(self.start_timeout)
         shard = self.shard
         if shard is not None:
             first, total = (int(x) for x in shard)
@@ -148,21 +195,14 @@ class PoolSettings:
             seed = int.from_bytes(os.urandom(8), "little") >> 1
         elif not 0 <= int(seed) < 2**64:
             raise ValueError(f"seed must be an integer in [0, 2**64), got {seed}")
-        command = self.worker_command
-        if command is None:
-            command = [sys.executable, "-m", "rogue_gym.worker"]
         return dataclasses.replace(
             self,
+            **pool,
             num_envs=num_envs,
-            num_workers=int(num_workers),
             shard=shard,
             seed=int(seed),
             max_steps=int(self.max_steps),
             stair_reward=float(self.stair_reward),
-            step_timeout=None if self.step_timeout is None else float(self.step_timeout),
-            start_timeout=float(self.start_timeout),
-            max_restarts=None if self.max_restarts is None else int(self.max_restarts),
-            worker_command=list(command),
         )
 
 

@@ -138,6 +138,10 @@ def test_sb3_vec_env_hosting_vector_envs_plays_as_dummy_vec_env() -> None:
             (o1, r1, d1, i1), (o2, r2, d2, i2) = ours.step(actions), ref.step(actions)
             assert np.array_equal(o1, o2) and np.array_equal(r1, r2) and np.array_equal(d1, d2)
             for a, b in zip(i1, i2):
+                episode = a.pop("episode", None)  # Monitor's info: the pool adds it at an end
+                assert (episode is not None) == ("terminal_observation" in b)
+                if episode is not None:  # CartPole pays 1 per step
+                    assert episode["r"] == episode["l"] > 0
                 assert sorted(a) == sorted(b), (a, b)
                 for key in b:
                     assert np.array_equal(a[key], b[key]), key

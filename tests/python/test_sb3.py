@@ -110,6 +110,10 @@ def test_get_images_and_render(make_sb3) -> None:
     images = env.get_images()
     assert len(images) == 2 and images[0].shape[0] == 17 and images[0].shape[2] == 3
     assert images[0].shape[1] >= 32 and images[0].dtype == np.uint8
-    screens = env.env_method("render")
-    assert all("Level:" in s for s in screens)
+    # Each env renders in its render mode, as gymnasium envs do: images here, text in "ansi".
+    assert all(np.array_equal(a, b) for a, b in zip(env.env_method("render"), images))
     assert env.render().ndim == 3  # SB3 tiles the images
+    text = make_sb3(2, num_workers=1, render_mode="ansi", max_steps=20)
+    text.reset()
+    text.step(np.array([4, 2]))
+    assert all("Level:" in s for s in text.env_method("render"))

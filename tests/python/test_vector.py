@@ -267,7 +267,7 @@ def test_close_and_gc_leave_nothing_behind() -> None:
     env = rogue_gym.make_vec(4, num_workers=2, seed=0)
     obs, _ = env.reset()
     snapshot = obs.copy()
-    pids, name = env.worker_pids, env._core.name
+    pids, name = env.worker_pids, env.pool_name
     assert pool_files(name)
     env.close()
     assert np.array_equal(obs, snapshot)  # sync views stay readable after close
@@ -279,7 +279,7 @@ def test_close_and_gc_leave_nothing_behind() -> None:
 
     env = rogue_gym.make_vec(2, num_workers=2, seed=0)
     env.reset()
-    pids, name = env.worker_pids, env._core.name
+    pids, name = env.worker_pids, env.pool_name
     del env
     gc.collect()
     assert wait_until(lambda: not any(pid_alive(p) for p in pids))
@@ -308,7 +308,7 @@ def test_async_recv_is_a_zero_copy_read_only_view(make_vec) -> None:
             obs[0, 0, 0, 0] = 1
         ptr = obs.__array_interface__["data"][0]
         assert any(
-            lo <= ptr < hi and name.split("/")[-1].startswith(env._core.name)
+            lo <= ptr < hi and name.split("/")[-1].startswith(env.pool_name)
             for lo, hi, name in _shm_ranges()
         )
         ids = infos["env_id"]
@@ -548,18 +548,18 @@ def test_partial_reset_rules(make_vec) -> None:
 @pytest.mark.parametrize("mode", ["next_step", "same_step"])
 def test_native_step_decoding_matches_the_records(make_vec, mode) -> None:
     """step()'s arrays (decoded natively) equal a numpy decoding of the raw records."""
-    from rogue_gym._core import PoolCore
+    from rogue_gym.front.core import flags
 
     env = make_vec(4, num_workers=2, max_steps=7, autoreset_mode=mode, seed=3)
     env.reset()
     for a in _actions(4, 40, seed=8):
         obs, rew, term, trunc, infos = env.step(a)
-        recs = env._last_recs
-        t, tr, _, _ = PoolCore.flags(recs)
+        recs = env._core.recs[env._core.slot]
+        t, tr, _, _ = flags(recs)
         assert rew.dtype == np.float64 and term.dtype == np.bool_ and trunc.dtype == np.bool_
         assert np.array_equal(rew, recs["reward"].astype(np.float64))
         assert np.array_equal(term, t) and np.array_equal(trunc, tr)
-        for key, arr in env._core.info_arrays(recs).items():
+        for key, arr in env._kind.info_arrays(recs).items():
             assert infos[key].dtype == arr.dtype and np.array_equal(infos[key], arr), key
             assert infos[f"_{key}"].all()
 
@@ -591,7 +591,8 @@ def test_render_replay_follows_a_partial_reset(make_vec) -> None:
         for t, a in enumerate(acts):
             env.step(a)
             # The replay history follows every env's episode (length as the records say).
-            assert np.array_equal(env._history.length, env._last_recs["episode_length"]), t
+            recs = env._core.recs[env._core.slot]
+            assert np.array_equal(env._kind._history.length, recs["episode_length"]), t
             if m is not None and t == 3:  # all envs just ended: unmasked ones autoreset next
                 env.reset(options={"reset_mask": m})
         screens.append(env.render())
@@ -635,7 +636,7 @@ def test_a_closed_pool_raises_gymnasiums_closed_error(kind, make_vec) -> None:
     with one message, from Python and from the native pool alike."""
     env = make_kind(kind, make_vec)
     env.reset(seed=0)
-    native = env._core._pool if kind == "native" else env._pool
+    native = env._core.pool
     env.close()
     for call in (
         env.reset,

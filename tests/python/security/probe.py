@@ -81,14 +81,14 @@ def modes() -> dict[str, Any]:
     envs = native()
     envs.reset()
     envs.step(envs.action_space.sample())
-    rd = envs._core.native.runtime_dir()
-    paths = pool_paths(envs._core.name, rd)
+    rd = envs._core.pool.runtime_dir()
+    paths = pool_paths(envs.pool_name, rd)
     out["native_paths"] = len(paths)
     out["native_loose"] = loose([*paths, rd])
     hosted = PoolVectorEnv([cartpole] * 4, num_workers=2)
     hosted.reset(seed=0)
     hosted.step(hosted.action_space.sample())
-    paths = pool_paths(hosted.pool_name, hosted._pool.runtime_dir())
+    paths = pool_paths(hosted.pool_name, hosted._core.pool.runtime_dir())
     out["hosted_paths"] = len(paths)
     out["hosted_loose"] = loose(paths)
     out["runtime_dir"] = rd
@@ -115,7 +115,7 @@ def planted(kind: str) -> dict[str, Any]:
     out: dict[str, Any] = {}
     envs = native()
     envs.reset()
-    rd = envs._core.native.runtime_dir()
+    rd = envs._core.pool.runtime_dir()
     out["bypassed_to"] = rd
     out["bypass_mode"] = oct(os.lstat(rd).st_mode & 0o7777)
     out["bypass_owner"] = os.lstat(rd).st_uid
@@ -208,7 +208,7 @@ def two_users() -> dict[str, Any]:
         for _ in range(200):
             envs.step(envs.action_space.sample())
             steps += 1
-        rd = envs._core.native.runtime_dir()
+        rd = envs._core.pool.runtime_dir()
         envs.close()
         os.write(done[1], json.dumps({"steps": steps, "dir": rd}).encode())
         return 0
@@ -219,7 +219,7 @@ def two_users() -> dict[str, Any]:
     envs.reset()
     for _ in range(200):
         envs.step(envs.action_space.sample())
-    mine = envs._core.native.runtime_dir()
+    mine = envs._core.pool.runtime_dir()
     envs.close()
     code = os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
     theirs = json.loads(os.read(done[0], 4096) or b"{}")

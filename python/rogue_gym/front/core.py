@@ -1,0 +1,305 @@
+"""The pool under every vector env class, whatever env kind it hosts.
+
+:class:`Core` owns the native pool (supervisor and worker processes) and what the caller side
+keeps of it: the shared-memory batch slots the workers write observations into, one record
+array and one column buffer per slot (the per-env rewards, flags and counters of the call that
+wrote the slot), the SAME_STEP final-observation buffer, and the lending of slots
+(:mod:`rogue_gym.hosted.leases`). It knows nothing of gymnasium's or SB3's API: the facades in
+:mod:`rogue_gym.front` build those over it, and the env kind (:mod:`rogue_gym.kinds`) turns
+slot bytes into observations and records into infos.
+"""
+
+from __future__ import annotations
+
+import json
+import weakref
+from typing import TYPE_CHECKING, Any, Callable, NoReturn, Optional, Sequence
+
+import numpy as np
+
+from .. import _native, _sigterm
+from .._records import FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED, RECORD_DTYPE
+from ..errors import CLOSED_MESSAGE, EnvFailedError, PoolClosedError
+from ..hosted import leases
+from ..hosted.adapter import decode_exception
+
+if TYPE_CHECKING:
+    from ..kinds.base import Kind
+
+__all__ = [
+    "SUMMARY_FINAL",
+    "SUMMARY_RESTARTED",
+    "Core",
+    "copy_tree",
+    "flags",
+    "mark_restarted",
+    "reraise",
+]
+
+#: Bit of a step's summary: some env's worker was restarted during the call.
+SUMMARY_RESTARTED: int = _native.SUMMARY_RESTARTED
+#: Bit of a step's summary: some env has a final observation (SAME_STEP).
+SUMMARY_FINAL: int = _native.SUMMARY_FINAL
+
+
+class Core:
+    """The native pool of one vector env, its batch slots, records and column buffers.
+
+    Args:
+        kind: the env kind (spaces, settings, observation views).
+        same_step: SAME_STEP autoreset (the workers keep each ended episode's last
+            observation, read with :meth:`final_obs`).
+        copy: the facade hands out observations that are the caller's to keep; large batches
+            are then lent (the slot is not written again while a returned array lives) rather
+            than copied.
+    """
+
+    def __init__(self, kind: Kind, *, same_step: bool, copy: bool) -> None:
+        self.kind = kind
+        self.num_envs = n = kind.num_envs
+        self.obs_bytes = kind.obs_bytes
+        self.copy = bool(copy)
+        lend = self.copy and n * self.obs_bytes >= leases.LEND_MIN_BYTES
+        settings = kind.pool_settings()
+        settings["autoreset"] = "same_step" if same_step else "next_step"
+        settings["batch_slots"] = leases.LENDING_SLOTS if lend else None
+        _sigterm.install()
+        try:
+            self.pool: Any = _native.Pool(json.dumps(settings), list(kind.worker_command))
+        except EnvFailedError as err:
+            reraise(err)
+        self._finalizer = weakref.finalize(self, _native.Pool.close, self.pool)
+        self.closed = False
+        #: The pool's name: the prefix of its shared-memory files.
+        self.name: str = self.pool.name()
+        self.num_workers: int = int(self.pool.num_workers)
+        self.slots = [np.asarray(v).reshape(n, self.obs_bytes) for v in self.pool.shared_views()]
+        self.views = [kind.batch_views(s) for s in self.slots]
+        self.lender = leases.SlotLender(self.slots, kind.batch_views) if lend else None
+        self.final = np.zeros((n, self.obs_bytes), np.uint8) if same_step else None
+        # One record array per slot (the call that wrote the slot), and one to write next.
+        self.recs = [np.zeros(n, RECORD_DTYPE) for _ in self.slots]
+        self._next_recs = np.zeros(n, RECORD_DTYPE)
+        self.cols = self._bind_columns()
+        #: The slot written by the last call.
+        self.slot = 0
+        #: No reset or step since the pool started.
+        self.fresh = True
+        kind.bind(self)
+
+    def _bind_columns(self) -> list[dict[str, np.ndarray]]:
+        """One column buffer per slot, bound in the native pool (see ``step_columns``):
+        per-env rewards, flags, counters and info rows, decoded from the slot's records."""
+        n = self.num_envs
+        layout, total = self.pool.column_layout()
+        buffers, out = [], []
+        for _ in self.slots:
+            buf = np.zeros(total, np.uint8)
+            cols: dict[str, np.ndarray] = {}
+            for name, dt, off, rows in layout:
+                col = buf[off : off + rows * n * np.dtype(dt).itemsize].view(dt)
+                cols[name] = col.reshape(rows, n) if name.startswith("info_") else col
+            # Seeds cross as int64 (torch has no uint64): seeds >= 2**63 read as seed - 2**64.
+            cols["seed"] = cols["seed"].view(np.int64)
+            buffers.append(buf)
+            out.append(cols)
+        self.pool.bind_columns(buffers)
+        return out
+
+    # -- calls -----------------------------------------------------------------------------
+
+    def check_open(self) -> None:
+        """``PoolClosedError`` once closed."""
+        if self.closed:
+            raise PoolClosedError(CLOSED_MESSAGE)
+
+    def call(self, fn: Callable[..., Any], *args: Any) -> Any:
+        """Run a native call; an env's own exception is re-raised as itself."""
+        try:
+            return fn(*args)
+        except EnvFailedError as err:
+            reraise(err)
+
+    def _steer(self) -> None:
+        """Make the next slot-writing call write a slot no lent array still uses."""
+        if self.lender is not None:
+            free = self.lender.steer()
+            if free is not None:
+                self.call(self.pool.select_slot, free)
+
+    def _took(self, slot: int) -> int:
+        """Book the slot a call wrote: its records are the ones just written."""
+        self.recs[slot], self._next_recs = self._next_recs, self.recs[slot]
+        self.slot = slot
+        self.fresh = False
+        return slot
+
+    def step(self, actions: np.ndarray) -> int:
+        """A whole sync step: the slot written ``|`` the ``SUMMARY_*`` bits; the slot's columns
+        hold the decoded records."""
+        self._steer()
+        r = self.call(self.pool.step_columns, actions, self._next_recs, self.final)
+        self._took(r & 0xFF)
+        return int(r)
+
+    def send_step(self, actions: np.ndarray) -> None:
+        """The first half of :meth:`step`: the workers step while the caller goes on."""
+        self._steer()
+        self.call(self.pool.step_shared_send, actions)
+
+    def wait_step(self, timeout: Optional[float]) -> Optional[int]:
+        """The second half of :meth:`send_step`: what :meth:`step` returns, or ``None`` when
+        ``timeout`` seconds passed first (the step stays pending)."""
+        r = self.call(self.pool.wait_columns, timeout, self._next_recs, self.final)
+        if r is None:
+            return None
+        self._took(r & 0xFF)
+        return int(r)
+
+    def send_reset(self) -> None:
+        """The first half of a full reset."""
+        self._steer()
+        self.call(self.pool.reset_shared_send)
+
+    def wait_reset(self, timeout: Optional[float]) -> Optional[int]:
+        """The second half of :meth:`send_reset`: the slot, or ``None`` on ``timeout``."""
+        slot = self.call(self.pool.wait_shared, timeout, self._next_recs, None)
+        return None if slot is None else self._took(int(slot))
+
+    def reset_envs(self, mask: np.ndarray) -> int:
+        """A partial reset (the envs of ``mask``; the others' observations written again)."""
+        self._steer()
+        return self._took(int(self.call(self.pool.reset_envs_shared, mask, self._next_recs)))
+
+    def set_seeds(self, schedule: dict[str, Any]) -> None:
+        """Replace the episode-seed schedule (applies from the next reset)."""
+        self.call(self.pool.set_seeds, json.dumps(schedule))
+
+    def observations(self, slot: int) -> Any:
+        """The observations of ``slot`` as the facade returns them: lent, copied
+        (``copy=True``), or views of shared memory."""
+        if self.lender is not None:
+            lent = self.lender.lend(slot)
+            return copy_tree(self.views[slot]) if lent is None else lent
+        views = self.views[slot]
+        return copy_tree(views) if self.copy else views
+
+    def final_obs(self, env: int) -> Any:
+        """(SAME_STEP) env ``env``'s final observation of the last call, a fresh copy."""
+        assert self.final is not None
+        return copy_tree(first_row(self.kind.batch_views(self.final[env : env + 1])))
+
+    # -- async (EnvPool-style) -------------------------------------------------------------
+
+    def async_reset(self) -> None:
+        """Start resetting every env; collect with :meth:`recv`."""
+        self.call(self.pool.async_reset)
+
+    def send(self, actions: np.ndarray, env_ids: Sequence[int]) -> None:
+        """Send actions to whole worker blocks of envs."""
+        self.call(self.pool.send, actions, list(env_ids))
+
+    def recv(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[Any]]:
+        """The next batch: ``(obs rows, records, env ids, blocks)``; one block's rows are a
+        read-only view of the worker's shared-memory sample (zero-copy)."""
+        blocks = self.call(self.pool.recv)
+        rows = [np.asarray(raw).reshape(-1, self.obs_bytes) for _, raw, _, _ in blocks]
+        recs = [np.frombuffer(r, RECORD_DTYPE) for _, _, r, _ in blocks]
+        ids = [np.arange(start, start + len(r)) for (start, *_), r in zip(blocks, rows)]
+        if len(rows) == 1:
+            return rows[0], recs[0], ids[0], blocks
+        return np.concatenate(rows), np.concatenate(recs), np.concatenate(ids), blocks
+
+    # -- the pool --------------------------------------------------------------------------
+
+    @property
+    def worker_pids(self) -> list[int]:
+        """Process ids of the workers (in worker order); empty once closed."""
+        return [] if self.closed else list(self.pool.worker_pids())
+
+    @property
+    def restarts(self) -> int:
+        """Worker restarts so far."""
+        return int(self.pool.restarts())
+
+    def envs_of_worker(self, worker: int) -> range:
+        """Indices of the envs hosted by ``worker``."""
+        self.check_open()
+        return range(*self.pool.worker_envs(worker))
+
+    def close(self) -> None:
+        """Stop the workers and remove the pool's files (idempotent)."""
+        self.closed = True
+        self._finalizer()
+
+
+def flags(recs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(terminated, truncated, restarted, has_final_obs)`` bool arrays of a record batch."""
+    f = recs["flags"]
+    return (
+        (f & FLAG_TERMINATED) != 0,
+        (f & FLAG_TRUNCATED) != 0,
+        (f & FLAG_RESTARTED) != 0,
+        (f & FLAG_FINAL_OBS) != 0,
+    )
+
+
+def mark_restarted(infos: dict[str, Any], restarted: Optional[np.ndarray]) -> None:
+    """Flag the envs whose worker was restarted during the call (``worker_restarted`` and its
+    mask), if any: every kind and call reports them so."""
+    if restarted is not None and restarted.any():
+        infos["worker_restarted"] = restarted.copy()
+        infos["_worker_restarted"] = restarted.copy()
+
+
+def copy_tree(value: Any) -> Any:
+    """A copy of a batch (an array, or a dict / tuple of them)."""
+    if isinstance(value, dict):
+        return {k: copy_tree(v) for k, v in value.items()}
+    if isinstance(value, tuple):
+        return tuple(copy_tree(v) for v in value)
+    return value.copy()
+
+
+def first_row(tree: Any) -> Any:
+    """Row 0 of a batch tree."""
+    if isinstance(tree, dict):
+        return {k: first_row(v) for k, v in tree.items()}
+    if isinstance(tree, tuple):
+        return tuple(first_row(v) for v in tree)
+    return tree[0]
+
+
+def env_exception(err: BaseException) -> BaseException:
+    """The env's own exception carried by an ``EnvFailedError`` (with the worker-side traceback
+    as a note on Python 3.11+), or ``err`` itself if it carries none."""
+    if not isinstance(err, EnvFailedError):
+        return err
+    decoded = decode_exception(err.detail)
+    if decoded is None:
+        return err
+    exc, tb = decoded
+    if hasattr(exc, "add_note"):  # Python 3.11+
+        exc.add_note(
+            f"raised by env {err.env} during {err.context} in worker {err.worker} (pid {err.pid}); "
+            f"call reset() to continue. Worker-side traceback:\n{tb}"
+        )
+    return exc
+
+
+def reraise(err: EnvFailedError) -> NoReturn:
+    """Raise the env's own exception carried by ``err``. When several envs or workers failed
+    in the same call, the first is raised and the others (decoded too) are in its ``others``
+    attribute, one note each on Python 3.11+; one ``reset()`` clears them all."""
+    exc = env_exception(err)
+    others = [env_exception(o) for o in getattr(err, "others", [])]
+    if others:
+        if exc is not err:
+            exc.__notes__ = [
+                n for n in getattr(exc, "__notes__", []) if not n.startswith("also failed")
+            ]
+        exc.others = others  # type: ignore[attr-defined]
+        for o in others:
+            if hasattr(exc, "add_note"):
+                exc.add_note(f"also failed in the same call: {type(o).__name__}: {o}")
+    raise exc from None

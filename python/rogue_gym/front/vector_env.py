@@ -1,0 +1,365 @@
+"""``FrontVectorEnv``: the pool as a ``gymnasium.vector.VectorEnv``, for every env kind."""
+
+from __future__ import annotations
+
+from typing import Any, Optional, Sequence, Union
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AutoresetMode
+from gymnasium.vector.utils import batch_space
+
+from ..async_calls import already_pending, no_async_call, timed_out, warn_close_pending
+from ..kinds.base import Kind
+from ..reset_mask import partial_mask, refuse_finished
+from ..settings import parse_autoreset_mode
+from .core import Core, copy_tree, flags, mark_restarted
+
+__all__ = ["FrontVectorEnv"]
+
+Seed = Union[int, Sequence[Optional[int]], None]
+StepResult = tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]
+
+
+class FrontVectorEnv(gym.vector.VectorEnv):
+    """``num_envs`` envs stepped by worker processes over shared memory (see the public
+    classes, :class:`rogue_gym.RogueVectorEnv` and :class:`rogue_gym.PoolVectorEnv`, for what
+    each kind takes and does).
+
+    Semantics follow gymnasium's own vector envs:
+
+    * ``reset(seed=..., options=...)``: the seed as the kind takes it (the native game: the
+      base of every env's episode schedule; hosted envs: ``seed + i`` or one per env);
+      ``options["reset_mask"]`` resets only the masked envs; other options go to every env's
+      next reset.
+    * ``step(actions)``: ``(obs, rewards, terminations, truncations, infos)``; rewards float64,
+      flags bool, infos a dict of arrays with ``_key`` masks.
+    * ``autoreset_mode``: ``NEXT_STEP`` (default), ``SAME_STEP`` (``final_obs`` and
+      ``final_info`` in the infos) or ``DISABLED`` (reset ended envs with ``reset_mask``;
+      stepping them is a ``ValueError``).
+    * ``step_async``/``step_wait`` and ``reset_async``/``reset_wait`` with timeouts, and
+      gymnasium's errors for calls out of order.
+    * A lost worker is restarted (its envs report ``truncated=True`` and
+      ``infos["worker_restarted"]``) or raises :class:`rogue_gym.WorkerCrashedError`; every call
+      returns or raises within ``step_timeout + start_timeout``.
+    """
+
+    def __init__(
+        self,
+        kind: Kind,
+        *,
+        autoreset_mode: Union[str, AutoresetMode] = AutoresetMode.NEXT_STEP,
+        copy: bool = False,
+    ) -> None:
+        self.autoreset_mode = parse_autoreset_mode(autoreset_mode)
+        self.num_envs = kind.num_envs
+        self.single_observation_space = kind.single_observation_space
+        self.single_action_space = kind.single_action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.metadata = {**kind.metadata, "autoreset_mode": self.autoreset_mode}
+        self.render_mode = kind.render_mode
+        self.spec = kind.spec
+        self.copy = bool(copy)
+        self._kind = kind
+        self._same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
+        self._disabled = self.autoreset_mode == AutoresetMode.DISABLED
+        #: Envs whose episode ended at the last call (DISABLED refuses to step them).
+        self._done = np.zeros(self.num_envs, bool)
+        self._started = False
+        #: The split call in flight (``"step"``/``"reset"``) and, for a partial reset, its result.
+        self._pending: Optional[tuple[str, Any]] = None
+        self._async_ids: Optional[np.ndarray] = None
+        self._last_slot: Optional[int] = None
+        self._core = Core(kind, same_step=self._same_step, copy=self.copy)
+
+    # -- the pool --------------------------------------------------------------------------
+
+    @property
+    def num_workers(self) -> int:
+        """Number of worker processes."""
+        return self._core.num_workers
+
+    @property
+    def worker_pids(self) -> list[int]:
+        """Process ids of the workers (worker ``k`` hosts envs ``envs_of_worker(k)``)."""
+        return self._core.worker_pids
+
+    @property
+    def restarts(self) -> int:
+        """Worker restarts so far (``on_worker_failure="restart"``; ``max_restarts`` bounds
+        them)."""
+        return self._core.restarts
+
+    @property
+    def pool_name(self) -> str:
+        """The pool's name: the prefix of its shared-memory files."""
+        return self._core.name
+
+    def envs_of_worker(self, worker: int) -> range:
+        """Indices of the envs hosted by ``worker``."""
+        return self._core.envs_of_worker(worker)
+
+    # -- reset -----------------------------------------------------------------------------
+
+    def reset(
+        self, *, seed: Seed = None, options: Optional[dict[str, Any]] = None
+    ) -> tuple[Any, dict[str, Any]]:
+        """Reset every env (or those of ``options["reset_mask"]``); ``(obs, infos)``.
+
+        ``reset_mask`` (a ``np.bool_`` array of shape ``(num_envs,)`` with at least one
+        ``True``, as gymnasium checks it) resets only the masked envs: the others keep their
+        state and their current observation is returned again; infos describe the reset envs.
+        A partial reset cannot take a ``seed``. Other ``options`` go to every env's reset.
+        """
+        self.reset_async(seed=seed, options=options)
+        return self.reset_wait()
+
+    def reset_async(self, seed: Seed = None, options: Optional[dict[str, Any]] = None) -> None:
+        """The first half of :meth:`reset` (gymnasium's ``AsyncVectorEnv.reset_async``): a full
+        reset is sent and the workers reset while you do something else; :meth:`reset_wait`
+        collects it. A partial reset (``reset_mask``) runs here, whole."""
+        core = self._core
+        core.check_open()
+        self._not_pending("reset_async")
+        options = dict(options or {})
+        mask = partial_mask(options.pop("reset_mask", None), self.num_envs, self._started)
+        if mask is not None and seed is not None:
+            raise ValueError(
+                "reset(seed=...) restarts the envs' seeds and cannot be combined with a partial "
+                "reset_mask; reset with the seed first, then use the mask"
+            )
+        if options:  # for each env's next reset, as AsyncVectorEnv passes them
+            self._call_all("set_reset_options", "", (options,))
+        if mask is not None:
+            slot = core.reset_envs(mask)
+            self._done &= ~mask
+            result = (core.observations(slot), self._kind.reset_infos(core, slot, mask))
+            self._last_slot = slot
+            self._pending = ("reset", result)
+            return
+        schedule = self._kind.seed_schedule(seed, core)
+        if isinstance(seed, (int, np.integer)):
+            super().reset(seed=int(seed))  # the vector env's own np_random
+        if schedule is not None:
+            core.set_seeds(schedule)
+        core.send_reset()
+        self._pending = ("reset", None)
+
+    def reset_wait(self, timeout: Optional[float] = None) -> tuple[Any, dict[str, Any]]:
+        """The second half of :meth:`reset_async`: wait at most ``timeout`` seconds (``None``:
+        the pool's own bound) and return ``(obs, infos)``. On a timeout
+        (``multiprocessing.TimeoutError``) the reset stays pending: call it again."""
+        self._core.check_open()
+        partial = self._take_pending("reset")
+        if partial is not None:
+            return partial
+        slot = self._core.wait_reset(timeout)
+        if slot is None:
+            self._pending = ("reset", None)
+            raise timed_out("reset", timeout)
+        self._done[:] = False
+        self._started = True
+        self._last_slot = slot
+        return self._core.observations(slot), self._kind.reset_infos(self._core, slot, None)
+
+    # -- step ------------------------------------------------------------------------------
+
+    def step(self, actions: Any) -> StepResult:
+        """Step every env with ``actions`` (a batch of the action space); returns ``(obs,
+        rewards, terminations, truncations, infos)``. Rewards and flags are fresh arrays."""
+        acts = self._step_actions(actions, "step")
+        return self._stepped(self._core.step(acts))
+
+    def step_async(self, actions: Any) -> None:
+        """The first half of :meth:`step` (gymnasium's ``AsyncVectorEnv.step_async``): send
+        ``actions`` and return at once; the workers step while you do something else."""
+        acts = self._step_actions(actions, "step_async")
+        self._core.send_step(acts)
+        self._pending = ("step", None)
+
+    def step_wait(self, timeout: Optional[float] = None) -> StepResult:
+        """The second half of :meth:`step_async`: wait at most ``timeout`` seconds (``None``:
+        the pool's own bound) and return what :meth:`step` returns. On a timeout
+        (``multiprocessing.TimeoutError``) the step stays pending: call it again."""
+        self._core.check_open()
+        self._take_pending("step")
+        r = self._core.wait_step(timeout)
+        if r is None:
+            self._pending = ("step", None)
+            raise timed_out("step", timeout)
+        return self._stepped(r)
+
+    def _step_actions(self, actions: Any, caller: str) -> np.ndarray:
+        """Checks before a step; the actions as the pool takes them."""
+        self._core.check_open()
+        if self._pending is not None:
+            raise already_pending(caller, self._pending[0])
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        if self._disabled:
+            refuse_finished(self._done)
+        return self._kind.actions(actions, None)
+
+    def _stepped(self, r: int) -> StepResult:
+        """What a step returns, from the slot the workers wrote and its columns."""
+        core = self._core
+        slot = r & 0xFF
+        self._last_slot = slot
+        cols = core.cols[slot]
+        infos = self._kind.step_infos(core, slot, r, self._same_step)
+        terminated, truncated = cols["terminated"].copy(), cols["truncated"].copy()
+        if self._disabled:
+            self._done = terminated | truncated
+        return core.observations(slot), cols["reward"].copy(), terminated, truncated, infos
+
+    def _not_pending(self, caller: str) -> None:
+        if self._pending is not None:
+            raise already_pending(caller, self._pending[0])
+
+    def _take_pending(self, what: str) -> Any:
+        """End the pending ``{what}_async`` (``NoAsyncCallError`` if there is none); what it
+        left for its wait."""
+        if self._pending is None or self._pending[0] != what:
+            raise no_async_call(what)
+        left, self._pending = self._pending[1], None
+        return left
+
+    def episode_counters(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(episode_return, episode_length)`` of every env after the last call: in SAME_STEP,
+        an env whose episode ended on that step shows the ended episode's."""
+        if self._last_slot is None:
+            raise RuntimeError("call reset() first")
+        recs = self._core.recs[self._last_slot]
+        return recs["episode_return"].copy(), recs["episode_length"].astype(np.int64)
+
+    # -- EnvPool-style async API -----------------------------------------------------------
+
+    def async_reset(self, seed: Seed = None) -> None:
+        """Start resetting every env (seeded as by :meth:`reset`); collect the first
+        observations with :meth:`recv`. Needs ``NEXT_STEP`` or ``SAME_STEP`` autoreset (in
+        SAME_STEP, ``recv`` does not return the ended episodes' last observations)."""
+        core = self._core
+        core.check_open()
+        self._not_pending("async_reset")
+        if self._disabled:
+            raise ValueError(
+                "the async API (async_reset/send/recv) needs autoreset_mode NEXT_STEP or SAME_STEP"
+            )
+        schedule = self._kind.seed_schedule(seed, core)
+        if schedule is not None:
+            core.set_seeds(schedule)
+        core.async_reset()
+        self._started = True
+        self._async_ids = None
+
+    def send(self, actions: Any, env_id: Optional[Any] = None) -> None:
+        """Send ``actions`` (one row per env id) to the envs ``env_id`` (default: those of the
+        last :meth:`recv`); they must form whole worker blocks, as :meth:`recv` returns them."""
+        self._core.check_open()
+        ids = self._async_ids if env_id is None else np.asarray(env_id, np.int64)
+        if ids is None:
+            raise RuntimeError("send() needs env_id, or a previous recv() whose envs it answers")
+        env_ids = [int(i) for i in np.atleast_1d(ids)]
+        self._core.send(self._kind.actions(actions, env_ids), env_ids)
+
+    def recv(self) -> StepResult:
+        """Wait for the next ``batch_size`` envs: ``(obs, rewards, terminations, truncations,
+        infos)`` with ``infos["env_id"]`` naming the envs of the rows.
+
+        With ``copy=False``, a batch of one worker block is a read-only view of the worker's
+        shared-memory sample: its ``base`` owns the sample, which stays valid and unchanged
+        while the array (or a view of it) lives, even after ``close()``; keep at most 3 such
+        batches per worker alive. Larger batches are gathered into new arrays; ``copy=True``
+        copies every batch.
+        """
+        core = self._core
+        core.check_open()
+        rows, recs, env_id, blocks = core.recv()
+        obs = self._kind.batch_views(rows)
+        if self.copy:
+            obs = copy_tree(obs)
+        self._async_ids = env_id
+        terminated, truncated, restarted, _ = flags(recs)
+        infos = self._kind.recv_infos(core, recs, blocks, env_id)
+        mark_restarted(infos, restarted)
+        infos["env_id"] = env_id
+        return obs, recs["reward"].astype(np.float64), terminated, truncated, infos
+
+    # -- calls -----------------------------------------------------------------------------
+
+    def call_envs(
+        self,
+        op: str,
+        name: str,
+        arguments: Sequence[tuple[tuple[Any, ...], dict[str, Any]]],
+        indices: Optional[Sequence[int]] = None,
+    ) -> list[Any]:
+        """Run call operation ``op`` (see :data:`rogue_gym.hosted.adapter.CALL_OPS`) on the
+        envs ``indices`` (default all), with ``arguments[j]`` = ``(args, kwargs)`` for the
+        ``j``-th of them; their results in that order. An env's exception is re-raised here."""
+        self._core.check_open()
+        envs = list(range(self.num_envs)) if indices is None else [int(i) for i in indices]
+        if len(arguments) != len(envs):
+            raise ValueError(f"{len(arguments)} argument sets for {len(envs)} envs")
+        return self._kind.call(self._core, op, name, arguments, envs)
+
+    def _call_all(self, op: str, name: str, args: tuple[Any, ...] = (), **kwargs: Any) -> list[Any]:
+        return self.call_envs(op, name, [(args, kwargs)] * self.num_envs)
+
+    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
+        """``getattr(env, name)(*args, **kwargs)`` in every env (or the attribute itself if it
+        is not callable); one result per env."""
+        return tuple(self._call_all("call", name, args, **kwargs))
+
+    def get_attr(self, name: str) -> tuple[Any, ...]:
+        """The attribute ``name`` of every env (called if callable, as ``AsyncVectorEnv``)."""
+        return self.call(name)
+
+    def set_attr(self, name: str, values: Any) -> None:
+        """Set ``name`` in every env: ``values`` is one value per env (list or tuple) or one
+        value for all."""
+        if not isinstance(values, (list, tuple)):
+            values = [values] * self.num_envs
+        if len(values) != self.num_envs:
+            raise ValueError(
+                f"set_attr needs one value per env ({self.num_envs}), got {len(values)}"
+            )
+        self.call_envs("set_wrapper_attr", name, [((v,), {}) for v in values])
+
+    def render(self) -> Optional[tuple[Any, ...]]:
+        """Every env's frame in the render mode (see the kind: the native game rebuilds its
+        screens by replay; hosted envs render in their workers)."""
+        self._core.check_open()
+        return self._kind.render(self._core)
+
+    # -- close -----------------------------------------------------------------------------
+
+    @property
+    def closed(self) -> bool:
+        """Whether the env was closed."""
+        core = getattr(self, "_core", None)
+        return core is None or core.closed
+
+    @closed.setter
+    def closed(self, value: bool) -> None:
+        pass  # gymnasium's VectorEnv.close sets it; the core is the truth
+
+    def close_extras(self, **kwargs: Any) -> None:
+        """Stop the workers and remove the pool's shared-memory files (idempotent). A pending
+        ``step_async`` or ``reset_async`` is abandoned with a warning."""
+        core = getattr(self, "_core", None)
+        if core is None:
+            return
+        if self._pending is not None and not core.closed:
+            warn_close_pending(self._pending[0])
+        self._pending = None
+        core.close()
+
+    def __del__(self) -> None:
+        core = getattr(self, "_core", None)
+        if core is not None:
+            core.close()
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(num_envs={self.num_envs}, num_workers={self.num_workers})"

@@ -1,0 +1,350 @@
+"""Gymnasium envs hosted in the workers as an env kind (``env_fns``, or one vector env per
+worker).
+
+The callables are cloudpickled once, here; each worker process (``python -m
+rogue_gym.worker``, never a fork) builds its block of envs from them and runs the pool's Rust
+loop, which calls the envs through :mod:`rogue_gym.hosted.adapter`. Observations and actions
+cross in shared memory, laid out leaf by leaf (:mod:`rogue_gym.hosted.layout`); infos cross
+only when an env returns a non-empty one (:mod:`rogue_gym.hosted.infos`).
+"""
+
+from __future__ import annotations
+
+import base64
+import pickle
+import sys
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Callable, Optional, Sequence
+
+import cloudpickle
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv
+
+from ..errors import EnvFailedError
+from ..front.core import SUMMARY_FINAL, SUMMARY_RESTARTED, flags, mark_restarted, reraise
+from ..hosted.adapter import NO_SEED, decode_exception
+from ..hosted.infos import HEAD, InfoDecoder, split_joined, vector_infos
+from ..hosted.layout import SpaceLayout
+from ..hosted.vector_adapter import check_vector_env
+from ..settings import PoolOptions
+
+if TYPE_CHECKING:
+    from ..front.core import Core
+
+__all__ = ["DEFAULT_INFO_BYTES", "HOSTED_WORKER_POLL_US", "HostedKind", "VectorEnvFn"]
+
+#: Room per env and step for an env's info in the worker's block, in bytes (``info_bytes``);
+#: a longer info travels beside the block, in a private file.
+DEFAULT_INFO_BYTES = 4096
+#: How long a worker of hosted envs polls for the next command before it blocks, in µs
+#: (``worker_poll_us``). Between two steps the caller runs Python (decoding, the policy), and a
+#: worker that has gone to sleep costs a wake-up on every step: on the 2-core VM, CartPole x 64
+#: with 2 workers ran at 46k steps/s with the pool's 50 µs and at 65-72k with 1-3 ms; blocking
+#: sooner when waits are long was slower for HalfCheetah and Pong too, even with 4 workers on 2
+#: cores (``benchmarks/results/real_envs/README.md``, "Polling").
+HOSTED_WORKER_POLL_US = 2000
+
+EnvFn = Callable[[], gym.Env]
+
+
+@dataclass(frozen=True)
+class VectorEnvFn:
+    """One vector env per worker: ``fn(n)`` builds a vector env of ``n`` envs, one per worker
+    block (see :meth:`rogue_gym.PoolVectorEnv.from_vector_env`)."""
+
+    fn: Callable[[int], VectorEnv]
+    num_envs: int
+
+    def __post_init__(self) -> None:
+        if not callable(self.fn):
+            raise TypeError("vector_env_fn must be a callable building a vector env of n envs")
+        if int(self.num_envs) < 1:
+            raise ValueError(f"num_envs must be at least 1, got {self.num_envs}")
+
+
+def _b64(data: bytes) -> str:
+    return base64.b64encode(data).decode("ascii")
+
+
+class HostedKind:
+    """Envs built by ``env_fns`` (one per env) or by a :class:`VectorEnvFn`, in the workers.
+
+    Args:
+        env_fns: one callable per env (all envs must have the same spaces), or a
+            :class:`VectorEnvFn`.
+        options: the pool's options (checked here).
+        autoreset_mode: the facade's (a hosted vector env must autoreset so).
+        info_bytes: room per env and step for the env's info in shared memory.
+    """
+
+    def __init__(
+        self,
+        env_fns: Any,
+        options: PoolOptions,
+        autoreset_mode: AutoresetMode,
+        info_bytes: int = DEFAULT_INFO_BYTES,
+    ) -> None:
+        hosted = env_fns if isinstance(env_fns, VectorEnvFn) else None
+        fns: list[EnvFn] = [] if hosted is not None else list(env_fns)
+        if hosted is None and not fns:
+            raise ValueError("env_fns is empty: give one callable per env")
+        self.num_envs = len(fns) if hosted is None else int(hosted.num_envs)
+        checked = options.checked_pool(self.num_envs)
+        self.options = PoolOptions(**{**vars(options), **checked})
+        self.worker_command = checked["worker_command"]
+        # Probe one env here for the spaces and metadata, as AsyncVectorEnv does.
+        probe: Any
+        if hosted is None:
+            probe = fns[0]()
+            if not isinstance(probe, gym.Env):
+                raise TypeError(
+                    f"env_fns[0]() returned {type(probe).__name__!r}, not a gymnasium.Env: each "
+                    "env function must build and return an env (e.g. lambda: "
+                    "gym.make('CartPole-v1'))"
+                )
+        else:
+            probe = hosted.fn(1)
+        try:
+            if hosted is None:
+                self.single_observation_space = probe.observation_space
+                self.single_action_space = probe.action_space
+            else:
+                check_vector_env(probe, 1, autoreset_mode)
+                self.single_observation_space = probe.single_observation_space
+                self.single_action_space = probe.single_action_space
+            self.metadata: dict[str, Any] = dict(probe.metadata)
+            self.render_mode = probe.render_mode
+            self.spec = getattr(probe, "spec", None)
+        finally:
+            probe.close()
+        self._obs_layout = SpaceLayout(self.single_observation_space)
+        self.obs_bytes = self._obs_layout.stride
+        act = self.single_action_space
+        self._discrete = act if isinstance(act, spaces.Discrete) else None
+        self._act_layout = SpaceLayout(act)
+        self._act_rows = np.zeros((self.num_envs, self._act_layout.nbytes), np.uint8)
+        spec = {
+            "obs_shape": [self.obs_bytes],
+            "dtype": "u8",
+            "num_actions": 0 if self._discrete is None else int(self._discrete.n),
+            "info_names": [],
+            "action_bytes": 0 if self._discrete is not None else self._act_layout.nbytes,
+            "extra_bytes": int(info_bytes),
+        }
+        adapter: dict[str, Any] = {
+            "sys_path": [p for p in sys.path if p],
+            "spaces": _b64(cloudpickle.dumps((self.single_observation_space, act))),
+            "discrete_start": None if self._discrete is None else int(self._discrete.start),
+        }
+        if hosted is None:
+            pickled = [cloudpickle.dumps(fn) for fn in fns]
+            unique = list(dict.fromkeys(pickled))
+            adapter["env_fns"] = [_b64(p) for p in unique]
+            adapter["fn_of_env"] = [unique.index(p) for p in pickled]
+        else:
+            adapter["vector_env_fn"] = _b64(cloudpickle.dumps(hosted.fn))
+            adapter["autoreset_mode"] = autoreset_mode.value
+        self._env = {
+            "kind": "python" if hosted is None else "python-vector",
+            "spec": spec,
+            "adapter": adapter,
+        }
+        self._spec = spec
+        self._decoder = InfoDecoder()
+        self._started = False
+
+    # -- the pool --------------------------------------------------------------------------
+
+    def pool_settings(self) -> dict[str, Any]:
+        """The native pool's settings: the envs' pickles and spaces, no seeds yet."""
+        return {
+            **self.options.pool_json(self.num_envs),
+            "env": self._env,
+            "spec": self._spec,
+            "seeds": self._seeds(None),
+        }
+
+    def bind(self, core: Core) -> None:
+        """Nothing to prepare: infos are decoded as they come."""
+
+    def batch_views(self, rows: np.ndarray) -> Any:
+        """Slot rows as a batch of the observation space, leaf by leaf (views)."""
+        return self._obs_layout.batch_views(rows)
+
+    # -- actions and seeds -----------------------------------------------------------------
+
+    def actions(self, actions: Any, env_ids: Optional[Sequence[int]]) -> np.ndarray:
+        """Discrete actions as indices from 0 (checked in the space's terms, ``start``
+        included); others as their raw bytes, leaf by leaf."""
+        n = self.num_envs if env_ids is None else len(env_ids)
+        if self._discrete is not None:
+            return self._discrete_indices(actions, env_ids, n)
+        rows = (
+            self._act_rows if env_ids is None else np.zeros((n, self._act_layout.nbytes), np.uint8)
+        )
+        return self._act_layout.flat_batch(actions, rows)
+
+    def _discrete_indices(
+        self, actions: Any, env_ids: Optional[Sequence[int]], n: int
+    ) -> np.ndarray:
+        a = np.asarray(actions)
+        if a.ndim == 0 and n == 1:  # one env: a scalar action, as gymnasium takes it
+            a = a.reshape(1)
+        if a.shape != (n,) or a.dtype.kind not in "iu":
+            raise ValueError(f"expected integer actions of shape ({n},), got {a.dtype} {a.shape}")
+        space = self._discrete
+        assert space is not None
+        start, size = int(space.start), int(space.n)
+        wide = a.astype(object) if a.dtype.kind == "u" and a.dtype.itemsize >= 8 else a
+        bad = (wide < start) | (wide >= start + size)
+        if bad.any():
+            j = int(np.flatnonzero(bad)[0])
+            env = j if env_ids is None else env_ids[j]
+            raise ValueError(
+                f"env {env}: action {a[j]} is out of range of {space}; valid actions are "
+                f"{start} to {start + size - 1}"
+            )
+        return a.astype(np.int64) - start
+
+    def _seeds(self, seed: Any) -> dict[str, Any]:
+        """The schedule for ``reset(seed=...)``: env ``i``'s next episode gets ``seed + i`` (or
+        ``seed[i]``), or no seed at all for ``None``; later episodes are not reseeded."""
+        if seed is None:
+            return {"base": 0, "set": {"list": [NO_SEED]}, "policy": "sequential"}
+        if isinstance(seed, (int, np.integer)):
+            start = int(seed)
+            if start < 0 or start + self.num_envs > 2**63:
+                raise ValueError(f"seed must be in [0, 2**63 - num_envs), got {seed}")
+            return {
+                "base": start,
+                "set": {"range": {"start": start, "end": start + self.num_envs}},
+                "policy": "sequential",
+            }
+        seeds = list(seed)
+        if len(seeds) != self.num_envs:
+            raise ValueError(
+                f"seed list has {len(seeds)} entries; expected one per env ({self.num_envs})"
+            )
+        if any(s is None for s in seeds):
+            raise ValueError(
+                "a seed list cannot mix None and seeds; pass seed=None to seed from entropy"
+            )
+        values = [int(s) for s in seeds]
+        if any(s < 0 or s >= 2**63 for s in values):
+            raise ValueError("seeds must be in [0, 2**63)")
+        return {"base": 0, "set": {"list": values}, "policy": "sequential"}
+
+    def seed_schedule(self, seed: Any, core: Core) -> Optional[dict[str, Any]]:
+        """An int seeds env ``i`` with ``seed + i``, a list seeds each env; ``None`` keeps each
+        env's generator (a first reset without a seed reseeds nothing, as gymnasium's)."""
+        if seed is None and self._started:
+            return None
+        self._started = True
+        return self._seeds(seed)
+
+    # -- infos -----------------------------------------------------------------------------
+
+    def _infos(
+        self, core: Core, restarted: Optional[np.ndarray], final: set[int]
+    ) -> dict[str, Any]:
+        infos: dict[str, Any] = {}
+        mark_restarted(infos, restarted)
+        rows, data, size, ends = core.pool.take_extras(HEAD)
+        if size and not final and self._decoder.put_uniform(infos, data, rows, self.num_envs):
+            return infos  # the usual step: one typed info layout, decoded in one go
+        return vector_infos(
+            infos,
+            self._decoder,
+            split_joined(rows, data, size, ends, self.num_envs),
+            self.num_envs,
+            lambda env, entries: self._env_info(core, env, entries, env in final),
+            final,
+        )
+
+    def reset_infos(self, core: Core, slot: int, only: Optional[np.ndarray]) -> dict[str, Any]:
+        """The infos the envs' resets returned."""
+        self._started = True
+        return self._infos(core, flags(core.recs[slot])[2], set())
+
+    def step_infos(self, core: Core, slot: int, summary: int, same_step: bool) -> dict[str, Any]:
+        """The infos the envs returned, merged as gymnasium's vector envs merge them."""
+        cols = core.cols[slot]
+        restarted = cols["restarted"] if summary & SUMMARY_RESTARTED else None
+        final: set[int] = set()
+        if summary & SUMMARY_FINAL and same_step:
+            final = {int(i) for i in np.flatnonzero(cols["has_final_obs"])}
+        return self._infos(core, restarted, final)
+
+    def recv_infos(
+        self, core: Core, recs: np.ndarray, blocks: list[Any], env_id: np.ndarray
+    ) -> dict[str, Any]:
+        """The infos of the batch's envs, one row each."""
+        row_of = {int(e): r for r, e in enumerate(env_id)}
+        extras = [(row_of[env], data) for *_, block_extras in blocks for env, data in block_extras]
+        return vector_infos(
+            {},
+            self._decoder,
+            extras,
+            len(env_id),
+            lambda row, entries: self._env_info(core, int(env_id[row]), entries, False),
+        )
+
+    def _env_info(
+        self, core: Core, env: int, entries: list[tuple[str, dict[str, Any]]], final: bool
+    ) -> dict[str, Any]:
+        """One env's info for this call, as gymnasium's vector envs build it: the reset's (or
+        step's) info and, when the episode ended in SAME_STEP mode, ``final_obs`` and the last
+        step's info as ``final_info``."""
+        info: dict[str, Any] = {}
+        final_info: dict[str, Any] = {}
+        for kind, entry in entries:
+            if kind == "step" and final:
+                final_info = entry
+            else:
+                info.update(entry)
+        if final and core.final is not None:
+            info["final_obs"] = core.final_obs(env)
+            info["final_info"] = final_info
+        return info
+
+    # -- calls and render ------------------------------------------------------------------
+
+    def call(
+        self,
+        core: Core,
+        op: str,
+        name: str,
+        arguments: Sequence[tuple[tuple[Any, ...], dict[str, Any]]],
+        indices: Sequence[int],
+    ) -> list[Any]:
+        """Run ``op`` in the envs' workers; an env's exception is re-raised here."""
+        requests = [
+            (int(env), pickle.dumps((op, name, args, kwargs), protocol=pickle.HIGHEST_PROTOCOL))
+            for env, (args, kwargs) in zip(indices, arguments)
+        ]
+        try:
+            replies = core.pool.call_envs(requests)
+        except EnvFailedError as err:
+            reraise(err)
+        results = []
+        for env, data in replies:
+            status, value = pickle.loads(data)
+            if status == "err":
+                decoded = decode_exception(value)
+                if decoded is None:
+                    raise RuntimeError(f"env {env}: {value}")
+                exc, tb = decoded
+                if hasattr(exc, "add_note"):
+                    exc.add_note(
+                        f"raised by env {env} during {op}({name!r}); worker-side traceback:\n{tb}"
+                    )
+                raise exc
+            results.append(value)
+        return results
+
+    def render(self, core: Core) -> Optional[tuple[Any, ...]]:
+        """Every env's ``render()``."""
+        n = self.num_envs
+        return tuple(self.call(core, "render", "", [((), {})] * n, range(n)))
