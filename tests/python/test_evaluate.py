@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from rogue_gym import evaluate as ev
+from rogue_gym.scoring import episodes
 from rogue_gym.suites import get_suite
 
 # ------------------------------------------------------------------------------ bootstrap CI
@@ -167,7 +168,7 @@ def test_run_episodes_attributes_episodes_to_seeds(monkeypatch, num_envs: int) -
     def fake(suite, schedule, n, workers, obs):
         return _FakePool(n, schedule)
 
-    monkeypatch.setattr(ev, "_make_pool", fake)
+    monkeypatch.setattr(episodes, "make_eval_pool", fake)
     seeds = [1000, 1001, 1002, 1003, 1004]
     out = ev.run_episodes(
         get_suite("paper-10"),
@@ -356,7 +357,7 @@ def test_run_episodes_checks_the_played_seeds(monkeypatch) -> None:
         pool.report = 7  # never a scheduled seed
         return pool
 
-    monkeypatch.setattr(ev, "_make_pool", fake)
+    monkeypatch.setattr(episodes, "make_eval_pool", fake)
     with pytest.raises(RuntimeError, match="played seed 7"):
         ev.run_episodes(
             get_suite("paper-10"),

@@ -72,9 +72,9 @@ def run_config(run: Path) -> TrainConfig:
 
 def _screen(suite: Suite) -> tuple[int, int, int]:
     """``(symbols, height, width)`` of the suite's symbol-index screens."""
-    from .. import make_vec
+    from ..suite_pool import suite_pool
 
-    env = make_vec(1, config=suite.config, num_workers=1, seed=0, obs="symbol_index")
+    env = suite_pool(suite, 1, num_workers=1, seed=0, obs="symbol_index")
     try:
         space: Any = env.single_observation_space  # Box(0, symbols - 1, (H, W))
         return int(space.high.max()) + 1, int(space.shape[0]), int(space.shape[1])
