@@ -6,12 +6,13 @@ random actions):
 * ``step``: ``RogueVectorEnv.step`` (one native call decodes the records into reused arrays);
 * ``native``: the bare native ``step_shared`` call from Python (no decoding at all: the floor
   of any facade);
-* ``legacy``: the previous Python-side decoding (``PoolCore.step`` + per-step numpy decoding
-  of the records into fresh info arrays), kept here only as the "before" reference;
 * with ``--pool-bench PATH``: ``rogue-gym pool-bench --mode shared`` (raw single-process
   engine loop and the Rust pool alone) in the same rounds.
 
     python python/examples/step_overhead.py --rounds 5 --pool-bench target/release/rogue-gym
+
+To compare two builds, run it under each in turn (``PYTHONPATH=<other checkout>/python``, with
+that checkout's extension built), several times, and compare the medians of ``step``.
 """
 
 from __future__ import annotations
@@ -26,17 +27,6 @@ from typing import Any
 import numpy as np
 
 import rogue_gym
-from rogue_gym._core import PoolCore
-
-
-def legacy_step(env: Any, actions: np.ndarray) -> tuple[Any, ...]:
-    """The facade's step() before the native decoding (NEXT_STEP, no render history)."""
-    obs, recs = env._core.step(actions)
-    env._last_recs = recs
-    terminated, truncated, restarted, _ = PoolCore.flags(recs)
-    rewards = recs["reward"].astype(np.float64)
-    infos = env._infos(recs, restarted)
-    return env._out(obs), rewards, terminated.copy(), truncated.copy(), infos
 
 
 def time_loop(env: Any, step: Any, actions: np.ndarray, batches: int) -> float:
@@ -86,40 +76,38 @@ def main() -> None:
     env = rogue_gym.make_vec(args.num_envs, config="paper", num_workers=args.num_workers, seed=0)
     actions = np.random.default_rng(0).integers(0, 11, size=(256, args.num_envs))
     env.reset()
-    res: dict[str, list[float]] = {"step": [], "native": [], "legacy": [], "raw": [], "pool": []}
+    res: dict[str, list[float]] = {"step": [], "native": [], "raw": [], "pool": []}
     core = env._core
+    # The bare native call (a build that keeps its pool elsewhere is timed by `step` only).
+    pool, recs = getattr(core, "pool", None), getattr(core, "recs", None)
 
     def native(a: np.ndarray) -> tuple[Any, ...]:
-        core._pool.step_shared(a, core._recs[0], None)
+        pool.step_shared(a, recs[0], None)  # type: ignore[union-attr,index]
         return None, None, np.zeros(1, bool), np.zeros(1, bool), {}
 
     try:
         for r in range(args.rounds):
             res["step"].append(time_loop(env, env.step, actions, args.batches))
-            res["legacy"].append(
-                time_loop(env, lambda a: legacy_step(env, a), actions, args.batches)
-            )
-            res["native"].append(time_loop(env, native, actions, args.batches))
-            line = (
-                f"round {r}: step {res['step'][-1]:,.0f}  native {res['native'][-1]:,.0f}  "
-                f"legacy {res['legacy'][-1]:,.0f}"
-            )
+            line = f"round {r}: step {res['step'][-1]:,.0f}"
+            if pool is not None:
+                res["native"].append(time_loop(env, native, actions, args.batches))
+                line += f"  native {res['native'][-1]:,.0f}"
             if args.pool_bench:
-                raw, pool = pool_bench(
+                raw, rust = pool_bench(
                     args.pool_bench, args.num_envs, args.num_workers, args.batches
                 )
                 res["raw"].append(raw)
-                res["pool"].append(pool)
-                line += f"  raw loop {raw:,.0f}  rust pool (shared) {pool:,.0f}"
+                res["pool"].append(rust)
+                line += f"  raw loop {raw:,.0f}  rust pool (shared) {rust:,.0f}"
             print(line + " env-steps/s", flush=True)
     finally:
         env.close()
     med = {k: statistics.median(v) for k, v in res.items() if v}
     print("medians: " + ", ".join(f"{k} {v:,.0f}" for k, v in med.items()))
     if "raw" in med:
+        floor = f" (native call alone {med['native'] / med['raw']:.0%})" if "native" in med else ""
         print(
-            f"python step / raw loop: {med['step'] / med['raw']:.0%} "
-            f"(native call alone {med['native'] / med['raw']:.0%}, legacy {med['legacy'] / med['raw']:.0%}); "
+            f"python step / raw loop: {med['step'] / med['raw']:.0%}{floor}; "
             f"rust pool / raw: {med['pool'] / med['raw']:.0%}"
         )
 

@@ -115,3 +115,45 @@ def make_sb3() -> Iterator[Callable[..., Any]]:
     yield factory
     for env in made:
         env.close()
+
+
+def _cartpole() -> Any:
+    import gymnasium as gym
+
+    return gym.make("CartPole-v1")
+
+
+@pytest.fixture
+def make_kind() -> Iterator[Callable[..., Any]]:
+    """``make_kind(kind, facade="gymnasium", num_envs=4, **kw)``: a pool of the native game
+    (paper config, seed 0) or of hosted CartPole, 2 workers, as a gymnasium vector env or an
+    SB3 ``VecEnv``; closed at teardown and checked for leftover workers and files. For the
+    tests of behaviour every kind shares."""
+    made: list[Any] = []
+
+    def factory(kind: str, facade: str = "gymnasium", num_envs: int = 4, **kw: Any) -> Any:
+        kw.setdefault("num_workers", 2)
+        if facade == "sb3":
+            pytest.importorskip("stable_baselines3")
+            from rogue_gym.sb3 import PoolVecEnv, RogueVecEnv
+
+        if kind == "native":
+            kw.setdefault("config", PAPER)
+            kw.setdefault("seed", 0)
+            env = (RogueVecEnv if facade == "sb3" else rogue_gym.RogueVectorEnv)(num_envs, **kw)
+        elif kind == "hosted":
+            fns = [_cartpole] * num_envs
+            env = (PoolVecEnv if facade == "sb3" else rogue_gym.PoolVectorEnv)(fns, **kw)
+        else:
+            raise ValueError(f"unknown kind {kind!r}")
+        made.append(env)
+        return env
+
+    yield factory
+    for env in made:
+        pids, name = env.worker_pids, (env.venv if hasattr(env, "venv") else env).pool_name
+        env.close()
+        assert wait_until(lambda pids=pids: not any(pid_alive(p) for p in pids)), (
+            "workers left running"
+        )
+        assert pool_files(name) == [], "pool files left behind"

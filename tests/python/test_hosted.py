@@ -5,7 +5,6 @@ seeding across worker layouts, and cleanup."""
 from __future__ import annotations
 
 import functools
-import gc
 import os
 import re
 import select
@@ -382,22 +381,6 @@ def test_unsupported_spaces_and_bad_actions_are_clear_errors(pool) -> None:
         cp.step(np.array([0, 2]))
 
 
-def test_autoreset_disabled_needs_a_masked_reset(pool) -> None:
-    env = pool([NestedEnv] * 2, num_workers=1, autoreset_mode=AutoresetMode.DISABLED)
-    env.reset(seed=0)
-    env.action_space.seed(0)
-    done = np.zeros(2, bool)
-    while not done.any():
-        last, _, term, trunc, _ = env.step(env.action_space.sample())
-        done = term | trunc
-    with pytest.raises(ValueError, match="reset_mask"):
-        env.step(env.action_space.sample())
-    obs, _ = env.reset(options={"reset_mask": done})
-    assert (obs["pos"][done] == 0).all(), "the finished envs start a new episode"
-    assert np.array_equal(obs["pos"][~done], last["pos"][~done]), "the others keep theirs"
-    env.step(env.action_space.sample())
-
-
 def test_killed_worker_is_restarted_with_flagged_envs(pool, monkeypatch) -> None:
     monkeypatch.setattr(leases, "LEND_MIN_BYTES", 0)  # the kept batch is lent
     assert_killed_worker_restarts(pool([cartpole] * 4, num_workers=2))
@@ -457,17 +440,6 @@ def test_make_vec_builds_any_registered_id(pool) -> None:
         env.close()
     with pytest.raises(TypeError, match="num_envs"):
         rogue_gym.make_vec("CartPole-v1")
-
-
-def test_garbage_collection_closes_the_pool() -> None:
-    env = PoolVectorEnv([cartpole] * 2, num_workers=2)
-    env.reset(seed=0)
-    pids, name = env.worker_pids, env.pool_name
-    assert pool_files(name)
-    del env
-    gc.collect()
-    assert wait_until(lambda: not any(pid_alive(p) for p in pids))
-    assert pool_files(name) == []
 
 
 SIGTERM_SCRIPT = """

@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import os
-import signal
-
 import numpy as np
 import pytest
 
@@ -67,26 +64,6 @@ def test_rollout_double_buffering(make_sb3) -> None:
         new, _, _, _ = env.step(rng.integers(0, 11, 4))
         assert np.array_equal(last, snapshot)
         last, snapshot = new, new.copy()
-
-
-def test_worker_restart_reports_truncation(make_sb3) -> None:
-    env = make_sb3(4, num_workers=2, max_steps=100)
-    env.reset()
-    env.step(np.zeros(4, np.int64))
-    os.kill(env.worker_pids[0], signal.SIGKILL)
-    seen = False
-    for _ in range(20):
-        obs, rewards, dones, infos = env.step(np.zeros(4, np.int64))
-        if any(inf.get("worker_restarted") for inf in infos):
-            seen = True
-            for i in (0, 1):
-                assert (
-                    dones[i]
-                    and infos[i]["TimeLimit.truncated"]
-                    and "terminal_observation" in infos[i]
-                )
-            break
-    assert seen
 
 
 def test_ppo_learns_a_few_steps(make_sb3) -> None:

@@ -1,0 +1,152 @@
+"""Behaviour every env kind shares through the one front end, checked for each kind (the native
+game and hosted CartPole) and, where SB3 sees it too, for each facade."""
+
+from __future__ import annotations
+
+import gc
+import os
+import signal
+
+import numpy as np
+import pytest
+import rogue_gym
+
+from conftest import PAPER, pid_alive, pool_files, wait_until
+
+KINDS = ["native", "hosted"]
+
+
+def _zeros(env) -> np.ndarray:
+    return np.zeros(env.num_envs, np.int64)
+
+
+@pytest.mark.parametrize("facade", ["gymnasium", "sb3"])
+@pytest.mark.parametrize("kind", KINDS)
+def test_a_killed_worker_restarts_and_every_facade_counts_it(kind, facade, make_kind) -> None:
+    """Worker 1 dies: its envs end truncated and flagged, a new worker takes over, and the
+    facade shows one restart and the new pid. SB3: the last observation returned stands for
+    the lost episode's end, with no ``episode`` info (its counters died with the worker)."""
+    env = make_kind(kind, facade, max_restarts=5)
+    sb3 = facade == "sb3"
+    first = env.reset() if sb3 else env.reset(seed=0)[0]
+    last = first.copy()
+    assert env.restarts == 0 and len(env.worker_pids) == env.num_workers == 2
+    pids = env.worker_pids
+    os.kill(pids[1], signal.SIGKILL)
+    assert wait_until(lambda: not pid_alive(pids[1]))
+    if sb3:
+        _, _, dones, infos = env.step(_zeros(env))
+        flagged = [bool(info.get("worker_restarted")) for info in infos]
+        assert flagged == [False, False, True, True] and dones[2:].all()
+        for i in (2, 3):
+            assert infos[i]["TimeLimit.truncated"] and "episode" not in infos[i]
+            assert np.array_equal(infos[i]["terminal_observation"], last[i])
+            assert env.reset_infos[i] is not None
+    else:
+        _, _, _, trunc, infos = env.step(_zeros(env))
+        assert infos["worker_restarted"].tolist() == [False, False, True, True]
+        assert infos["_worker_restarted"].tolist() == [False, False, True, True]
+        assert trunc[2:].all()
+    assert env.restarts == 1
+    assert env.worker_pids[0] == pids[0] and env.worker_pids[1] not in (0, pids[1])
+    assert list(env.envs_of_worker(1)) == [2, 3]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_sb3_reports_each_ended_episode_as_monitor_does(kind, make_kind) -> None:
+    """``episode`` = the ended episode's return and length (summed here from the rewards),
+    beside ``terminal_observation``; ``TimeLimit.truncated`` on every step."""
+    kw = {"max_steps": 6} if kind == "native" else {}
+    env = make_kind(kind, "sb3", **kw)
+    env.reset()
+    ret, length = np.zeros(4), np.zeros(4, np.int64)
+    rng = np.random.default_rng(1)
+    ended = 0
+    for _ in range(60):
+        _, rewards, dones, infos = env.step(rng.integers(0, 2, 4))
+        ret += rewards
+        length += 1
+        for i, info in enumerate(infos):
+            assert "TimeLimit.truncated" in info
+            if not dones[i]:
+                assert "episode" not in info and "terminal_observation" not in info
+                continue
+            ended += 1
+            assert info["episode"]["l"] == length[i] and info["episode"]["r"] == pytest.approx(
+                ret[i]
+            )
+            assert info["episode"]["t"] >= 0 and "terminal_observation" in info
+            ret[i], length[i] = 0, 0
+    assert ended >= 4
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_close_and_gc_leave_nothing_behind(kind) -> None:
+    def build():
+        if kind == "native":
+            return rogue_gym.make_vec(4, config=PAPER, num_workers=2, seed=0)
+        return rogue_gym.make_vec("CartPole-v1", 4, num_workers=2)
+
+    env = build()
+    obs, _ = env.reset(seed=0)
+    snapshot = obs.copy()
+    pids, name = env.worker_pids, env.pool_name
+    assert pool_files(name)
+    env.close()
+    assert np.array_equal(obs, snapshot)  # what was returned stays readable after close
+    env.close()  # idempotent
+    assert env.closed and env.worker_pids == []
+    assert wait_until(lambda: not any(pid_alive(p) for p in pids))
+    assert pool_files(name) == []
+    with pytest.raises(RuntimeError, match="closed"):
+        env.step(_zeros(env))
+
+    env = build()
+    env.reset(seed=0)
+    pids, name = env.worker_pids, env.pool_name
+    del env
+    gc.collect()
+    assert wait_until(lambda: not any(pid_alive(p) for p in pids))
+    assert pool_files(name) == []
+
+
+@pytest.mark.parametrize("copy", [False, True])
+@pytest.mark.parametrize("kind", KINDS)
+def test_recv_takes_copy_as_step_does(kind, copy, make_kind) -> None:
+    """``copy=True``: every recv batch is the caller's (writable, not shared memory);
+    ``copy=False``: a one-worker batch is a read-only view of the worker's sample."""
+    env = make_kind(kind, batch_size=2, copy=copy)
+    env.async_reset(seed=4)
+    obs, _, _, _, infos = env.recv()
+    assert obs.flags.writeable == copy and len(infos["env_id"]) == 2
+    env.send(_zeros(env)[:2])
+    obs, *_ = env.recv()
+    assert obs.flags.writeable == copy
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_async_reset_takes_the_seed_reset_takes(kind, make_kind) -> None:
+    sync = make_kind(kind)
+    want, _ = sync.reset(seed=11)
+    env = make_kind(kind)
+    env.async_reset(seed=11)
+    got = {}
+    while len(got) < env.num_envs:
+        obs, *_, infos = env.recv()
+        got.update({int(e): o.copy() for e, o in zip(infos["env_id"], obs)})
+        if len(got) < env.num_envs:
+            env.send(_zeros(env)[: len(infos["env_id"])])
+    assert all(np.array_equal(got[i], want[i]) for i in range(env.num_envs))
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_reset_options_go_to_the_envs_or_are_refused_by_name(kind, make_kind) -> None:
+    env = make_kind(kind)
+    env.reset(seed=0)
+    if kind == "native":
+        with pytest.raises(ValueError, match=r"no reset options.*'level'"):
+            env.reset(options={"level": 3})
+        env.reset(options={"reset_mask": np.ones(4, bool)})  # the mask alone is fine
+    else:  # CartPole's reset takes low/high bounds of its initial state
+        obs, _ = env.reset(seed=0, options={"low": 0.04, "high": 0.05})
+        assert ((obs >= 0.04) & (obs <= 0.05)).all()
