@@ -22,7 +22,7 @@
 //! * [`seeds`]: the [`SeedSchedule`]: the seed of env `i`'s `e`-th episode depends only on
 //!   (schedule, `i`, `e`), never on worker count or timing.
 //! * [`wire`]: the protocol both sides import; [`supervisor`]: the [`Pool`]; [`worker`]: the
-//!   worker loop.
+//!   worker loop; [`stats`]: the counters workers keep in shared memory ([`Pool::stats`]).
 //!
 //! Crashes: dead (waitpid) or hung (`step_timeout`) workers are killed, cleaned up and
 //! respawned; per [`FailurePolicy`] the affected envs report `truncated` + `restarted`, or the
@@ -39,6 +39,7 @@ pub mod error;
 pub mod kinds;
 pub mod registry;
 pub mod seeds;
+pub mod stats;
 pub mod supervisor;
 pub mod wire;
 pub mod worker;
@@ -51,6 +52,7 @@ pub use kinds::test_env::TestEnv;
 pub use registry::{BlockCtor, Built, EnvCtor, EnvRegistry};
 pub use rogue_gym_ipc::WaitPolicy;
 pub use seeds::{SeedPolicy, SeedSchedule, SeedSet, Shard};
+pub use stats::WorkerStats;
 pub use supervisor::{Actions, InterruptCheck, Pool, validate_actions};
 pub use wire::layout::{
     EnvRecord, FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED,

@@ -6,7 +6,7 @@
 //! leading args): `--config <file> --index <k> --generation <g> --ppid <supervisor pid>`.
 
 use std::path::PathBuf;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use rogue_gym_ipc::{
     BlockHeader, IpcError, PoolId, WaitCall, WaitPolicy, WorkerPorts, hybrid_wait,
@@ -15,6 +15,7 @@ use rogue_gym_ipc::{
 use crate::config::AutoresetMode;
 use crate::env::MAX_INFO;
 use crate::registry::{Built, EnvRegistry};
+use crate::stats::{Counter, StatsBuffer, ns_since};
 use crate::wire::layout::BlockLayout;
 use crate::wire::{
     BATCH_BUFFER, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_CALL, CMD_CLOSE, CMD_STEP,
@@ -207,6 +208,8 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
     let ob = layout.obs_bytes;
     let sb = slot_bytes(cfg.num_envs, ob);
     let batch = rogue_gym_ipc::SharedBuffer::open(&id, BATCH_BUFFER, cfg.batch_slots * sb)?;
+    let stats = StatsBuffer::open(&id, cfg.num_workers)?;
+    let me = a.index;
     let first_env = envs.start;
     let mut ready = ports.loan_block(words)?;
     *ready.user_header_mut() = header(0, BLOCK_READY);
@@ -219,6 +222,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
     let mut apart: Vec<(u32, Vec<u8>)> = Vec::new();
     loop {
         let mut cmd = None;
+        let waiting = Instant::now();
         hybrid_wait::<WorkerError>(ports.cmd_listener(), &policy, None, |call| {
             if call == WaitCall::Idle && nix::unistd::getppid().as_raw() != a.ppid {
                 return Err(WorkerError::ParentGone(a.ppid));
@@ -226,6 +230,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
             cmd = ports.try_recv_cmd()?;
             Ok(cmd.is_some())
         })?;
+        stats.add(me, Counter::WaitNs, ns_since(waiting));
         let Some(cmd) = cmd else { continue };
         let h = *cmd.user_header();
         let n = (h.len as usize).min(cmd.payload().len());
@@ -303,9 +308,14 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
             info: &mut info,
             apart: &mut apart,
         };
+        let serving = Instant::now();
         let mut failed = hosted
             .serve(kind, &payload[..n], per_env, &mut out, &ctx)
             .err();
+        stats.add(me, Counter::EnvNs, ns_since(serving));
+        stats.add(me, Counter::EnvSteps, epw as u64);
+        stats.add(me, Counter::Commands, 1);
+        let publishing = Instant::now();
         if failed.is_none() && !apart.is_empty() {
             // Info too long for the block's room goes beside it, in a private file named by
             // the block; the supervisor takes it with the block.
@@ -331,5 +341,6 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
             continue;
         }
         ports.send_block(block)?;
+        stats.add(me, Counter::PublishNs, ns_since(publishing));
     }
 }

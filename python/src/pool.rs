@@ -8,9 +8,10 @@ use numpy::ndarray::ArrayView1;
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyUntypedArray};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyList};
+use pyo3::types::{PyBytes, PyDict, PyList};
 use rogue_gym_pool::{Actions, Batch, BatchOutput, EnvRecord, Pool, PoolError, SeedSchedule};
 
+use crate::clock::CallClock;
 use crate::columns::{
     RECORD_BYTES, column_layout, raw_bytes, write_columns, write_final, write_records,
 };
@@ -18,15 +19,6 @@ use crate::errors::pool_error;
 use crate::gil::{interrupt_check, lock_gil_free};
 use crate::holders::{BlockHolder, SharedBatchHolder};
 use crate::settings;
-
-/// What `outcome` returns: `(rewards, terminated, truncated, restarted, final)` (see there).
-type Outcome<'py> = (
-    Bound<'py, PyArray1<f64>>,
-    Bound<'py, PyArray1<bool>>,
-    Bound<'py, PyArray1<bool>>,
-    Option<Bound<'py, PyArray1<bool>>>,
-    Vec<usize>,
-);
 
 /// What `take_extras` returns: `(rows, data, size, ends)` (see there).
 type JoinedExtras<'py> = (Option<Vec<usize>>, Bound<'py, PyBytes>, usize, Vec<usize>);
@@ -57,6 +49,8 @@ pub struct PyPool {
     columns: Mutex<Vec<(Py<PyAny>, usize)>>,
     /// The exception raised by a signal handler during a wait (see `interrupt_check`).
     interrupted: Arc<Mutex<Option<PyErr>>>,
+    /// Time in and between calls (`stats()`).
+    clock: CallClock,
 }
 
 impl PyPool {
@@ -88,6 +82,7 @@ impl PyPool {
         py: Python<'_>,
         f: impl FnOnce(&mut Pool, &mut BatchOutput) -> Result<R, PoolError> + Send,
     ) -> PyResult<R> {
+        let start = self.clock.begin();
         let res = py.detach(|| {
             let mut guard = self
                 .pool
@@ -100,6 +95,7 @@ impl PyPool {
                 .map_err(|_| PoolError::State("the pool lock is poisoned".into()))?;
             f(pool, &mut out)
         });
+        self.clock.end(start);
         res.map_err(|e| match e {
             PoolError::Interrupted => self
                 .interrupted
@@ -111,8 +107,8 @@ impl PyPool {
         })
     }
 
-    /// Write the last call's records into `recs` (if given: a caller that takes its outcome
-    /// from `outcome()` needs none) and its final observations into `fin`.
+    /// Write the last call's records into `recs` (if given) and its final observations into
+    /// `fin` (if given).
     fn fill_outputs(
         &self,
         py: Python<'_>,
@@ -214,22 +210,10 @@ impl PyPool {
             info_names: spec.info_names.clone(),
             columns: Mutex::new(Vec::new()),
             interrupted,
+            clock: CallClock::new(),
             pool: Mutex::new(Some(pool)),
             out: Mutex::new(BatchOutput::default()),
         })
-    }
-
-    /// Sync reset straight into the next shared batch slot (no copy); records into `recs_out`
-    /// (if given). Returns the slot index (see `shared_views()`).
-    #[pyo3(signature = (recs_out = None))]
-    fn reset_shared(
-        &self,
-        py: Python<'_>,
-        recs_out: Option<&Bound<'_, PyUntypedArray>>,
-    ) -> PyResult<usize> {
-        let slot = self.with_pool(py, |p, out| p.reset_shared(out))?;
-        self.fill_outputs(py, recs_out, None)?;
-        Ok(slot)
     }
 
     /// Sync step straight into the next shared batch slot (no copy): `actions` (int64, one per
@@ -251,44 +235,6 @@ impl PyPool {
         })?;
         self.fill_outputs(py, recs_out, final_out)?;
         Ok(slot)
-    }
-
-    /// What the last sync call gave each env, in env order, as fresh arrays: `(rewards,
-    /// terminated, truncated, restarted, final)`; `restarted` is `None` when no env's worker
-    /// was restarted, `final` lists the envs whose final observation (SAME_STEP) is in the
-    /// final buffer. One call instead of a numpy operation per flag.
-    fn outcome<'py>(&self, py: Python<'py>) -> PyResult<Outcome<'py>> {
-        let out = lock_gil_free(py, &self.out)?;
-        let n = self.num_envs;
-        let mut reward = vec![0.0; n];
-        let mut terminated = vec![false; n];
-        let mut truncated = vec![false; n];
-        let mut restarted = vec![false; n];
-        let mut fin = Vec::new();
-        for (r, &env) in out.env_ids.iter().enumerate() {
-            if env >= n {
-                continue;
-            }
-            reward[env] = out.reward[r];
-            terminated[env] = out.terminated[r];
-            truncated[env] = out.truncated[r];
-            restarted[env] = out.restarted[r];
-            if out.has_final_obs[r] {
-                fin.push(env);
-            }
-        }
-        drop(out);
-        fin.sort_unstable();
-        let restarted = restarted
-            .contains(&true)
-            .then(|| PyArray1::from_vec(py, restarted));
-        Ok((
-            PyArray1::from_vec(py, reward),
-            PyArray1::from_vec(py, terminated),
-            PyArray1::from_vec(py, truncated),
-            restarted,
-            fin,
-        ))
     }
 
     /// The extra info of the last sync call's envs that wrote some (hosted envs: their info
@@ -607,6 +553,35 @@ impl PyPool {
         let guard = lock_gil_free(py, &self.pool)?;
         let r = guard.as_ref().map(|p| p.worker_envs(k)).unwrap_or(0..0);
         Ok((r.start, r.end))
+    }
+
+    /// Statistics since the pool started: `(workers, between_ns, inside_ns, calls)`, where
+    /// `workers` is one dict per worker (its counters in shared memory, and what the
+    /// supervisor counted of it) and the rest is the caller's clock: nanoseconds between and
+    /// inside the pool's calls, and the calls made. Reads no worker message.
+    fn stats<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyList>, u64, u64, u64)> {
+        let workers = self.peek(py, |p| p.stats())?;
+        let list = PyList::empty(py);
+        for w in workers {
+            let d = PyDict::new(py);
+            d.set_item("env_steps", w.env_steps)?;
+            d.set_item("commands", w.commands)?;
+            d.set_item("env_ns", w.env_ns)?;
+            d.set_item("wait_ns", w.wait_ns)?;
+            d.set_item("publish_ns", w.publish_ns)?;
+            d.set_item("restarts", w.restarts)?;
+            d.set_item("timeouts", w.timeouts)?;
+            d.set_item("spilled_bytes", w.spilled_bytes)?;
+            d.set_item("last_failure", w.last_failure)?;
+            list.append(d)?;
+        }
+        let c = &self.clock;
+        Ok((
+            list,
+            c.between_ns.load(Ordering::Relaxed),
+            c.inside_ns.load(Ordering::Relaxed),
+            c.calls.load(Ordering::Relaxed),
+        ))
     }
 
     /// Current worker process ids (index = worker; 0 once closed). Readable from any thread,

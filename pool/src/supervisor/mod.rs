@@ -25,6 +25,7 @@ use crate::env::EnvSpec;
 use crate::error::{PoolError, WorkerFailure};
 use crate::registry::EnvRegistry;
 use crate::seeds::SeedSchedule;
+use crate::stats::{StatsBuffer, SupervisorCounts, WorkerStats};
 use crate::wire::layout::BlockLayout;
 use crate::wire::{
     BATCH_BUFFER, CMD_CLOSE, MAX_BATCH_SLOTS, WorkerConfig, block_range, slot_bytes,
@@ -80,6 +81,9 @@ struct Core {
     /// The shared slot of a sync step or reset that was sent and not yet collected
     /// ([`Pool::send_step_shared`], [`Pool::wait_shared`]).
     split: Option<usize>,
+    /// The workers' counters in shared memory ([`Pool::stats`]), and what this side counts.
+    stats: Option<StatsBuffer>,
+    counts: Vec<SupervisorCounts>,
 }
 
 /// A pool of envs stepped by worker processes, with observations in shared memory.
@@ -235,6 +239,8 @@ impl Pool {
                 discard_faults: false,
                 deaths: 0,
                 last_failure: None,
+                stats: None,
+                counts: Vec::new(),
                 call_started: Instant::now(),
                 call_failed_at: None,
                 split: None,
@@ -252,6 +258,8 @@ impl Pool {
             .map_err(|e| PoolError::Config(format!("cannot serialize worker config: {e}")))?;
         rogue_gym_ipc::private::write_private_file(&c.config_path, json.as_bytes())?;
         c.slot_bytes = slot_bytes(c.cfg.num_envs, c.spec.obs_bytes());
+        c.stats = Some(StatsBuffer::create(&c.id, c.cfg.num_workers)?);
+        c.counts = vec![SupervisorCounts::default(); c.cfg.num_workers];
         c.batch = Some(std::sync::Arc::new(rogue_gym_ipc::SharedBuffer::create(
             &c.id,
             BATCH_BUFFER,
@@ -366,6 +374,17 @@ impl Pool {
     /// Worker deaths and hangs so far, under either failure policy.
     pub fn worker_deaths(&self) -> u32 {
         self.core.deaths
+    }
+    /// Each worker's statistics since the pool started (see [`crate::stats`]): read from the
+    /// workers' counters in shared memory, no message; empty once closed.
+    pub fn stats(&self) -> Vec<WorkerStats> {
+        let c = &self.core;
+        match &c.stats {
+            Some(buf) => (0..c.cfg.num_workers)
+                .map(|k| buf.worker(k, &c.counts[k]))
+                .collect(),
+            None => Vec::new(),
+        }
     }
     /// The longest any call may take before it returns or raises
     /// [`PoolError::NotBackInTime`]: `step_timeout + start_timeout` (a command's own time, then

@@ -246,11 +246,14 @@ impl Core {
                     if (0..layout.envs).any(|j| layout.record(sample.payload(), j).extra_apart()) {
                         let seq = sample.user_header().seq;
                         let path = extra_apart_path(&self.id, k, s.generation, seq);
-                        calls::take(&path).map_err(|e| {
+                        let apart = calls::take(&path).map_err(|e| {
                             PoolError::Io(format!(
                                 "worker {k}: the extra info beside block {seq}: {e}"
                             ))
-                        })?
+                        })?;
+                        self.counts[k].spilled_bytes +=
+                            apart.iter().map(|(_, b)| b.len() as u64).sum::<u64>();
+                        apart
                     } else {
                         Vec::new()
                     };
@@ -469,6 +472,10 @@ impl Core {
     ) -> Result<(), PoolError> {
         self.deaths += 1;
         self.call_failed_at.get_or_insert_with(Instant::now);
+        let counts = &mut self.counts[k];
+        counts.restarts += 1;
+        counts.timeouts += u64::from(matches!(failure.cause, FailureCause::Hung(_)));
+        counts.last_failure = Some(failure.to_string());
         match self.cfg.on_worker_failure {
             FailurePolicy::Raise => {
                 self.last_failure = Some(Box::new(failure.clone()));

@@ -22,6 +22,7 @@ from .._records import FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRU
 from ..errors import CLOSED_MESSAGE, EnvFailedError, PoolClosedError
 from ..hosted import leases
 from ..hosted.adapter import decode_exception
+from .stats import PoolStats, WorkerStats
 
 if TYPE_CHECKING:
     from ..kinds.base import Kind
@@ -85,6 +86,8 @@ class Core:
         self.slot = 0
         #: No reset or step since the pool started.
         self.fresh = True
+        #: Observation batches handed out: lent, copied, or as views (``stats()``).
+        self.lent = self.copied = self.viewed = 0
         kind.bind(self)
 
     def _bind_columns(self) -> list[dict[str, np.ndarray]]:
@@ -180,9 +183,16 @@ class Core:
         (``copy=True``), or views of shared memory."""
         if self.lender is not None:
             lent = self.lender.lend(slot)
-            return copy_tree(self.views[slot]) if lent is None else lent
-        views = self.views[slot]
-        return copy_tree(views) if self.copy else views
+            if lent is None:
+                self.copied += 1
+                return copy_tree(self.views[slot])
+            self.lent += 1
+            return lent
+        if self.copy:
+            self.copied += 1
+            return copy_tree(self.views[slot])
+        self.viewed += 1
+        return self.views[slot]
 
     def final_obs(self, env: int) -> Any:
         """(SAME_STEP) env ``env``'s final observation of the last call, a fresh copy."""
@@ -211,6 +221,23 @@ class Core:
         return np.concatenate(rows), np.concatenate(recs), np.concatenate(ids), blocks
 
     # -- the pool --------------------------------------------------------------------------
+
+    def stats(self) -> PoolStats:
+        """The counters since the pool started (see :mod:`rogue_gym.front.stats`)."""
+        workers, between_ns, inside_ns, calls = self.pool.stats()
+        typed, pickled = self.kind.info_counts()
+        return PoolStats(
+            seconds=(between_ns + inside_ns) / 1e9,
+            caller_s=between_ns / 1e9,
+            waiting_s=inside_ns / 1e9,
+            calls=int(calls),
+            workers=tuple(WorkerStats.from_native(w) for w in workers),
+            info_rows_typed=typed,
+            info_rows_pickled=pickled,
+            batches_lent=self.lent,
+            batches_copied=self.copied,
+            batches_viewed=self.viewed,
+        )
 
     @property
     def worker_pids(self) -> list[int]:

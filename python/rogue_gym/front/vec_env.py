@@ -24,6 +24,7 @@ from stable_baselines3.common.vec_env.base_vec_env import (
     VecEnvStepReturn,
 )
 
+from .stats import PoolStats
 from .vector_env import FrontVectorEnv
 
 __all__ = ["FrontVecEnv", "info_rows"]
@@ -92,6 +93,10 @@ class FrontVecEnv(VecEnv):
     def envs_of_worker(self, worker: int) -> range:
         """Indices of the envs hosted by ``worker``."""
         return self.venv.envs_of_worker(worker)
+
+    def stats(self, reset: bool = False) -> PoolStats:
+        """The pool's statistics (see :meth:`FrontVectorEnv.stats`)."""
+        return self.venv.stats(reset)
 
     # -- stepping --------------------------------------------------------------------------
 

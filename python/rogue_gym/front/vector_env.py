@@ -14,6 +14,7 @@ from ..kinds.base import Kind
 from ..reset_mask import partial_mask, refuse_finished
 from ..settings import parse_autoreset_mode
 from .core import Core, copy_tree, flags, mark_restarted
+from .stats import PoolStats
 
 __all__ = ["FrontVectorEnv"]
 
@@ -71,6 +72,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         self._pending: Optional[tuple[str, Any]] = None
         self._async_ids: Optional[np.ndarray] = None
         self._last_slot: Optional[int] = None
+        self._stats_base: Optional[PoolStats] = None
         self._core = Core(kind, same_step=self._same_step, copy=self.copy)
 
     # -- the pool --------------------------------------------------------------------------
@@ -99,6 +101,19 @@ class FrontVectorEnv(gym.vector.VectorEnv):
     def envs_of_worker(self, worker: int) -> range:
         """Indices of the envs hosted by ``worker``."""
         return self._core.envs_of_worker(worker)
+
+    def stats(self, reset: bool = False) -> PoolStats:
+        """Where the time went since the pool started (or since ``stats(reset=True)``): per
+        worker, env steps and the time in the envs, waiting for actions and publishing,
+        restarts and timeouts; for the caller, the time between and inside the pool's calls;
+        how infos travelled and observations were handed out. The workers keep their counters
+        in shared memory: reading them sends no message. ``str()`` of it is a one-line health
+        summary. ``reset=True`` starts a new span after this reading."""
+        now = self._core.stats()
+        out = now if self._stats_base is None else now - self._stats_base
+        if reset:
+            self._stats_base = now
+        return out
 
     # -- reset -----------------------------------------------------------------------------
 

@@ -368,6 +368,9 @@ class InfoDecoder:
 
     def __init__(self) -> None:
         self._layouts: dict[bytes, _Decoded] = {}
+        #: Rows decoded so far, typed and pickled (``stats()``).
+        self.typed_rows = 0
+        self.pickled_rows = 0
 
     def _layout(self, data: bytes) -> _Decoded:
         head = data[:HEADER_BYTES]
@@ -382,7 +385,9 @@ class InfoDecoder:
     def entries(self, data: bytes) -> list[tuple[str, dict[str, Any]]]:
         """One env's ``("reset" | "step", info)`` entries."""
         if data[:4] != MAGIC:
+            self.pickled_rows += 1
             return pickle.loads(data)
+        self.typed_rows += 1
         return [(KINDS[data[4]], self._layout(data).one(data))]
 
     def put_uniform(
@@ -399,7 +404,9 @@ class InfoDecoder:
             return False
         layout = self._layout(data)
         at = None if rows is None else np.array(rows, np.intp)
-        layout.put(infos, np.frombuffer(data, layout.dtype), at, n)
+        records = np.frombuffer(data, layout.dtype)
+        layout.put(infos, records, at, n)
+        self.typed_rows += len(records)
         return True
 
     def put_typed(self, infos: dict[str, Any], rows: list[tuple[int, bytes]], n: int) -> bool:
@@ -424,6 +431,7 @@ class InfoDecoder:
             records = np.frombuffer(b"".join(d for _, d in group), layout.dtype)
             at = np.fromiter((r for r, _ in group), np.intp, len(group))
             layout.put(infos, records, at, n)
+            self.typed_rows += len(group)
         return True
 
 

@@ -109,6 +109,10 @@ class Kind(Protocol):
         ``indices`` with ``arguments[j]`` for the ``j``-th; one result each."""
         ...
 
+    def info_counts(self) -> tuple[int, int]:
+        """Env info rows received so far as typed rows and as pickles (``stats()``)."""
+        ...
+
     def render(self, core: Core) -> Optional[tuple[Any, ...]]:
         """Every env's frame in the render mode."""
         ...

@@ -309,6 +309,10 @@ class HostedKind:
             info["final_info"] = final_info
         return info
 
+    def info_counts(self) -> tuple[int, int]:
+        """Info rows decoded so far: typed, and pickled."""
+        return self._decoder.typed_rows, self._decoder.pickled_rows
+
     # -- calls and render ------------------------------------------------------------------
 
     def call(

@@ -282,6 +282,10 @@ class NativeKind:
             infos[f"_{key}"] = ones
         return infos
 
+    def info_counts(self) -> tuple[int, int]:
+        """None: the game's infos are fixed fields of its records, not rows."""
+        return 0, 0
+
     # -- calls and render ------------------------------------------------------------------
 
     def _attributes(self, core: Core) -> dict[str, Any]:

@@ -11,8 +11,8 @@ import time
 from typing import Any, Dict, Optional
 
 import torch
-from gymnasium.vector import AutoresetMode
 
+from ..suite_pool import suite_pool
 from ..suites import get_suite
 from .allocator import keep_freed_memory
 from .checkpoint import CHECKPOINT, load, save
@@ -28,20 +28,15 @@ __all__ = ["train"]
 
 def _make_pool(cfg: TrainConfig, seed: int) -> Any:
     """The training pool: the suite's training seeds, symbol indices, one worker per batch."""
-    from .. import make_vec
-
     suite = get_suite(cfg.suite)
-    return make_vec(
+    return suite_pool(
+        suite,
         cfg.num_envs,
-        config=suite.config,
         num_workers=cfg.num_workers,
         seeds=suite.train_seed_list(),
         seed_policy="sample",
         seed=seed,
         obs="symbol_index",
-        max_steps=suite.max_steps,
-        stair_reward=suite.stair_reward,
-        autoreset_mode=AutoresetMode.SAME_STEP,
         batch_size=cfg.num_envs // cfg.num_workers,
     )
 
@@ -178,7 +173,8 @@ def train(cfg: TrainConfig) -> Dict[str, Any]:
                     row.update(gen_score=gen.mean, gen_ci_low=gen.ci_low, gen_ci_high=gen.ci_high)
                     log.message(
                         f"frames {frames}: train {row['train_score']:.2f}, "
-                        f"generalization {gen.mean:.2f} [{gen.ci_low:.2f}, {gen.ci_high:.2f}]"
+                        f"generalization {gen.mean:.2f} [{gen.ci_low:.2f}, {gen.ci_high:.2f}]; "
+                        f"pool since the last line: {env.stats(reset=True)}"
                     )
                 row.update(
                     env_s=collector.env_seconds,
