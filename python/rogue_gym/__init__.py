@@ -52,6 +52,7 @@ __all__ = [
     "__version__",
     "envs",
     "make_vec",
+    "tune",
 ]
 
 register_envs()
@@ -63,6 +64,10 @@ def __getattr__(name: str) -> Any:
         from . import sb3
 
         return getattr(sb3, name)
+    if name == "tune":  # the module, callable as tune(env, num_envs) (python -m rogue_gym.tune)
+        import importlib
+
+        return importlib.import_module(".tune", __name__)
     if name == "sb3":
         from . import sb3
 

@@ -1,0 +1,64 @@
+"""``rogue_gym.tune``: it times every candidate within the time it announces, and its advice
+names a layout it measured."""
+
+from __future__ import annotations
+
+import io
+import re
+import subprocess
+import sys
+import time
+
+import gymnasium as gym
+import pytest
+import rogue_gym
+
+
+def cartpole() -> gym.Env:
+    return gym.make("CartPole-v1")
+
+
+def test_tune_finishes_within_its_stated_time_and_names_a_layout() -> None:
+    out = io.StringIO()
+    t0 = time.monotonic()
+    result = rogue_gym.tune([cartpole] * 4, 4, seconds=0.1, rounds=1, cpus=1, out=out)
+    took = time.monotonic() - t0
+    text = out.getvalue()
+    found = re.search(r"at most ([\d.]+) (s|min)\)", text)
+    assert found, text
+    stated = float(found.group(1)) * (60 if found.group(2) == "min" else 1)
+    assert took <= stated + 5, (took, stated)
+    labels = [t.candidate.label for t in result.timings]
+    # 1 CPU: 1 and 2 workers, lent or not, async with 2 workers, and SyncVectorEnv.
+    assert len(labels) == 6 and "SyncVectorEnv" in labels
+    assert all(t.error is None and t.median > 0 for t in result.timings)
+    assert result.timings == sorted(result.timings, key=lambda t: -t.median)
+    assert result.advice() in text and ("make_vec" in result.advice() or "Sync" in result.advice())
+
+
+def test_tune_runs_from_the_command_line_on_the_native_game() -> None:
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "rogue_gym.tune",
+            "RogueGym-v0",
+            "--num-envs",
+            "4",
+            "--seconds",
+            "0.1",
+            "--rounds",
+            "1",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "steps/s" in proc.stdout and "best: make_vec(env, 4," in proc.stdout
+    assert "RuntimeWarning" not in proc.stderr
+
+
+def test_tune_refuses_what_it_cannot_build() -> None:
+    with pytest.raises(ValueError, match="not a registered gymnasium id"):
+        rogue_gym.tune("NoSuchEnv-v9", 4)
