@@ -29,17 +29,18 @@ RESULTS = Path(__file__).resolve().parent / "results" / "builds_ab"
 KINDS = ("native", "hosted")
 
 
-def child(kind: str, num_envs: int, seconds: float) -> float:
+def child(kind: str, num_envs: int, seconds: float, workers: int) -> float:
     """Env-steps/s of ``kind`` under the build this process imports."""
     import gymnasium as gym
     import numpy as np
     import rogue_gym
 
     if kind == "native":
-        env = rogue_gym.make_vec(num_envs, config="paper", num_workers=2, seed=0)
+        env = rogue_gym.make_vec(num_envs, config="paper", num_workers=workers, seed=0)
         actions = np.random.default_rng(0).integers(0, 11, size=(256, num_envs))
     else:
-        env = rogue_gym.PoolVectorEnv([lambda: gym.make("CartPole-v1")] * num_envs, num_workers=2)
+        fns = [lambda: gym.make("CartPole-v1")] * num_envs
+        env = rogue_gym.PoolVectorEnv(fns, num_workers=workers)
         actions = np.random.default_rng(0).integers(0, 2, size=(256, num_envs))
     try:
         env.reset(seed=0)
@@ -67,6 +68,8 @@ def run_turn(path: str, kind: str, args: argparse.Namespace) -> float:
             str(args.num_envs),
             "--seconds",
             str(args.seconds),
+            "--num-workers",
+            str(args.num_workers),
         ],
         env=env,
         capture_output=True,
@@ -84,12 +87,19 @@ def main() -> None:
     ap.add_argument("--pairs", type=int, default=10)
     ap.add_argument("--seconds", type=float, default=2.0)
     ap.add_argument("--num-envs", type=int, default=64)
+    ap.add_argument(
+        "--num-workers",
+        type=int,
+        default=1,
+        help="1 (default) leaves a core to the caller: 2 workers and the caller on 2 cores "
+        "measure the scheduler more than the builds",
+    )
     ap.add_argument("--kinds", nargs="+", default=list(KINDS), choices=KINDS)
     ap.add_argument("--out", type=Path, default=RESULTS)
     ap.add_argument("--child", choices=KINDS, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        print(child(args.child, args.num_envs, args.seconds))
+        print(child(args.child, args.num_envs, args.seconds, args.num_workers))
         return
     if not args.a:
         ap.error("--a (the baseline build's PYTHONPATH) is required")
@@ -118,7 +128,8 @@ def main() -> None:
             }
         )
     lines = [
-        f"{args.pairs} pairs, {args.num_envs} envs, 2 workers, {args.seconds:g} s a turn; "
+        f"{args.pairs} pairs, {args.num_envs} envs, {args.num_workers} worker(s), "
+        f"{args.seconds:g} s a turn; "
         f"A = {args.a}, B = {args.b}",
         "",
         "| kind | A median steps/s | B median steps/s | B/A median (min-max) |",
