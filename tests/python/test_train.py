@@ -7,6 +7,7 @@ import csv
 import dataclasses
 import json
 import math
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -198,9 +199,13 @@ def _rows(out: Path) -> list[dict[str, str]]:
     return read_progress(out / "progress.csv")
 
 
-def test_a_run_writes_progress_checkpoints_and_the_random_baseline(tmp_path: Path) -> None:
+def test_a_run_writes_progress_checkpoints_and_the_random_baseline(tmp_path: Path, capsys) -> None:
     out = tmp_path / "run"
     row = train(smoke_config(out))
+    # Each evaluation's line carries the pool's health summary (its stats() since the last).
+    lines = [x for x in capsys.readouterr().err.splitlines() if "generalization" in x]
+    assert len(lines) == 2 and all("pool since the last line:" in x for x in lines), lines
+    assert all(re.search(r"[\d,]+ steps/s \| env \d+% .*restarts 0$", x) for x in lines), lines
     rows = _rows(out)
     assert list(rows[0].keys()) == COLUMNS
     assert [int(r["frames"]) for r in rows] == [256, 512, 768, 1024]

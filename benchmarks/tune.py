@@ -1,0 +1,158 @@
+"""``rogue_gym.tune``'s pick against an exhaustive sweep of the same candidates.
+
+For each env and size, ``tune`` runs as a user would (short runs), then an independent sweep
+times every one of its candidates again, longer and in more rounds; the pick's sweep median is
+compared with the sweep's best. PufferLib's ``autotune`` runs beside it where pufferlib
+imports.
+
+    .venv-bench/bin/python benchmarks/tune.py                       # every env and size
+    .venv-bench/bin/python benchmarks/tune.py --envs cartpole --num-envs 64
+
+Envs: ``cartpole`` (the gymnasium id, so one CartPole vector env per worker is a candidate),
+``halfcheetah`` (MuJoCo), ``pong`` (raw ``ALE/Pong-v5``), ``sleep`` (1 ms a step). Set-up:
+``bash benchmarks/setup-real-envs.sh``. Writes ``results/tune/tune.{md,json}`` (``--out``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import rogue_gym
+
+from hosted_throughput import env_fn as hosted_env_fn
+from real_envs import env_fn as real_env_fn
+
+RESULTS = Path(__file__).resolve().parent / "results" / "tune"
+ENVS = ("cartpole", "halfcheetah", "pong", "sleep")
+
+
+def env_of(name: str) -> Any:
+    """What tune is given for ``name``."""
+    if name == "cartpole":
+        return "CartPole-v1"
+    if name == "sleep":
+        return hosted_env_fn("slow")
+    return real_env_fn(name)
+
+
+def puffer_autotune(name: str, n: int, seconds: float) -> dict[str, Any]:
+    """PufferLib's ``autotune`` on the same env and batch size: the best SPS it printed and its
+    config (it prints, it does not return)."""
+    import contextlib
+    import io
+    import re
+
+    import pufferlib.emulation
+    import pufferlib.vector
+
+    fn = env_of(name)
+    if isinstance(fn, str):
+        import gymnasium as gym
+
+        fn = functools.partial(gym.make, fn)
+    creator = functools.partial(pufferlib.emulation.GymnasiumPufferEnv, env_creator=fn)
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        pufferlib.vector.autotune(creator, batch_size=n, max_envs=n, time_per_test=seconds)
+    text = out.getvalue()
+    blocks = re.split(r"(?m)^SPS: ", text)[1:]
+    best = max(blocks, key=lambda b: float(b.split()[0]))
+    return {"sps": float(best.split()[0]), "config": " ".join(best.split()[1:])}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--envs", nargs="+", default=list(ENVS), choices=ENVS)
+    ap.add_argument("--num-envs", nargs="+", type=int, default=[8, 64, 256])
+    ap.add_argument("--tune-seconds", type=float, default=0.5)
+    ap.add_argument("--tune-rounds", type=int, default=2)
+    ap.add_argument("--sweep-seconds", type=float, default=1.0)
+    ap.add_argument("--sweep-rounds", type=int, default=3)
+    ap.add_argument("--out", type=Path, default=RESULTS)
+    ap.add_argument(
+        "--puffer-path",
+        default=None,
+        help="a folder holding pufferlib (pip install --no-deps --target DIR pufferlib-core "
+        "psutil rich): run its autotune beside",
+    )
+    args = ap.parse_args()
+    if args.puffer_path:
+        sys.path.insert(0, args.puffer_path)
+    rows = []
+    for name in args.envs:
+        for n in args.num_envs:
+            env = env_of(name)
+            t0 = time.monotonic()
+            pick = rogue_gym.tune(
+                env, n, seconds=args.tune_seconds, rounds=args.tune_rounds, out=None
+            )
+            tune_s = time.monotonic() - t0
+            sweep = rogue_gym.tune(
+                env, n, seconds=args.sweep_seconds, rounds=args.sweep_rounds, out=None
+            )
+            by_label = {t.candidate.label: t.median for t in sweep.timings}
+            chosen = pick.best.candidate.label
+            row = {
+                "env": name,
+                "num_envs": n,
+                "pick": chosen,
+                "pick_in_sweep": by_label.get(chosen, 0.0),
+                "sweep_best": sweep.best.candidate.label,
+                "sweep_best_steps_per_s": sweep.best.median,
+                "ratio": by_label.get(chosen, 0.0) / sweep.best.median
+                if sweep.best.median
+                else 0.0,
+                "tune_seconds": round(tune_s, 1),
+                "sweep": {t.candidate.label: t.steps_per_s for t in sweep.timings},
+                "errors": {t.candidate.label: t.error for t in sweep.timings if t.error},
+            }
+            if args.puffer_path:
+                try:
+                    row["puffer"] = puffer_autotune(name, n, args.sweep_seconds)
+                except Exception as exc:  # PufferLib cannot run every env: say so
+                    row["puffer"] = {"sps": 0.0, "config": f"failed: {type(exc).__name__}: {exc}"}
+            rows.append(row)
+            print(
+                f"{name} x {n}: tune picked {chosen} ({row['pick_in_sweep']:,.0f} steps/s in the "
+                f"sweep), sweep best {row['sweep_best']} ({row['sweep_best_steps_per_s']:,.0f}): "
+                f"{row['ratio']:.3f}; tune took {tune_s:.0f} s",
+                flush=True,
+            )
+    lines = [
+        f"tune: {args.tune_rounds} rounds of {args.tune_seconds:g} s; sweep: "
+        f"{args.sweep_rounds} rounds of {args.sweep_seconds:g} s, the same candidates; "
+        f"{os.cpu_count()} CPUs",
+        "",
+        "| env | envs | tune's pick | sweep's best | pick / best (sweep medians) | best steps/s | "
+        "tune took | PufferLib autotune's best |",
+        "|---|---:|---|---|---:|---:|---:|---|",
+    ]
+    for r in rows:
+        puffer = r.get("puffer")
+        p = f"{puffer['sps']:,.0f} ({puffer['config'][:60]})" if puffer else "-"
+        lines.append(
+            f"| {r['env']} | {r['num_envs']} | {r['pick']} | {r['sweep_best']} | "
+            f"{r['ratio']:.3f} | {r['sweep_best_steps_per_s']:,.0f} | {r['tune_seconds']:.0f} s | "
+            f"{p} |"
+        )
+    print("\n".join(lines))
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "tune.md").write_text("\n".join(lines) + "\n")
+    meta = {
+        "machine": platform.node(),
+        "cpus": os.cpu_count(),
+        "args": {k: str(v) for k, v in vars(args).items()},
+    }
+    (args.out / "tune.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
