@@ -5,17 +5,18 @@ keeps of it: the shared-memory batch slots the workers write observations into, 
 array and one column buffer per slot (the per-env rewards, flags and counters of the call that
 wrote the slot), the SAME_STEP final-observation buffer, and the lending of slots
 (:mod:`rogue_gym.hosted.leases`). It knows nothing of gymnasium's or SB3's API: the facades in
-:mod:`rogue_gym.front` build those over it, and the env kind (:mod:`rogue_gym.kinds`) turns
-slot bytes into observations and records into infos.
+:mod:`rogue_gym.front` build those over it, and the env kind (:mod:`rogue_gym.kinds`, bound as
+:class:`Kind`) turns slot bytes into observations and records into infos.
 """
 
 from __future__ import annotations
 
 import json
 import weakref
-from typing import TYPE_CHECKING, Any, Callable, NoReturn, Optional, Sequence
+from typing import Any, Callable, NoReturn, Optional, Protocol, Sequence
 
 import numpy as np
+from gymnasium import spaces
 
 from .. import _native, _sigterm
 from .._records import FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED, RECORD_DTYPE
@@ -24,13 +25,11 @@ from ..hosted import leases
 from ..hosted.adapter import decode_exception
 from .stats import PoolStats, WorkerStats
 
-if TYPE_CHECKING:
-    from ..kinds.base import Kind
-
 __all__ = [
     "SUMMARY_FINAL",
     "SUMMARY_RESTARTED",
     "Core",
+    "Kind",
     "copy_tree",
     "flags",
     "mark_restarted",
@@ -41,6 +40,111 @@ __all__ = [
 SUMMARY_RESTARTED: int = _native.SUMMARY_RESTARTED
 #: Bit of a step's summary: some env has a final observation (SAME_STEP).
 SUMMARY_FINAL: int = _native.SUMMARY_FINAL
+
+
+class Kind(Protocol):
+    """An env kind: its data, and the calls that differ from one kind to another.
+
+    The step path calls :meth:`actions` and :meth:`step_infos` once per step, never anything
+    per env.
+    """
+
+    @property
+    def num_envs(self) -> int:
+        """Envs in the pool."""
+        ...
+
+    @property
+    def obs_bytes(self) -> int:
+        """Bytes of one env's observation in a batch slot."""
+        ...
+
+    @property
+    def single_observation_space(self) -> spaces.Space:
+        """One env's observation space."""
+        ...
+
+    @property
+    def single_action_space(self) -> spaces.Space:
+        """One env's action space."""
+        ...
+
+    @property
+    def metadata(self) -> dict[str, Any]:
+        """The envs' ``metadata`` (render modes)."""
+        ...
+
+    @property
+    def render_mode(self) -> Optional[str]:
+        """The envs' render mode."""
+        ...
+
+    @property
+    def spec(self) -> Any:
+        """The envs' ``EnvSpec``, if any."""
+        ...
+
+    @property
+    def worker_command(self) -> Sequence[str]:
+        """Program and leading args of a worker process."""
+        ...
+
+    def pool_settings(self) -> dict[str, Any]:
+        """The native pool's settings (JSON object) but the autoreset mode and slot count."""
+        ...
+
+    def bind(self, core: Core) -> None:
+        """Called once the pool runs (per-slot templates, the pool's info names)."""
+        ...
+
+    def batch_views(self, rows: np.ndarray) -> Any:
+        """Observations of ``rows`` (``(k, obs_bytes)`` uint8) as a batch of the observation
+        space, without a copy."""
+        ...
+
+    def actions(self, actions: Any, env_ids: Optional[Sequence[int]]) -> np.ndarray:
+        """A batch of actions (for every env, or ``env_ids``) checked, as the pool takes them:
+        int64 indices or uint8 bytes."""
+        ...
+
+    def seed_schedule(self, seed: Any, core: Core) -> Optional[dict[str, Any]]:
+        """The episode-seed schedule for ``reset(seed=seed)``; ``None`` keeps the current one.
+        ``ValueError``/``TypeError`` for a seed the kind cannot take."""
+        ...
+
+    def reset_infos(self, core: Core, slot: int, only: Optional[np.ndarray]) -> dict[str, Any]:
+        """The infos of a reset of every env, or of the envs of ``only`` (a partial reset)."""
+        ...
+
+    def step_infos(self, core: Core, slot: int, summary: int, same_step: bool) -> dict[str, Any]:
+        """The infos of a step (``final_obs``/``final_info`` in SAME_STEP, ``worker_restarted``)."""
+        ...
+
+    def recv_infos(
+        self, core: Core, recs: np.ndarray, blocks: list[Any], env_id: np.ndarray
+    ) -> dict[str, Any]:
+        """The infos of an async ``recv`` batch (rows in ``env_id`` order)."""
+        ...
+
+    def call(
+        self,
+        core: Core,
+        op: str,
+        name: str,
+        arguments: Sequence[tuple[tuple[Any, ...], dict[str, Any]]],
+        indices: Sequence[int],
+    ) -> list[Any]:
+        """Run call operation ``op`` (:data:`rogue_gym.hosted.adapter.CALL_OPS`) on the envs
+        ``indices`` with ``arguments[j]`` for the ``j``-th; one result each."""
+        ...
+
+    def info_counts(self) -> tuple[int, int]:
+        """Env info rows received so far as typed rows and as pickles (``stats()``)."""
+        ...
+
+    def render(self, core: Core) -> Optional[tuple[Any, ...]]:
+        """Every env's frame in the render mode."""
+        ...
 
 
 class Core:

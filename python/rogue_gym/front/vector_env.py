@@ -10,10 +10,9 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from ..async_calls import already_pending, no_async_call, timed_out, warn_close_pending
-from ..kinds.base import Kind
 from ..reset_mask import partial_mask, refuse_finished
 from ..settings import parse_autoreset_mode
-from .core import Core, copy_tree, flags, mark_restarted
+from .core import Core, Kind, copy_tree, flags, mark_restarted
 from .stats import PoolStats
 
 __all__ = ["FrontVectorEnv"]

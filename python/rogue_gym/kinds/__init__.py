@@ -1,6 +1,6 @@
 """Env kinds: what differs between the envs a pool can host, as data and a few callables.
 
-A kind (:class:`rogue_gym.kinds.base.Kind`) is bound once when a vector env is built; the
+A kind (:class:`rogue_gym.front.core.Kind`) is bound once when a vector env is built; the
 facades of :mod:`rogue_gym.front` do everything else, once, for every kind.
 
 * :class:`rogue_gym.kinds.native.NativeKind`: Rogue-Gym's own game, run by the workers in Rust
