@@ -18,7 +18,8 @@ gymnasium id with its own vector entry point, one such vector env per worker
 (:meth:`rogue_gym.PoolVectorEnv.from_vector_env`). ``SyncVectorEnv`` in this process is timed
 too: where it is faster, tune says so and recommends it. Each candidate runs in a fresh pool
 for ``seconds`` of random actions after a warm-up, every candidate once per round, in a new
-order each round; the table gives each one's median steps/s and its ``stats()`` breakdown.
+order each round, then the leaders (up to four, within 10% of the best) as many rounds again;
+the table gives each one's median steps/s and its ``stats()`` breakdown.
 The whole run is bounded: tune says how long it will take before it starts and stops timing
 new rounds when the bound has passed.
 """
@@ -47,6 +48,8 @@ __all__ = ["Candidate", "TuneResult", "main", "tune"]
 #: Seconds a fresh pool takes to start and warm up, for the estimate (hosted envs start a
 #: Python interpreter per worker; the native game's workers start in milliseconds).
 _START_S = {"native": 0.3, "hosted": 1.2, "sync": 0.2}
+#: How many of the fastest candidates are timed again (those within 10% of the best).
+LEADERS = 4
 #: Steps before the clock starts.
 _WARMUP_STEPS = 20
 NATIVE_NAMES = (ENV_ID, "native", "rogue")
@@ -246,9 +249,10 @@ def _duration(seconds: float) -> str:
 
 
 def estimate_seconds(kind: str, n_candidates: int, seconds: float, rounds: int) -> float:
-    """How long tune takes: each candidate's start-up and timed seconds, every round."""
+    """How long tune takes: each candidate's start-up and timed seconds, every round, and as
+    many rounds again for the leaders."""
     per = seconds + _START_S[kind] + 0.2
-    return n_candidates * rounds * per
+    return (n_candidates + min(LEADERS, n_candidates)) * rounds * per
 
 
 def tune(
@@ -277,11 +281,9 @@ def tune(
     timings = {c.label: Timing(c) for c in cands}
     deadline = time.monotonic() + 1.5 * est
     rng = random.Random(0)
-    for r in range(rounds):
-        if r and time.monotonic() > deadline:
-            say(f"tune: time bound reached after {r} rounds")
-            break
-        order = list(cands)
+
+    def run_round(group: list[Candidate]) -> None:
+        order = list(group)
         rng.shuffle(order)
         for c in order:
             t = timings[c.label]
@@ -294,7 +296,25 @@ def tune(
                 continue
             t.steps_per_s.append(rate)
             t.shares.append(shares)
+
+    for r in range(rounds):
+        if r and time.monotonic() > deadline:
+            say(f"tune: time bound reached after {r} rounds")
+            break
+        run_round(cands)
         say(f"tune: round {r + 1} of {rounds} done")
+    # The leaders (within 10% of the best) again, as many rounds: near-ties are where a few
+    # noisy runs decide, so they get the most runs.
+    best = max(t.median for t in timings.values())
+    leaders = sorted(timings.values(), key=lambda t: -t.median)[:LEADERS]
+    leaders = [t for t in leaders if t.median >= 0.9 * best]
+    if len(leaders) > 1:
+        for _ in range(rounds):
+            if time.monotonic() > deadline:
+                say("tune: time bound reached")
+                break
+            run_round([t.candidate for t in leaders])
+        say(f"tune: {len(leaders)} leaders timed again")
     ranked = sorted(timings.values(), key=lambda t: t.median, reverse=True)
     result = TuneResult(ranked, int(num_envs), seconds)
     say(result.table())
