@@ -120,12 +120,18 @@ def main() -> None:
                 except Exception as exc:  # PufferLib cannot run every env: say so
                     row["puffer"] = {"sps": 0.0, "config": f"failed: {type(exc).__name__}: {exc}"}
             rows.append(row)
+            write(args, rows)  # after every row: an interrupted run keeps what it measured
             print(
                 f"{name} x {n}: tune picked {chosen} ({row['pick_in_sweep']:,.0f} steps/s in the "
                 f"sweep), sweep best {row['sweep_best']} ({row['sweep_best_steps_per_s']:,.0f}): "
                 f"{row['ratio']:.3f}; tune took {tune_s:.0f} s",
                 flush=True,
             )
+    print(write(args, rows))
+
+
+def write(args: argparse.Namespace, rows: list[dict[str, Any]]) -> str:
+    """Write the table and the JSON of the rows so far; returns the table."""
     lines = [
         f"tune: {args.tune_rounds} rounds of {args.tune_seconds:g} s; sweep: "
         f"{args.sweep_rounds} rounds of {args.sweep_seconds:g} s, the same candidates; "
@@ -143,7 +149,6 @@ def main() -> None:
             f"{r['ratio']:.3f} | {r['sweep_best_steps_per_s']:,.0f} | {r['tune_seconds']:.0f} s | "
             f"{p} |"
         )
-    print("\n".join(lines))
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "tune.md").write_text("\n".join(lines) + "\n")
     meta = {
@@ -152,6 +157,8 @@ def main() -> None:
         "args": {k: str(v) for k, v in vars(args).items()},
     }
     (args.out / "tune.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=1))
+
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":
