@@ -150,3 +150,15 @@ def test_reset_options_go_to_the_envs_or_are_refused_by_name(kind, make_kind) ->
     else:  # CartPole's reset takes low/high bounds of its initial state
         obs, _ = env.reset(seed=0, options={"low": 0.04, "high": 0.05})
         assert ((obs >= 0.04) & (obs <= 0.05)).all()
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_a_scalar_action_is_a_type_error_and_a_wrong_count_a_value_error(kind, make_kind) -> None:
+    """As gymnasium's vector envs: a batch needs one action per env."""
+    env = make_kind(kind)
+    env.reset(seed=0)
+    with pytest.raises(TypeError, match="got a scalar"):
+        env.step(0)
+    with pytest.raises(ValueError, match=r"\(4,\)"):
+        env.step(np.zeros(3, np.int64))
+    env.step(_zeros(env))  # still usable

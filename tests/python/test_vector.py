@@ -205,6 +205,7 @@ def test_double_buffer_keeps_previous_observation(make_vec) -> None:
         (np.array([0, 1, 11, 2]), ValueError, "env 2: action 11 is out of range"),
         (np.array([0, -1, 1, 2]), ValueError, "env 1: action -1 is out of range"),
         (["a", "b", "c", "d"], TypeError, "integer actions"),
+        (0, TypeError, "got a scalar"),
     ],
 )
 def test_bad_actions(make_vec, actions, exc, match) -> None:

@@ -34,6 +34,7 @@ __all__ = [
     "flags",
     "mark_restarted",
     "reraise",
+    "scalar_actions",
 ]
 
 #: Bit of a step's summary: some env's worker was restarted during the call.
@@ -372,6 +373,15 @@ def flags(recs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndar
         (f & FLAG_TRUNCATED) != 0,
         (f & FLAG_RESTARTED) != 0,
         (f & FLAG_FINAL_OBS) != 0,
+    )
+
+
+def scalar_actions(n: int) -> str:
+    """The message of a ``TypeError`` for one action given to a vector env of ``n`` envs (as
+    gymnasium's vector envs refuse it)."""
+    return (
+        f"expected a batch of actions, one per env ({n}), got a scalar: a vector env takes "
+        "an array of shape (num_envs, ...)"
     )
 
 

@@ -23,7 +23,14 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 
 from ..errors import EnvFailedError
-from ..front.core import SUMMARY_FINAL, SUMMARY_RESTARTED, flags, mark_restarted, reraise
+from ..front.core import (
+    SUMMARY_FINAL,
+    SUMMARY_RESTARTED,
+    flags,
+    mark_restarted,
+    reraise,
+    scalar_actions,
+)
 from ..hosted.adapter import NO_SEED, decode_exception
 from ..hosted.infos import HEAD, InfoDecoder, split_joined, vector_infos
 from ..hosted.layout import SpaceLayout
@@ -179,6 +186,8 @@ class HostedKind:
         """Discrete actions as indices from 0 (checked in the space's terms, ``start``
         included); others as their raw bytes, leaf by leaf."""
         n = self.num_envs if env_ids is None else len(env_ids)
+        if not isinstance(actions, (dict, tuple, list)) and np.ndim(actions) == 0:
+            raise TypeError(scalar_actions(n))
         if self._discrete is not None:
             return self._discrete_indices(actions, env_ids, n)
         rows = (
@@ -190,8 +199,6 @@ class HostedKind:
         self, actions: Any, env_ids: Optional[Sequence[int]], n: int
     ) -> np.ndarray:
         a = np.asarray(actions)
-        if a.ndim == 0 and n == 1:  # one env: a scalar action, as gymnasium takes it
-            a = a.reshape(1)
         if a.shape != (n,) or a.dtype.kind not in "iu":
             raise ValueError(f"expected integer actions of shape ({n},), got {a.dtype} {a.shape}")
         space = self._discrete

@@ -19,7 +19,7 @@ from .._config import resolve_config, to_json
 from ..envs.image import ObsSpec, observation_space
 from ..envs.palette import screen_to_rgb
 from ..envs.rogue_env import ACTIONS
-from ..front.core import SUMMARY_FINAL, SUMMARY_RESTARTED, flags, mark_restarted
+from ..front.core import SUMMARY_FINAL, SUMMARY_RESTARTED, flags, mark_restarted, scalar_actions
 from ..settings import PoolSettings
 from .replay import ActionHistory
 from .seed_sets import seed_set
@@ -154,8 +154,10 @@ class NativeKind:
                 )
             a = [ACTIONS.index(k) if k in ACTIONS else _native.action_from_key(k) for k in a]
         a = np.asarray(a)
+        if a.ndim == 0:
+            raise TypeError(scalar_actions(n))
         if a.shape != (n,):
-            if a.size == n and a.ndim <= 2 and (a.ndim == 0 or 1 in a.shape):
+            if a.size == n and a.ndim == 2 and 1 in a.shape:
                 a = a.reshape(n)
             else:
                 raise ValueError(
