@@ -20,6 +20,7 @@ import functools
 import json
 import os
 import platform
+import statistics
 import sys
 import time
 from pathlib import Path
@@ -68,6 +69,28 @@ def puffer_autotune(name: str, n: int, seconds: float) -> dict[str, Any]:
     return {"sps": float(best.split()[0]), "config": " ".join(best.split()[1:])}
 
 
+def head_to_head(
+    env: Any, n: int, pick: Any, best: Any, seconds: float, pairs: int
+) -> dict[str, Any]:
+    """The pick against the sweep's best, side by side: ``pairs`` alternating runs of each (a
+    fresh pool every run), and the median of the per-pair ratios. The sweep's medians of four
+    runs move by more than 5% between sweeps on this VM; pairs taken back to back do not see
+    the machine's slow drift."""
+    if pick == best:
+        return {"pairs": 0, "ratio": 1.0, "pick": [], "best": []}
+    from rogue_gym.tune import _resolve, _time_one
+
+    kind, fn, gym_id = _resolve(env)
+    a: list[float] = []
+    b: list[float] = []
+    for i in range(pairs):
+        order = [(pick, a), (best, b)] if i % 2 == 0 else [(best, b), (pick, a)]
+        for cand, into in order:
+            into.append(_time_one(kind, fn, gym_id, n, cand, seconds)[0])
+    ratios = sorted(x / y for x, y in zip(a, b))
+    return {"pairs": pairs, "ratio": statistics.median(ratios), "pick": a, "best": b}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--envs", nargs="+", default=list(ENVS), choices=ENVS)
@@ -76,6 +99,13 @@ def main() -> None:
     ap.add_argument("--tune-rounds", type=int, default=2)
     ap.add_argument("--sweep-seconds", type=float, default=1.0)
     ap.add_argument("--sweep-rounds", type=int, default=3)
+    ap.add_argument(
+        "--final-pairs",
+        type=int,
+        default=8,
+        help="where tune's pick is not the sweep's best: this many alternating runs of each, "
+        "side by side, for the ratio",
+    )
     ap.add_argument("--out", type=Path, default=RESULTS)
     ap.add_argument(
         "--puffer-path",
@@ -100,6 +130,14 @@ def main() -> None:
             )
             by_label = {t.candidate.label: t.median for t in sweep.timings}
             chosen = pick.best.candidate.label
+            final = head_to_head(
+                env,
+                n,
+                pick.best.candidate,
+                sweep.best.candidate,
+                args.sweep_seconds,
+                args.final_pairs,
+            )
             row = {
                 "env": name,
                 "num_envs": n,
@@ -110,6 +148,7 @@ def main() -> None:
                 "ratio": by_label.get(chosen, 0.0) / sweep.best.median
                 if sweep.best.median
                 else 0.0,
+                "head_to_head": final,
                 "tune_seconds": round(tune_s, 1),
                 "sweep": {t.candidate.label: t.steps_per_s for t in sweep.timings},
                 "errors": {t.candidate.label: t.error for t in sweep.timings if t.error},
@@ -124,7 +163,7 @@ def main() -> None:
             print(
                 f"{name} x {n}: tune picked {chosen} ({row['pick_in_sweep']:,.0f} steps/s in the "
                 f"sweep), sweep best {row['sweep_best']} ({row['sweep_best_steps_per_s']:,.0f}): "
-                f"{row['ratio']:.3f}; tune took {tune_s:.0f} s",
+                f"{row['ratio']:.3f}, head to head {final['ratio']:.3f}; tune took {tune_s:.0f} s",
                 flush=True,
             )
     print(write(args, rows))
@@ -137,16 +176,17 @@ def write(args: argparse.Namespace, rows: list[dict[str, Any]]) -> str:
         f"{args.sweep_rounds} rounds of {args.sweep_seconds:g} s, the same candidates; "
         f"{os.cpu_count()} CPUs",
         "",
-        "| env | envs | tune's pick | sweep's best | pick / best (sweep medians) | best steps/s | "
-        "tune took | PufferLib autotune's best |",
-        "|---|---:|---|---|---:|---:|---:|---|",
+        "| env | envs | tune's pick | sweep's best | pick / best (sweep medians) | "
+        "pick / best (head to head) | best steps/s | tune took | PufferLib autotune's best |",
+        "|---|---:|---|---|---:|---:|---:|---:|---|",
     ]
     for r in rows:
         puffer = r.get("puffer")
         p = f"{puffer['sps']:,.0f} ({puffer['config'][:60]})" if puffer else "-"
         lines.append(
             f"| {r['env']} | {r['num_envs']} | {r['pick']} | {r['sweep_best']} | "
-            f"{r['ratio']:.3f} | {r['sweep_best_steps_per_s']:,.0f} | {r['tune_seconds']:.0f} s | "
+            f"{r['ratio']:.3f} | {r['head_to_head']['ratio']:.3f} | "
+            f"{r['sweep_best_steps_per_s']:,.0f} | {r['tune_seconds']:.0f} s | "
             f"{p} |"
         )
     args.out.mkdir(parents=True, exist_ok=True)

@@ -127,9 +127,13 @@ class PoolVectorEnv(FrontVectorEnv):
             :data:`rogue_gym.kinds.hosted.HOSTED_WORKER_POLL_US`).
         info_bytes: room per env and step for the env's info in shared memory (typed rows of
             numbers and arrays, or pickles); a longer info travels beside it, more slowly.
-        shared_memory, context, daemon: accepted for ``AsyncVectorEnv`` compatibility; the
-            pool always uses shared memory and fresh (spawned) worker processes that die with
-            this one.
+        shared_memory: the pool always carries fixed-size leaves (Box, Discrete,
+            MultiDiscrete, MultiBinary) in shared memory, and leaves of no fixed size (Text,
+            Graph, Sequence, OneOf, custom spaces) pickled per env; ``True`` refuses the latter
+            with ``AsyncVectorEnv``'s errors (a ``TypeError``, or a ``ValueError`` for a custom
+            space).
+        context, daemon: accepted for ``AsyncVectorEnv`` compatibility; the workers are always
+            fresh (spawned) processes that die with this one.
         observation_mode: only ``"same"`` is supported.
 
     ``reset(seed=s)`` seeds env ``i`` with ``s + i`` (a list seeds each env); ``None`` keeps
@@ -155,12 +159,12 @@ class PoolVectorEnv(FrontVectorEnv):
         poll_us: Optional[int] = None,
         worker_poll_us: Optional[int] = HOSTED_WORKER_POLL_US,
         runtime_dir: Optional[str] = None,
-        shared_memory: bool = True,
+        shared_memory: Optional[bool] = None,
         context: Optional[str] = None,
         daemon: bool = True,
         observation_mode: Any = "same",
     ) -> None:
-        del shared_memory, context, daemon  # always shared memory and spawned workers
+        del context, daemon  # always spawned workers
         if not (observation_mode in ("same", "different") or _is_space_pair(observation_mode)):
             raise ValueError(  # gymnasium's message
                 "Invalid `observation_mode`, expected: 'same' or 'different' or tuple of single "
@@ -184,7 +188,7 @@ class PoolVectorEnv(FrontVectorEnv):
             poll_us=poll_us,
             worker_poll_us=worker_poll_us,
         )
-        kind = HostedKind(env_fns, options, mode, info_bytes)
+        kind = HostedKind(env_fns, options, mode, info_bytes, static_only=shared_memory is True)
         super().__init__(kind, autoreset_mode=mode, copy=copy)
 
     @classmethod

@@ -222,10 +222,55 @@ class GrowingInfoEnv(RaisingEnv):
         return np.full(4, self.t / 100, np.float32), 1.0, False, self.t >= 25, info
 
 
-class TextEnv(RaisingEnv):
-    """An observation space the pool cannot lay out."""
+class NoteEnv(gym.Env):
+    """Leaves of no fixed size beside fixed ones, both ways. The observation: a Box, a Text
+    that echoes the last action's text and grows past the pool's default info room (4096
+    bytes) as an episode goes on, and a Sequence of random length; the action: a Discrete and
+    a Text. The reward tells both action leaves arrived; episodes end after 6 steps."""
 
-    observation_space = spaces.Text(8)  # type: ignore[assignment]
+    observation_space = spaces.Dict(
+        {
+            "pos": spaces.Box(0.0, 100.0, (2,), np.float32),
+            "note": spaces.Text(20000, min_length=0),
+            "path": spaces.Sequence(spaces.Discrete(5)),
+        }
+    )
+    action_space = spaces.Dict({"move": spaces.Discrete(3), "say": spaces.Text(8)})
+
+    def __init__(self) -> None:
+        self.t = 0
+        self.said = ""
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> Any:
+        super().reset(seed=seed)
+        self.t, self.said = 0, ""
+        return self._obs(), {}
+
+    def _obs(self) -> dict[str, Any]:
+        k = int(self.np_random.integers(0, 5))
+        note = self.said + "x" * (1000 * self.t)
+        return {"pos": np.array([self.t, k], np.float32), "note": note, "path": tuple(range(k))}
+
+    def step(self, action: Any) -> Any:
+        assert action in self.action_space, action
+        self.t += 1
+        self.said = action["say"]
+        reward = float(len(action["say"]) + 10 * int(action["move"]))
+        return self._obs(), reward, self.t >= 6, False, {"t": self.t}
+
+
+class TextEnv(gym.Env):
+    """A Text observation and a Text action: the observation is the last action's text."""
+
+    observation_space = spaces.Text(8)
+    action_space = spaces.Text(8)
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> Any:
+        super().reset(seed=seed)
+        return "start", {}
+
+    def step(self, action: Any) -> Any:
+        return action, 0.0, False, False, {}
 
 
 def fails_in_workers(creator: int) -> gym.Env:

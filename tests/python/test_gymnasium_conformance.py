@@ -6,7 +6,7 @@ MIT; the PyPI sdists do not ship it), copied into a temporary folder and run in 
 ``SyncVectorEnv`` stays as it is. Counted: the tests that construct the class (184).
 
 Every counted test passes except those listed below, each with its cause: the open gaps of
-issue #36 (dynamic and per-env spaces, call_async/call_wait, more of gymnasium's semantics),
+issue #36 (per-env spaces, more of gymnasium's semantics),
 and the deliberate differences, each with its reason. A counted test outside both lists that fails is a
 regression. The counts are printed, e.g. "102 passed, 80 open gaps, 2 known differences".
 """
@@ -48,15 +48,9 @@ OPEN_GAPS: dict[str, str] = {
     "test_async_vector_env.py::test_async_vector_subenv_error": (
         "a sub-env's error in reset is not re-raised as the test expects"
     ),
-    "test_async_vector_env.py::test_call_async_vector_env": "no call_async/call_wait",
     "test_async_vector_env.py::test_check_spaces_async_vector_env": (
         "envs with different spaces are not reported as gymnasium reports them"
     ),
-    "test_async_vector_env.py::test_custom_space_async_vector_env": "custom spaces are refused",
-    "test_async_vector_env.py::test_custom_space_async_vector_env_shared_memory": (
-        "no CustomSpaceError for a custom space"
-    ),
-    "test_async_vector_env.py::test_render_async_vector": "render of the sub-envs differs",
     "test_autoreset_mode.py::test_autoreset_within_step": (
         "SAME_STEP final_obs for envs that did not end"
     ),
@@ -71,9 +65,6 @@ OPEN_GAPS: dict[str, str] = {
     "test_vector_env.py::test_random_seeding_basics": "np_random_seed with gymnasium's meaning",
     "test_vector_env.py::test_random_seeds_set_at_retrieval": (
         "np_random_seed with gymnasium's meaning"
-    ),
-    "test_vector_env.py::test_vector_obs_action_spaces": (
-        "dynamic spaces (Text, Graph, Sequence, OneOf) are refused"
     ),
 }
 

@@ -103,6 +103,12 @@ class Kind(Protocol):
         space, without a copy."""
         ...
 
+    def complete_obs(self, obs: Any, env_ids: Optional[np.ndarray]) -> Any:
+        """A batch of observations (of every env, or of ``env_ids``) made whole, after the
+        call's infos were read: the values of leaves of no fixed size, which travel apart;
+        ``obs`` itself for a kind that has none."""
+        ...
+
     def actions(self, actions: Any, env_ids: Optional[Sequence[int]]) -> np.ndarray:
         """A batch of actions (for every env, or ``env_ids``) checked, as the pool takes them:
         int64 indices or uint8 bytes."""
@@ -394,12 +400,12 @@ def mark_restarted(infos: dict[str, Any], restarted: Optional[np.ndarray]) -> No
 
 
 def copy_tree(value: Any) -> Any:
-    """A copy of a batch (an array, or a dict / tuple of them)."""
+    """A copy of a batch (an array, or a dict / tuple of them; anything else is kept)."""
     if isinstance(value, dict):
         return {k: copy_tree(v) for k, v in value.items()}
     if isinstance(value, tuple):
         return tuple(copy_tree(v) for v in value)
-    return value.copy()
+    return value.copy() if isinstance(value, np.ndarray) else value
 
 
 def first_row(tree: Any) -> Any:
@@ -408,7 +414,7 @@ def first_row(tree: Any) -> Any:
         return {k: first_row(v) for k, v in tree.items()}
     if isinstance(tree, tuple):
         return tuple(first_row(v) for v in tree)
-    return tree[0]
+    return tree[0] if isinstance(tree, np.ndarray) else tree
 
 
 def env_exception(err: BaseException) -> BaseException:

@@ -148,7 +148,8 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         if mask is not None:
             slot = core.reset_envs(mask)
             self._done &= ~mask
-            result = (core.observations(slot), self._kind.reset_infos(core, slot, mask))
+            infos = self._kind.reset_infos(core, slot, mask)
+            result = (self._kind.complete_obs(core.observations(slot), None), infos)
             self._last_slot = slot
             self._pending = ("reset", result)
             return
@@ -175,7 +176,8 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         self._done[:] = False
         self._started = True
         self._last_slot = slot
-        return self._core.observations(slot), self._kind.reset_infos(self._core, slot, None)
+        infos = self._kind.reset_infos(self._core, slot, None)
+        return self._kind.complete_obs(self._core.observations(slot), None), infos
 
     # -- step ------------------------------------------------------------------------------
 
@@ -225,7 +227,8 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         terminated, truncated = cols["terminated"].copy(), cols["truncated"].copy()
         if self._disabled:
             self._done = terminated | truncated
-        return core.observations(slot), cols["reward"].copy(), terminated, truncated, infos
+        obs = self._kind.complete_obs(core.observations(slot), None)
+        return obs, cols["reward"].copy(), terminated, truncated, infos
 
     def _not_pending(self, caller: str) -> None:
         if self._pending is not None:
@@ -296,6 +299,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         self._async_ids = env_id
         terminated, truncated, restarted, _ = flags(recs)
         infos = self._kind.recv_infos(core, recs, blocks, env_id)
+        obs = self._kind.complete_obs(obs, env_id)
         mark_restarted(infos, restarted)
         infos["env_id"] = env_id
         return obs, recs["reward"].astype(np.float64), terminated, truncated, infos

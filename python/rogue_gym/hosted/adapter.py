@@ -3,7 +3,9 @@ speaks the pool's flat bytes.
 
 The pool's Rust worker loop calls :class:`HostedEnv` (through ``python/src/hosted.rs``) for
 every reset of the env, and steps the env itself with the parts of :meth:`HostedEnv.step_parts`
-(the hot path has no Python frame of ours). Any exception of the env is raised as
+(the hot path has no Python frame of ours). An observation's dynamic leaves (Text, Graph, Sequence, OneOf,
+custom spaces) travel pickled in the command's info, under :data:`DYNAMIC_OBS_KEY`; a step's
+dynamic actions arrive before it, by a ``set_actions`` call. Any exception of the env is raised as
 :class:`EncodedEnvError`, whose message carries the exception (type, message, worker-side
 traceback, and the exception itself pickled when it can be) to the caller, where
 :func:`decode_exception` rebuilds it.
@@ -27,6 +29,7 @@ from .layout import SpaceLayout
 
 __all__ = [
     "CALL_OPS",
+    "DYNAMIC_OBS_KEY",
     "NO_SEED",
     "EncodedEnvError",
     "HostedEnv",
@@ -49,7 +52,12 @@ CALL_OPS = (
     "is_wrapped",
     "render",
     "set_reset_options",
+    "set_actions",
 )
+
+#: The info key under which an observation's dynamic leaves travel (a list of their values in
+#: the order of :attr:`SpaceLayout.dynamic`); the front end takes it out of the infos.
+DYNAMIC_OBS_KEY = "rogue_gym.dynamic_obs"
 
 #: The key of an encoded exception in an env error message.
 _KEY = "rogue_gym_exception"
@@ -125,6 +133,21 @@ class _DiscreteActions:
         return self.make(self.start + index)
 
 
+class _DynamicObsEnv:
+    """The env as the worker's Rust step calls it when the observation has dynamic leaves:
+    ``step`` returns the info with their values added (a new dict) under
+    :data:`DYNAMIC_OBS_KEY`."""
+
+    def __init__(self, env: Any, layout: SpaceLayout) -> None:
+        self.env = env
+        self.layout = layout
+
+    def step(self, action: Any) -> tuple[Any, ...]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        info = {**info, DYNAMIC_OBS_KEY: self.layout.dynamic_values(obs)}
+        return obs, reward, terminated, truncated, info
+
+
 class HostedEnv:
     """One hosted env (built by :meth:`build`) and the byte codecs of its spaces."""
 
@@ -143,7 +166,17 @@ class HostedEnv:
         #: The last observation (for :meth:`observe`).
         self._last: Any = None
         self._info_encoder = InfoEncoder()
-        self._decode = self._act.decoder()
+        #: The dynamic leaves of the next step's action (set by a ``set_actions`` call).
+        self._dynamic_actions: list[Any] = []
+        self._decode = self._act.decoder() if not self._act.dynamic else self._decode_dynamic
+
+    def _decode_dynamic(self, data: bytes) -> Any:
+        """An action with dynamic leaves: its fixed leaves from ``data``, the others as the
+        last ``set_actions`` call left them (each used once)."""
+        dynamic, self._dynamic_actions = self._dynamic_actions, []
+        if len(dynamic) != len(self._act.dynamic):
+            raise RuntimeError("no dynamic action values arrived for this step")
+        return self._act.decode(data, dynamic)
 
     @classmethod
     @_guarded
@@ -188,6 +221,8 @@ class HostedEnv:
             else:
                 obs, info = self.env.reset(seed=use_seed)
             self.write_obs(obs, address)
+            if self._obs.dynamic:
+                info = {**info, DYNAMIC_OBS_KEY: self._obs.dynamic_values(obs)}
             if info:
                 infos.append(("reset", info))
             return self._info_encoder.encode(infos) if infos else None
@@ -207,7 +242,7 @@ class HostedEnv:
             actions = table if table is not None else self._discrete.__getitem__
         leaf = self._obs.leaves[0] if self._obs.single else None
         return (
-            self.env,
+            self.env if not self._obs.dynamic else _DynamicObsEnv(self.env, self._obs),
             actions,
             None if leaf is None else leaf.dtype,
             None if leaf is None else leaf.shape,
@@ -276,6 +311,9 @@ class HostedEnv:
 
     def _op_set_reset_options(self, name: str, options: Optional[dict[str, Any]]) -> None:
         self._options = options
+
+    def _op_set_actions(self, name: str, values: list[Any]) -> None:
+        self._dynamic_actions = list(values)
 
     def observe(self, address: int) -> None:
         """Write the current observation again, at ``address`` (for partial resets)."""

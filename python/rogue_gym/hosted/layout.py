@@ -1,11 +1,16 @@
 """How a gymnasium space is laid out as flat bytes in shared memory, leaf by leaf.
 
-A space is a tree: ``Dict`` and ``Tuple`` nodes, and leaves (``Box``, ``Discrete``,
-``MultiDiscrete``, ``MultiBinary``). Each leaf is one numpy array of a fixed dtype and shape
+A space is a tree: ``Dict`` and ``Tuple`` nodes, and leaves. A *fixed* leaf (``Box``,
+``Discrete``, ``MultiDiscrete``, ``MultiBinary``) is one numpy array of a fixed dtype and shape
 (a ``Discrete`` is an ``int64`` scalar), placed at an offset aligned to its item size. One value
-of the space is ``nbytes`` bytes; a batch of ``n`` values is an ``(n, stride)`` uint8 array (the
-stride is ``nbytes`` rounded up to 8, so every row is 8-byte aligned), and each leaf of the
-batch is a zero-copy strided view of it. Nothing is pickled.
+of the fixed leaves is ``nbytes`` bytes; a batch of ``n`` values is an ``(n, stride)`` uint8
+array (the stride is ``nbytes`` rounded up to 8, so every row is 8-byte aligned), and each leaf
+of the batch is a zero-copy strided view of it. Nothing is pickled for them.
+
+A *dynamic* leaf (``Text``, ``Graph``, ``Sequence``, ``OneOf``, or any custom space) has no
+fixed size: its values travel apart, pickled per env (:meth:`SpaceLayout.dynamic_values`), and
+a batch holds them as gymnasium's vector envs do, one tuple of ``n`` values per leaf
+(:meth:`SpaceLayout.fill`).
 """
 
 from __future__ import annotations
@@ -13,12 +18,12 @@ from __future__ import annotations
 import ctypes
 import functools
 from dataclasses import dataclass
-from typing import Any, Callable, Union
+from typing import Any, Callable, Iterator, Sequence, Union
 
 import numpy as np
 from gymnasium import spaces
 
-__all__ = ["Leaf", "SpaceLayout", "UnsupportedSpaceError"]
+__all__ = ["Leaf", "SpaceLayout", "UnsupportedSpaceError", "is_fixed"]
 
 #: Alignment of a batch row (so leaves of every dtype stay aligned in every row).
 ROW_ALIGN = 8
@@ -30,7 +35,19 @@ Path = tuple[Union[str, int], ...]
 
 
 class UnsupportedSpaceError(TypeError):
-    """A space the pool cannot lay out in shared memory (Text, Graph, Sequence, custom)."""
+    """A space the pool cannot carry where only fixed-size leaves may be (a vector env per
+    worker, or ``shared_memory=True``)."""
+
+
+#: The leaf spaces of a fixed size.
+FIXED_SPACES = (spaces.Box, spaces.Discrete, spaces.MultiDiscrete, spaces.MultiBinary)
+#: gymnasium's own spaces of no fixed size (any other space is a custom one).
+DYNAMIC_SPACES = (spaces.Text, spaces.Graph, spaces.Sequence, spaces.OneOf)
+
+
+def is_fixed(space: spaces.Space) -> bool:
+    """Whether ``space`` is a fixed-size leaf."""
+    return isinstance(space, FIXED_SPACES)
 
 
 @dataclass(frozen=True)
@@ -62,13 +79,8 @@ def _leaf_array(space: spaces.Space) -> tuple[np.dtype, tuple[int, ...]]:
         return np.dtype(space.dtype), ()
     if isinstance(space, spaces.MultiDiscrete):
         return np.dtype(space.dtype), tuple(space.shape)
-    if isinstance(space, spaces.MultiBinary):
-        return np.dtype(space.dtype), tuple(space.shape)
-    raise UnsupportedSpaceError(
-        f"the pool cannot carry a {type(space).__name__} space ({space}) in shared memory: it "
-        "supports Box, Discrete, MultiDiscrete, MultiBinary and Dict/Tuple nests of them. "
-        "Wrap the env so that its space is one of these (e.g. encode Text as a Box of codes)."
-    )
+    assert isinstance(space, spaces.MultiBinary)  # is_fixed(space)
+    return np.dtype(space.dtype), tuple(space.shape)
 
 
 class SpaceLayout:
@@ -76,7 +88,12 @@ class SpaceLayout:
 
     def __init__(self, space: spaces.Space) -> None:
         self.space = space
+        #: The fixed leaves, in shared memory.
         self.leaves: list[Leaf] = []
+        #: The dynamic leaves (path and space), pickled per env.
+        self.dynamic: list[tuple[Path, spaces.Space]] = []
+        #: Whether each leaf, in the order of a walk of the space, is dynamic.
+        self._order: list[bool] = []
         offset = 0
 
         def visit(s: spaces.Space, path: Path) -> None:
@@ -87,7 +104,11 @@ class SpaceLayout:
             elif isinstance(s, spaces.Tuple):
                 for i, sub in enumerate(s.spaces):
                     visit(sub, (*path, i))
+            elif not is_fixed(s):
+                self.dynamic.append((path, s))
+                self._order.append(True)
             else:
+                self._order.append(False)
                 dtype, shape = _leaf_array(s)
                 offset = -(-offset // dtype.itemsize) * dtype.itemsize
                 leaf = Leaf(path, dtype, shape, offset, s)
@@ -187,13 +208,45 @@ class SpaceLayout:
             return lambda data: frombuffer(bytearray(data), dtype, count)
         return lambda data: frombuffer(bytearray(data), dtype, count).reshape(shape)
 
-    def decode(self, data: bytes) -> Any:
-        """One value from its bytes: writable arrays (a ``Discrete`` leaf as a numpy int)."""
+    def decode(self, data: bytes, dynamic: Sequence[Any] = ()) -> Any:
+        """One value from its bytes (writable arrays, a ``Discrete`` leaf as a numpy int) and
+        the values of its dynamic leaves."""
         buf = bytearray(data)
         if self.single:
             return self._leaf_value(buf, self.leaves[0])
         leaves = [self._leaf_value(buf, leaf) for leaf in self.leaves]
-        return self._assemble(self.space, (), iter(leaves))
+        return self._assemble(self.space, (), self._merged(leaves, dynamic))
+
+    def _merged(self, fixed: Sequence[Any], dynamic: Sequence[Any]) -> Iterator[Any]:
+        """The leaves in walk order: fixed ones from ``fixed``, dynamic ones from ``dynamic``
+        (``None`` where it runs short)."""
+        f, d = iter(fixed), iter(dynamic)
+        return (next(d, None) if is_dyn else next(f) for is_dyn in self._order)
+
+    def dynamic_values(self, value: Any) -> list[Any]:
+        """The values of the dynamic leaves of one value (or, of a batch, their batches)."""
+        out = []
+        for path, _ in self.dynamic:
+            v = value
+            for key in path:
+                v = v[key]
+            out.append(v)
+        return out
+
+    def fill(self, tree: Any, dynamic: Sequence[Any]) -> Any:
+        """``tree`` (a value, or a batch, as :meth:`decode` or :meth:`batch_views` build it)
+        with its dynamic leaves replaced by ``dynamic``, in order: a new tree, the fixed leaves
+        shared."""
+        values = iter(dynamic)
+
+        def walk(space: spaces.Space, node: Any) -> Any:
+            if isinstance(space, spaces.Dict):
+                return {k: walk(s, node[k]) for k, s in space.spaces.items()}
+            if isinstance(space, spaces.Tuple):
+                return tuple(walk(s, node[i]) for i, s in enumerate(space.spaces))
+            return node if is_fixed(space) else next(values)
+
+        return walk(self.space, tree)
 
     @staticmethod
     def _leaf_value(buf: bytearray, leaf: Leaf) -> Any:
@@ -211,7 +264,8 @@ class SpaceLayout:
 
     def batch_views(self, rows: np.ndarray) -> Any:
         """Zero-copy views of a batch: ``rows`` is an ``(n, >= nbytes)`` uint8 array; the
-        result has the structure of the space with one ``(n, *shape)`` array per leaf."""
+        result has the structure of the space with one ``(n, *shape)`` array per fixed leaf
+        (and ``None`` for each dynamic one, until :meth:`fill`)."""
         n = rows.shape[0]
         views = [
             rows[:, leaf.offset : leaf.offset + leaf.nbytes]
@@ -219,7 +273,7 @@ class SpaceLayout:
             .reshape((n, *leaf.shape))
             for leaf in self.leaves
         ]
-        return self._assemble(self.space, (), iter(views))
+        return self._assemble(self.space, (), self._merged(views, ()))
 
     def write_batch(self, values: Any, rows: np.ndarray) -> None:
         """Write a batch (the structure of the space, one ``(n, *shape)`` array per leaf) into
@@ -243,9 +297,9 @@ class SpaceLayout:
         when the space is one array and ``values`` a C-contiguous ndarray of its dtype and
         shape (the usual Box batch, no copy), else :meth:`write_batch` into ``rows``."""
         n = rows.shape[0]
-        leaf = self.leaves[0]
+        leaf = self.leaves[0] if self.single else None
         own = (
-            self.single
+            leaf is not None
             and self.nbytes > 0
             and type(values) is np.ndarray
             and values.dtype == leaf.dtype

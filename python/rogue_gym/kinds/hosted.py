@@ -5,7 +5,9 @@ The callables are cloudpickled once, here; each worker process (``python -m
 rogue_gym.worker``, never a fork) builds its block of envs from them and runs the pool's Rust
 loop, which calls the envs through :mod:`rogue_gym.hosted.adapter`. Observations and actions
 cross in shared memory, laid out leaf by leaf (:mod:`rogue_gym.hosted.layout`); infos cross
-only when an env returns a non-empty one (:mod:`rogue_gym.hosted.infos`).
+only when an env returns a non-empty one (:mod:`rogue_gym.hosted.infos`). The leaves of no
+fixed size (Text, Graph, Sequence, OneOf, custom spaces) travel pickled per env: an
+observation's with the env's info, an action's by a call before the step.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from __future__ import annotations
 import base64
 import pickle
 import sys
+import weakref
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Callable, Optional, Sequence
 
@@ -31,9 +34,9 @@ from ..front.core import (
     reraise,
     scalar_actions,
 )
-from ..hosted.adapter import NO_SEED, decode_exception
+from ..hosted.adapter import DYNAMIC_OBS_KEY, NO_SEED, decode_exception
 from ..hosted.infos import HEAD, InfoDecoder, split_joined, vector_infos
-from ..hosted.layout import SpaceLayout
+from ..hosted.layout import DYNAMIC_SPACES, SpaceLayout, UnsupportedSpaceError
 from ..hosted.vector_adapter import check_vector_env
 from ..settings import PoolOptions
 
@@ -71,6 +74,32 @@ class VectorEnvFn:
             raise ValueError(f"num_envs must be at least 1, got {self.num_envs}")
 
 
+def _check_dynamic(obs: SpaceLayout, act: SpaceLayout, vector_env: bool, static_only: bool) -> None:
+    """Refuse leaves of no fixed size where they cannot go: in a hosted vector env, and with
+    ``static_only`` (gymnasium's errors for ``AsyncVectorEnv(..., shared_memory=True)``: a
+    ``TypeError`` for its own dynamic spaces, a ``ValueError`` for a custom one)."""
+    dynamic = [space for _, space in obs.dynamic + act.dynamic]
+    if not dynamic:
+        return
+    if vector_env:
+        raise UnsupportedSpaceError(
+            f"a vector env per worker needs spaces of fixed-size leaves; {dynamic[0]} has "
+            "none: host single envs instead (PoolVectorEnv(env_fns))"
+        )
+    if not static_only:
+        return
+    custom = [s for s in dynamic if not isinstance(s, DYNAMIC_SPACES)]
+    if custom:
+        raise ValueError(
+            f"shared_memory=True needs spaces of fixed-size leaves, and {custom[0]} is a custom "
+            "space; leave shared_memory out (or False) to carry it pickled per env"
+        )
+    raise TypeError(
+        f"As {dynamic[0]} has a dynamic shape so its not possible to make a static shared "
+        "memory. Leave shared_memory out (or False) to carry it pickled per env."
+    )
+
+
 def _b64(data: bytes) -> str:
     return base64.b64encode(data).decode("ascii")
 
@@ -84,6 +113,8 @@ class HostedKind:
         options: the pool's options (checked here).
         autoreset_mode: the facade's (a hosted vector env must autoreset so).
         info_bytes: room per env and step for the env's info in shared memory.
+        static_only: refuse spaces with leaves of no fixed size, as ``AsyncVectorEnv(...,
+            shared_memory=True)`` does (gymnasium's errors).
     """
 
     def __init__(
@@ -92,6 +123,7 @@ class HostedKind:
         options: PoolOptions,
         autoreset_mode: AutoresetMode,
         info_bytes: int = DEFAULT_INFO_BYTES,
+        static_only: bool = False,
     ) -> None:
         hosted = env_fns if isinstance(env_fns, VectorEnvFn) else None
         fns: list[EnvFn] = [] if hosted is not None else list(env_fns)
@@ -131,13 +163,21 @@ class HostedKind:
         act = self.single_action_space
         self._discrete = act if isinstance(act, spaces.Discrete) else None
         self._act_layout = SpaceLayout(act)
-        self._act_rows = np.zeros((self.num_envs, self._act_layout.nbytes), np.uint8)
+        _check_dynamic(self._obs_layout, self._act_layout, hosted is not None, static_only)
+        #: Each env's dynamic observation leaves, as its last info brought them.
+        self._dynamic_obs: list[list[Any]] = [
+            [None] * len(self._obs_layout.dynamic)
+        ] * self.num_envs
+        #: Bytes of one action on the wire (at least 1: a space of dynamic leaves only).
+        self._act_bytes = max(self._act_layout.nbytes, 1)
+        self._act_rows = np.zeros((self.num_envs, self._act_bytes), np.uint8)
+        self._core: Optional[weakref.ref[Core]] = None
         spec = {
             "obs_shape": [self.obs_bytes],
             "dtype": "u8",
             "num_actions": 0 if self._discrete is None else int(self._discrete.n),
             "info_names": [],
-            "action_bytes": 0 if self._discrete is not None else self._act_layout.nbytes,
+            "action_bytes": 0 if self._discrete is not None else self._act_bytes,
             "extra_bytes": int(info_bytes),
         }
         adapter: dict[str, Any] = {
@@ -174,11 +214,23 @@ class HostedKind:
         }
 
     def bind(self, core: Core) -> None:
-        """Nothing to prepare: infos are decoded as they come."""
+        """Keep the core, for the calls that carry dynamic actions; infos are decoded as they
+        come."""
+        self._core = weakref.ref(core)
 
     def batch_views(self, rows: np.ndarray) -> Any:
         """Slot rows as a batch of the observation space, leaf by leaf (views)."""
         return self._obs_layout.batch_views(rows)
+
+    def complete_obs(self, obs: Any, env_ids: Optional[np.ndarray]) -> Any:
+        """``obs`` with its dynamic leaves (one tuple of values per leaf, as gymnasium batches
+        them) from the envs' last infos; ``obs`` itself when the space has none."""
+        if not self._obs_layout.dynamic:
+            return obs
+        ids = range(self.num_envs) if env_ids is None else [int(e) for e in env_ids]
+        values = [self._dynamic_obs[e] for e in ids]
+        columns = [tuple(v[j] for v in values) for j in range(len(self._obs_layout.dynamic))]
+        return self._obs_layout.fill(obs, columns)
 
     # -- actions and seeds -----------------------------------------------------------------
 
@@ -190,10 +242,33 @@ class HostedKind:
             raise TypeError(scalar_actions(n))
         if self._discrete is not None:
             return self._discrete_indices(actions, env_ids, n)
-        rows = (
-            self._act_rows if env_ids is None else np.zeros((n, self._act_layout.nbytes), np.uint8)
-        )
-        return self._act_layout.flat_batch(actions, rows)
+        rows = self._act_rows if env_ids is None else np.zeros((n, self._act_bytes), np.uint8)
+        flat = self._act_layout.flat_batch(actions, rows)
+        if self._act_layout.dynamic:
+            self._send_dynamic_actions(actions, env_ids, n)
+        return flat
+
+    def _send_dynamic_actions(self, actions: Any, env_ids: Optional[Sequence[int]], n: int) -> None:
+        """Hand each env the values of its action's dynamic leaves (one call, before the step
+        that uses them)."""
+        if env_ids is not None:
+            raise ValueError(
+                f"the action space {self.single_action_space} has leaves of no fixed size, which "
+                "travel by a call before each step: use step() or step_async(), not send()"
+            )
+        columns = self._act_layout.dynamic_values(actions)
+        for (path, space), column in zip(self._act_layout.dynamic, columns):
+            where = "".join(f"[{k!r}]" for k in path) or "actions"
+            if not isinstance(column, (tuple, list, np.ndarray)):
+                raise TypeError(f"{where} must be a tuple of one value of {space} per env")
+            if len(column) != n:
+                raise ValueError(f"{where} has {len(column)} values of {space}; expected {n}")
+        core = self._core() if self._core is not None else None
+        assert core is not None  # bound before any step
+        per_env: list[tuple[tuple[Any, ...], dict[str, Any]]] = [
+            ((list(row),), {}) for row in zip(*columns)
+        ]
+        self.call(core, "set_actions", "", per_env, range(n))
 
     def _discrete_indices(
         self, actions: Any, env_ids: Optional[Sequence[int]], n: int
@@ -306,13 +381,21 @@ class HostedKind:
         step's info as ``final_info``."""
         info: dict[str, Any] = {}
         final_info: dict[str, Any] = {}
+        final_dynamic: list[Any] = []
         for kind, entry in entries:
+            dynamic = entry.pop(DYNAMIC_OBS_KEY, None)
             if kind == "step" and final:
                 final_info = entry
+                final_dynamic = dynamic or []
             else:
                 info.update(entry)
+                if dynamic is not None:
+                    self._dynamic_obs[env] = dynamic
         if final and core.final is not None:
-            info["final_obs"] = core.final_obs(env)
+            final_obs = core.final_obs(env)
+            if self._obs_layout.dynamic:
+                final_obs = self._obs_layout.fill(final_obs, final_dynamic)
+            info["final_obs"] = final_obs
             info["final_info"] = final_info
         return info
 

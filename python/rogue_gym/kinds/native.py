@@ -136,6 +136,10 @@ class NativeKind:
         """Slot rows as observations of the engine's dtype and shape (a view)."""
         return rows.view(self.obs_dtype).reshape((rows.shape[0], *self.obs_shape))
 
+    def complete_obs(self, obs: np.ndarray, env_ids: Optional[np.ndarray]) -> np.ndarray:
+        """The game's observations are whole: ``obs`` itself."""
+        return obs
+
     # -- actions and seeds -----------------------------------------------------------------
 
     def actions(self, actions: Any, env_ids: Optional[Sequence[int]]) -> np.ndarray:
