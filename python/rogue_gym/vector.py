@@ -90,7 +90,7 @@ class RogueVectorEnv(FrontVectorEnv):
 
 
 def _is_space_pair(mode: Any) -> bool:
-    """Whether ``mode`` is a ``(single, batch)`` pair of spaces (an ``observation_mode``)."""
+    """Whether ``mode`` is a ``(batch, single)`` pair of spaces (an ``observation_mode``)."""
     return (
         isinstance(mode, tuple)
         and len(mode) == 2
@@ -134,7 +134,11 @@ class PoolVectorEnv(FrontVectorEnv):
             space).
         context, daemon: accepted for ``AsyncVectorEnv`` compatibility; the workers are always
             fresh (spawned) processes that die with this one.
-        observation_mode: only ``"same"`` is supported.
+        observation_mode: ``"same"`` (default: every env has env 0's observation space),
+            ``"different"`` (spaces of one layout, leaf dtypes and shapes, that differ
+            otherwise, e.g. in their bounds; every env is built here once for its space, as
+            ``AsyncVectorEnv`` does) or a ``(batch_space, single_space)`` pair, as gymnasium
+            takes them. The workers check each env's space (a ``RuntimeError``, as gymnasium).
 
     ``reset(seed=s)`` seeds env ``i`` with ``s + i`` (a list seeds each env); ``None`` keeps
     each env's generator. An exception raised by an env (constructor, ``reset`` or ``step``)
@@ -170,11 +174,6 @@ class PoolVectorEnv(FrontVectorEnv):
                 "Invalid `observation_mode`, expected: 'same' or 'different' or tuple of single "
                 f"and batch observation space, actual got {observation_mode}"
             )
-        if observation_mode != "same":
-            raise ValueError(
-                f"observation_mode={observation_mode!r} (per-env observation spaces) is not "
-                "supported yet: every env must have the same observation space"
-            )
         mode = parse_autoreset_mode(autoreset_mode)
         options = PoolOptions(
             num_workers=num_workers,
@@ -188,8 +187,27 @@ class PoolVectorEnv(FrontVectorEnv):
             poll_us=poll_us,
             worker_poll_us=worker_poll_us,
         )
-        kind = HostedKind(env_fns, options, mode, info_bytes, static_only=shared_memory is True)
+        kind = HostedKind(
+            env_fns,
+            options,
+            mode,
+            info_bytes,
+            static_only=shared_memory is True,
+            observation_mode=observation_mode,
+        )
         super().__init__(kind, autoreset_mode=mode, copy=copy)
+        if kind.batch_observation_space is not None:
+            self.observation_space = kind.batch_observation_space
+
+    @property
+    def np_random_seed(self) -> tuple[int, ...]:  # type: ignore[override]
+        """Each env's ``np_random_seed``, as ``AsyncVectorEnv`` gives it."""
+        return self.get_attr("np_random_seed")
+
+    @property  # type: ignore[misc]  # read-only, as AsyncVectorEnv's
+    def np_random(self) -> tuple[np.random.Generator, ...]:  # type: ignore[override]
+        """Each env's ``np_random`` (copies from the workers), as ``AsyncVectorEnv`` gives it."""
+        return self.get_attr("np_random")
 
     @classmethod
     def from_vector_env(

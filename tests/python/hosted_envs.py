@@ -278,3 +278,12 @@ def fails_in_workers(creator: int) -> gym.Env:
     if os.getpid() != creator:
         raise SpecialError("no env in a worker")
     return RaisingEnv()
+
+
+class BoundedEnv(RaisingEnv):
+    """RaisingEnv with an observation bound of its own (``high``): envs whose observation
+    spaces differ only in their bounds."""
+
+    def __init__(self, high: float) -> None:
+        super().__init__()
+        self.observation_space = spaces.Box(-high, high, (4,), np.float32)

@@ -95,9 +95,15 @@ def test_text_only_spaces_both_ways(pool) -> None:
         notes.step({"move": np.zeros(3, np.int64), "say": "abc"})
 
 
-def test_shared_memory_true_and_vector_envs_refuse_dynamic_leaves_as_gymnasium_does() -> None:
+def test_shared_memory_true_and_vector_envs_refuse_dynamic_leaves_as_gymnasium_does(
+    pool,
+) -> None:
+    """``shared_memory=True`` refuses what AsyncVectorEnv's shared memory cannot hold (a
+    Sequence here) with its TypeError, and takes Text, as it does."""
     with pytest.raises(TypeError, match="dynamic shape"):
-        PoolVectorEnv([TextEnv] * 2, num_workers=1, shared_memory=True)
+        PoolVectorEnv([NoteEnv] * 2, num_workers=1, shared_memory=True)
+    text = pool([TextEnv] * 2, num_workers=1, shared_memory=True)
+    assert text.reset(seed=0)[0] == ("start", "start")
 
     def text_vector(n: int) -> gym.vector.VectorEnv:
         return SyncVectorEnv([TextEnv] * n)

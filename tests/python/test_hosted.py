@@ -27,6 +27,7 @@ from rogue_gym.hosted.leases import LENDING_SLOTS
 from conftest import pid_alive, pool_files, wait_until
 from hosted_envs import (
     BadStepEnv,
+    BoundedEnv,
     FlatInfoEnv,
     GrowingInfoEnv,
     InfoEnv,
@@ -685,14 +686,44 @@ def test_info_rows_are_typed_when_they_can_be() -> None:
     assert split_joined([1, 4], b"abbb", 0, [1, 4], 5) == [(1, b"a"), (4, b"bbb")]
 
 
-@pytest.mark.parametrize(
-    ("mode", "message"),
-    [
-        ("invalid", "Invalid `observation_mode`, expected: 'same' or 'different'"),
-        ("different", "observation_mode='different' (per-env observation spaces) is not"),
-    ],
-)
-def test_observation_modes_other_than_same_are_refused_clearly(mode: str, message: str) -> None:
-    """An unknown mode gets gymnasium's own message; per-env spaces are not carried yet."""
+def test_an_unknown_observation_mode_gets_gymnasiums_message() -> None:
+    message = "Invalid `observation_mode`, expected: 'same' or 'different'"
     with pytest.raises(ValueError, match=re.escape(message)):
-        PoolVectorEnv([lambda: gym.make("CartPole-v1")] * 2, observation_mode=mode)
+        PoolVectorEnv([lambda: gym.make("CartPole-v1")] * 2, observation_mode="invalid")
+
+
+def test_per_env_observation_spaces_as_gymnasium_takes_them(pool) -> None:
+    """``observation_mode="different"`` and a ``(batch, single)`` pair batch spaces that differ
+    in their bounds; with ``"same"``, such envs are gymnasium's RuntimeError naming the mode."""
+    from gymnasium.vector.utils import batch_differing_spaces
+
+    fns = [functools.partial(BoundedEnv, float(i + 1)) for i in range(3)]
+    per_env = [fn().observation_space for fn in fns]
+    envs = pool(fns, num_workers=2, observation_mode="different")
+    assert envs.observation_space == batch_differing_spaces(per_env)
+    assert envs.single_observation_space == per_env[0]
+    obs, _ = envs.reset(seed=0)
+    assert obs.shape == (3, 4) and obs in envs.observation_space
+    pair = (batch_differing_spaces(per_env), per_env[0])
+    envs = pool(fns, num_workers=2, observation_mode=pair)
+    assert envs.observation_space == pair[0]
+    envs.reset(seed=0)
+    assert envs.step(envs.action_space.sample())[0] in envs.observation_space
+    with pytest.raises(RuntimeError, match="observation_mode='different'"):
+        PoolVectorEnv(fns, num_workers=1)
+
+
+def test_partial_reset_with_seeds_seeds_only_the_masked_envs(pool) -> None:
+    """``reset(seed=..., options={"reset_mask": m})``: the masked envs start again from their
+    seeds, the others go on; ``np_random_seed`` is each env's, as AsyncVectorEnv's."""
+    envs = pool([cartpole] * 3, num_workers=2, autoreset_mode=AutoresetMode.DISABLED)
+    first, _ = envs.reset(seed=[0, 1, 2])
+    assert envs.np_random_seed == (0, 1, 2)
+    for _ in range(3):
+        stepped, *_ = envs.step(np.zeros(3, np.int64))
+    again, _ = envs.reset(seed=[0, 5, 9], options={"reset_mask": np.array([True, False, False])})
+    np.testing.assert_array_equal(again[0], first[0])
+    np.testing.assert_array_equal(again[1:], stepped[1:])
+    assert envs.np_random_seed == (0, 1, 2)
+    again, _ = envs.reset(seed=10, options={"reset_mask": np.array([False, True, True])})
+    assert envs.np_random_seed == (0, 11, 12)

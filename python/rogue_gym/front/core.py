@@ -119,6 +119,12 @@ class Kind(Protocol):
         ``ValueError``/``TypeError`` for a seed the kind cannot take."""
         ...
 
+    def seed_partial(self, seed: Any, mask: np.ndarray, core: Core) -> None:
+        """Seed the next reset of the envs of ``mask`` (a partial reset with ``seed``: an int
+        ``s`` seeds env ``i`` with ``s + i``, a list gives each env's); a ``ValueError`` for a
+        kind whose seeds cannot be set per env."""
+        ...
+
     def reset_infos(self, core: Core, slot: int, only: Optional[np.ndarray]) -> dict[str, Any]:
         """The infos of a reset of every env, or of the envs of ``only`` (a partial reset)."""
         ...

@@ -30,8 +30,8 @@ class FrontVectorEnv(gym.vector.VectorEnv):
 
     * ``reset(seed=..., options=...)``: the seed as the kind takes it (the native game: the
       base of every env's episode schedule; hosted envs: ``seed + i`` or one per env);
-      ``options["reset_mask"]`` resets only the masked envs; other options go to every env's
-      next reset.
+      ``options["reset_mask"]`` resets only the masked envs (with their seeds, where the kind
+      seeds envs one by one); other options go to every env's next reset.
     * ``step(actions)``: ``(obs, rewards, terminations, truncations, infos)``; rewards float64,
       flags bool, infos a dict of arrays with ``_key`` masks.
     * ``autoreset_mode``: ``NEXT_STEP`` (default), ``SAME_STEP`` (``final_obs`` and
@@ -124,7 +124,9 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         ``reset_mask`` (a ``np.bool_`` array of shape ``(num_envs,)`` with at least one
         ``True``, as gymnasium checks it) resets only the masked envs: the others keep their
         state and their current observation is returned again; infos describe the reset envs.
-        A partial reset cannot take a ``seed``. Other ``options`` go to every env's reset.
+        With a ``seed``, the masked envs are seeded as a full reset would seed them (hosted
+        envs; the native game's seeds are a schedule, so it refuses). Other ``options`` go to
+        every env's reset.
         """
         self.reset_async(seed=seed, options=options)
         return self.reset_wait()
@@ -139,10 +141,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         options = dict(options or {})
         mask = partial_mask(options.pop("reset_mask", None), self.num_envs, self._started)
         if mask is not None and seed is not None:
-            raise ValueError(
-                "reset(seed=...) restarts the envs' seeds and cannot be combined with a partial "
-                "reset_mask; reset with the seed first, then use the mask"
-            )
+            self._kind.seed_partial(seed, mask, core)
         if options:  # for each env's next reset, as AsyncVectorEnv passes them
             self._call_all("set_reset_options", "", (options,))
         if mask is not None:

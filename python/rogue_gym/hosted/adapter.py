@@ -52,6 +52,7 @@ CALL_OPS = (
     "is_wrapped",
     "render",
     "set_reset_options",
+    "set_reset_seed",
     "set_actions",
 )
 
@@ -133,6 +134,28 @@ class _DiscreteActions:
         return self.make(self.start + index)
 
 
+def _space_mismatch(got: Any, want: Any, same: bool, what: str = "observation") -> str:
+    """Why an env's space ``got`` cannot be batched with env 0's ``want`` (``same``: they
+    must be equal; otherwise only have one layout), or ``""``."""
+    if same and got == want:
+        return ""
+    if not same and SpaceLayout(got).signature == SpaceLayout(want).signature:
+        return ""
+    if what == "action":
+        hint = "Every env must have the same action space."
+    elif same:
+        hint = (
+            "If this is intentional, use `observation_mode='different'` instead (spaces that "
+            "differ only in their bounds)."
+        )
+    else:
+        hint = "Their leaves must have the same dtypes and shapes."
+    return (
+        f"its {what} space is {got}, where env 0's is {want}: the sub-environments {what} "
+        f"spaces are not equivalent. {hint}"
+    )
+
+
 class _DynamicObsEnv:
     """The env as the worker's Rust step calls it when the observation has dynamic leaves:
     ``step`` returns the info with their values added (a new dict) under
@@ -163,6 +186,8 @@ class HostedEnv:
         self._fresh = True
         #: Options for the next reset only (set by a call, as SB3's set_options does).
         self._options: Optional[dict[str, Any]] = None
+        #: The seed of the next reset only (a partial reset with seeds sets it by a call).
+        self._seed: Optional[int] = None
         #: The last observation (for :meth:`observe`).
         self._last: Any = None
         self._info_encoder = InfoEncoder()
@@ -191,16 +216,12 @@ class HostedEnv:
         env_fn = cloudpickle.loads(base64.b64decode(cfg["env_fns"][cfg["fn_of_env"][index]]))
         obs_space, action_space = cloudpickle.loads(base64.b64decode(cfg["spaces"]))
         env = env_fn()
-        for what, got, want in (
-            ("observation", env.observation_space, obs_space),
-            ("action", env.action_space, action_space),
-        ):
-            if got != want:
-                env.close()
-                raise ValueError(
-                    f"env {index} has the {what} space {got}, but env 0 has {want}: every env of "
-                    "a vector env must have the same spaces"
-                )
+        problem = _space_mismatch(
+            env.observation_space, obs_space, cfg.get("same_obs_space", True)
+        ) or _space_mismatch(env.action_space, action_space, True, "action")
+        if problem:
+            env.close()
+            raise RuntimeError(f"env {index}: {problem}")
         return cls(env, obs_space, action_space, cfg["discrete_start"])
 
     def reset(
@@ -215,11 +236,10 @@ class HostedEnv:
             infos = [] if step_info is None else [("step", step_info)]
             use_seed = seed if (episode == 0 or self._fresh) and seed != NO_SEED else None
             self._fresh = False
+            if self._seed is not None:  # a partial reset's own seed for this env
+                use_seed, self._seed = self._seed, None
             options, self._options = self._options, None
-            if options:
-                obs, info = self.env.reset(seed=use_seed, options=options)
-            else:
-                obs, info = self.env.reset(seed=use_seed)
+            obs, info = self.env.reset(seed=use_seed, options=options)
             self.write_obs(obs, address)
             if self._obs.dynamic:
                 info = {**info, DYNAMIC_OBS_KEY: self._obs.dynamic_values(obs)}
@@ -311,6 +331,9 @@ class HostedEnv:
 
     def _op_set_reset_options(self, name: str, options: Optional[dict[str, Any]]) -> None:
         self._options = options
+
+    def _op_set_reset_seed(self, name: str, seed: int) -> None:
+        self._seed = int(seed)
 
     def _op_set_actions(self, name: str, values: list[Any]) -> None:
         self._dynamic_actions = list(values)

@@ -41,8 +41,6 @@ class UnsupportedSpaceError(TypeError):
 
 #: The leaf spaces of a fixed size.
 FIXED_SPACES = (spaces.Box, spaces.Discrete, spaces.MultiDiscrete, spaces.MultiBinary)
-#: gymnasium's own spaces of no fixed size (any other space is a custom one).
-DYNAMIC_SPACES = (spaces.Text, spaces.Graph, spaces.Sequence, spaces.OneOf)
 
 
 def is_fixed(space: spaces.Space) -> bool:
@@ -125,6 +123,13 @@ class SpaceLayout:
         #: :meth:`writer` by destination address (see :meth:`writer_at`).
         self._writers: dict[int, Callable[[Any], None]] = {}
         self._rows: dict[tuple[int, int], np.ndarray] = {}
+
+    @functools.cached_property
+    def signature(self) -> tuple[Any, ...]:
+        """What two spaces must share to be carried alike: the fixed leaves' paths, dtypes
+        and shapes, and the dynamic leaves' paths."""
+        fixed = tuple((leaf.path, leaf.dtype.str, leaf.shape) for leaf in self.leaves)
+        return fixed, tuple(path for path, _ in self.dynamic)
 
     # -- one value <-> memory (worker side) ---------------------------------------------
 
@@ -237,6 +242,14 @@ class SpaceLayout:
         """``tree`` (a value, or a batch, as :meth:`decode` or :meth:`batch_views` build it)
         with its dynamic leaves replaced by ``dynamic``, in order: a new tree, the fixed leaves
         shared."""
+        return self._rebuild(tree, dynamic, ints=False)
+
+    def env_value(self, row: Any, dynamic: Sequence[Any]) -> Any:
+        """One env's value as envs return it, from its row of a batch (:meth:`batch_views`
+        then one row) and its dynamic leaves: a ``Discrete`` leaf as a Python ``int``."""
+        return self._rebuild(row, dynamic, ints=True)
+
+    def _rebuild(self, tree: Any, dynamic: Sequence[Any], ints: bool) -> Any:
         values = iter(dynamic)
 
         def walk(space: spaces.Space, node: Any) -> Any:
@@ -244,7 +257,9 @@ class SpaceLayout:
                 return {k: walk(s, node[k]) for k, s in space.spaces.items()}
             if isinstance(space, spaces.Tuple):
                 return tuple(walk(s, node[i]) for i, s in enumerate(space.spaces))
-            return node if is_fixed(space) else next(values)
+            if not is_fixed(space):
+                return next(values, None)
+            return int(node) if ints and isinstance(space, spaces.Discrete) else node
 
         return walk(self.space, tree)
 

@@ -24,6 +24,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_differing_spaces
 
 from ..errors import EnvFailedError
 from ..front.core import (
@@ -36,7 +37,7 @@ from ..front.core import (
 )
 from ..hosted.adapter import DYNAMIC_OBS_KEY, NO_SEED, decode_exception
 from ..hosted.infos import HEAD, InfoDecoder, split_joined, vector_infos
-from ..hosted.layout import DYNAMIC_SPACES, SpaceLayout, UnsupportedSpaceError
+from ..hosted.layout import FIXED_SPACES, SpaceLayout, UnsupportedSpaceError
 from ..hosted.vector_adapter import check_vector_env
 from ..settings import PoolOptions
 
@@ -76,28 +77,46 @@ class VectorEnvFn:
 
 def _check_dynamic(obs: SpaceLayout, act: SpaceLayout, vector_env: bool, static_only: bool) -> None:
     """Refuse leaves of no fixed size where they cannot go: in a hosted vector env, and with
-    ``static_only`` (gymnasium's errors for ``AsyncVectorEnv(..., shared_memory=True)``: a
-    ``TypeError`` for its own dynamic spaces, a ``ValueError`` for a custom one)."""
+    ``static_only`` those ``AsyncVectorEnv(..., shared_memory=True)`` refuses, with its errors
+    (a ``TypeError`` for ``Graph`` and ``Sequence``, a ``ValueError`` for a custom space; it
+    takes ``Text`` and ``OneOf``, which the pool carries pickled all the same)."""
     dynamic = [space for _, space in obs.dynamic + act.dynamic]
-    if not dynamic:
-        return
-    if vector_env:
+    if dynamic and vector_env:
         raise UnsupportedSpaceError(
             f"a vector env per worker needs spaces of fixed-size leaves; {dynamic[0]} has "
             "none: host single envs instead (PoolVectorEnv(env_fns))"
         )
-    if not static_only:
-        return
-    custom = [s for s in dynamic if not isinstance(s, DYNAMIC_SPACES)]
-    if custom:
-        raise ValueError(
-            f"shared_memory=True needs spaces of fixed-size leaves, and {custom[0]} is a custom "
-            "space; leave shared_memory out (or False) to carry it pickled per env"
+    for space in dynamic if static_only else []:
+        _refuse_unshared(space)
+
+
+def _refuse_unshared(space: spaces.Space) -> None:
+    """Raise ``AsyncVectorEnv(shared_memory=True)``'s error if it cannot hold ``space``."""
+    if isinstance(space, spaces.OneOf):
+        for sub in space.spaces:
+            _refuse_unshared(sub)
+    elif isinstance(space, (spaces.Dict, spaces.Tuple)):
+        for sub in space.spaces.values() if isinstance(space, spaces.Dict) else space.spaces:
+            _refuse_unshared(sub)
+    elif isinstance(space, (spaces.Graph, spaces.Sequence)):
+        raise TypeError(
+            f"As {space} has a dynamic shape so its not possible to make a static shared "
+            "memory. Leave shared_memory out (or False) to carry it pickled per env."
         )
-    raise TypeError(
-        f"As {dynamic[0]} has a dynamic shape so its not possible to make a static shared "
-        "memory. Leave shared_memory out (or False) to carry it pickled per env."
-    )
+    elif not isinstance(space, (spaces.Text, *FIXED_SPACES)):
+        raise ValueError(
+            f"shared_memory=True needs spaces it can lay out, and {space} is a custom space; "
+            "leave shared_memory out (or False) to carry it pickled per env"
+        )
+
+
+def _space_of(fn: EnvFn) -> spaces.Space:
+    """The observation space of the env ``fn`` builds (built here, then closed)."""
+    env = fn()
+    try:
+        return env.observation_space
+    finally:
+        env.close()
 
 
 def _b64(data: bytes) -> str:
@@ -115,6 +134,10 @@ class HostedKind:
         info_bytes: room per env and step for the env's info in shared memory.
         static_only: refuse spaces with leaves of no fixed size, as ``AsyncVectorEnv(...,
             shared_memory=True)`` does (gymnasium's errors).
+        observation_mode: ``"same"`` (every env has env 0's observation space), ``"different"``
+            (spaces of one layout that differ otherwise, e.g. in their bounds: every env is
+            built here once for its space, as ``AsyncVectorEnv`` does) or a ``(batch,
+            single)`` pair of spaces; the workers check each env's space against it.
     """
 
     def __init__(
@@ -124,6 +147,7 @@ class HostedKind:
         autoreset_mode: AutoresetMode,
         info_bytes: int = DEFAULT_INFO_BYTES,
         static_only: bool = False,
+        observation_mode: Any = "same",
     ) -> None:
         hosted = env_fns if isinstance(env_fns, VectorEnvFn) else None
         fns: list[EnvFn] = [] if hosted is not None else list(env_fns)
@@ -158,6 +182,16 @@ class HostedKind:
             self.spec = getattr(probe, "spec", None)
         finally:
             probe.close()
+        #: The batch observation space when the envs' spaces differ (``None``: batched as one).
+        self.batch_observation_space: Optional[spaces.Space] = None
+        if observation_mode == "different":
+            if hosted is not None:
+                raise ValueError("observation_mode='different' needs env_fns, one per env")
+            per_env = [_space_of(fn) for fn in fns]
+            self.single_observation_space = per_env[0]
+            self.batch_observation_space = batch_differing_spaces(per_env)
+        elif observation_mode != "same":
+            self.batch_observation_space, self.single_observation_space = observation_mode
         self._obs_layout = SpaceLayout(self.single_observation_space)
         self.obs_bytes = self._obs_layout.stride
         act = self.single_action_space
@@ -184,6 +218,8 @@ class HostedKind:
             "sys_path": [p for p in sys.path if p],
             "spaces": _b64(cloudpickle.dumps((self.single_observation_space, act))),
             "discrete_start": None if self._discrete is None else int(self._discrete.start),
+            # Each env's observation space must equal env 0's, or only have its layout.
+            "same_obs_space": observation_mode == "same",
         }
         if hosted is None:
             pickled = [cloudpickle.dumps(fn) for fn in fns]
@@ -326,6 +362,26 @@ class HostedKind:
         self._started = True
         return self._seeds(seed)
 
+    def seed_partial(self, seed: Any, mask: np.ndarray, core: Core) -> None:
+        """The masked envs' next reset gets ``seed + i`` (an int) or ``seed[i]`` (a list; a
+        ``None`` entry: no reseeding), as gymnasium's vector envs seed a partial reset."""
+        if isinstance(seed, (int, np.integer)):
+            seeds: list[Optional[int]] = [int(seed) + i for i in range(self.num_envs)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(
+                    f"seed list has {len(seeds)} entries; expected one per env ({self.num_envs})"
+                )
+        chosen = {int(i): s for i in np.flatnonzero(mask) if (s := seeds[i]) is not None}
+        if any(not 0 <= int(s) < 2**63 for s in chosen.values()):
+            raise ValueError("seeds must be in [0, 2**63)")
+        if chosen:
+            args: list[tuple[tuple[Any, ...], dict[str, Any]]] = [
+                ((int(s),), {}) for s in chosen.values()
+            ]
+            self.call(core, "set_reset_seed", "", args, list(chosen))
+
     # -- infos -----------------------------------------------------------------------------
 
     def _infos(
@@ -392,10 +448,7 @@ class HostedKind:
                 if dynamic is not None:
                     self._dynamic_obs[env] = dynamic
         if final and core.final is not None:
-            final_obs = core.final_obs(env)
-            if self._obs_layout.dynamic:
-                final_obs = self._obs_layout.fill(final_obs, final_dynamic)
-            info["final_obs"] = final_obs
+            info["final_obs"] = self._obs_layout.env_value(core.final_obs(env), final_dynamic)
             info["final_info"] = final_info
         return info
 

@@ -206,6 +206,13 @@ class NativeKind:
         self.seeds["base"] = seed
         return dict(self.seeds)
 
+    def seed_partial(self, seed: Any, mask: np.ndarray, core: Core) -> None:
+        """Refused: a seed restarts the whole episode-seed schedule."""
+        raise ValueError(
+            "reset(seed=...) restarts the game's episode-seed schedule and cannot be combined "
+            "with a partial reset_mask; reset with the seed first, then use the mask"
+        )
+
     # -- infos -----------------------------------------------------------------------------
 
     def info_arrays(self, recs: np.ndarray) -> dict[str, np.ndarray]:
