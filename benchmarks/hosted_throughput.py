@@ -7,10 +7,13 @@ Envs:
 ``cartpole``  ``gymnasium.make("CartPole-v1")`` (a fast pure-Python env)
 ``rogue-py``  Rogue-Gym's single ``RogueEnv`` (paper config, ``symbol_index``) as a Python env
 ``slow``      an env that waits 1 ms per step (an env bound by I/O or a simulator)
+``text``      a Dict observation of a Box and a Text leaf of no fixed size (MiniGrid's shape:
+              a grid and a short mission string); not in the default set
 ============  ==============================================================================
 
 Backends: ``pool`` (``rogue_gym.PoolVectorEnv``), ``gym-sync`` (``SyncVectorEnv``, one
-process), ``gym-async-shm`` (``AsyncVectorEnv(shared_memory=True)``), ``sb3-subproc``
+process), ``gym-async-shm`` (``AsyncVectorEnv(shared_memory=True)``), ``gym-async``
+(``AsyncVectorEnv(shared_memory=False)``, not in the default set), ``sb3-subproc``
 (``SubprocVecEnv``, forkserver), ``puffer-mp`` (PufferLib 3 ``Multiprocessing``, synchronous,
 batch = all envs; needs ``--puffer-path`` to a ``pip install --no-deps --target DIR
 pufferlib-core psutil rich``), and for ``rogue-py`` also ``native-pool`` (the pool's own
@@ -27,6 +30,8 @@ Usage::
     python benchmarks/vecenv_throughput.py hosted ...           # the same
     python benchmarks/hosted_throughput.py --num-envs 8 64 256  # a sweep
     python benchmarks/hosted_throughput.py --puffer-path /tmp/puffer
+    python benchmarks/hosted_throughput.py --envs text --backends pool gym-async gym-async-shm \
+        gym-sync --reps 5 --out benchmarks/results/text-leaf   # a leaf of no fixed size
 
 Writes ``hosted_throughput.md`` and ``hosted_throughput.json`` under ``--out`` (default
 ``benchmarks/results``).
@@ -50,8 +55,12 @@ from typing import Any, Callable, Optional
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-ENVS = ["cartpole", "rogue-py", "slow"]
+ENVS = ["cartpole", "rogue-py", "slow", "text"]
 BACKENDS = ["pool", "gym-sync", "gym-async-shm", "sb3-subproc", "puffer-mp", "native-pool"]
+#: Backends run only when named.
+EXTRA_BACKENDS = ["gym-async"]
+#: What runs when ``--envs``/``--backends`` are not given.
+DEFAULT_ENVS = ["cartpole", "rogue-py", "slow"]
 SLOW_STEP_S = 0.001
 
 
@@ -79,6 +88,35 @@ def _slow_env() -> Any:
     return SlowEnv()
 
 
+def _text_env() -> Any:
+    import gymnasium as gym
+    import numpy as np
+    from gymnasium import spaces
+
+    class TextLeafEnv(gym.Env):
+        """A grid and a short mission string that changes with each episode."""
+
+        observation_space = spaces.Dict(
+            {"grid": spaces.Box(0, 10, (7, 7, 3), np.uint8), "mission": spaces.Text(64)}
+        )
+        action_space = spaces.Discrete(4)
+
+        def reset(self, *, seed: Any = None, options: Any = None) -> Any:
+            super().reset(seed=seed)
+            self.t = 0
+            self.mission = f"get to the {int(self.np_random.integers(100))} square"
+            return self._obs(), {}
+
+        def _obs(self) -> Any:
+            return {"grid": np.full((7, 7, 3), self.t % 10, np.uint8), "mission": self.mission}
+
+        def step(self, action: Any) -> Any:
+            self.t += 1
+            return self._obs(), 0.0, False, self.t >= 200, {}
+
+    return TextLeafEnv()
+
+
 def env_fn(env: str) -> Callable[[], Any]:
     if env == "cartpole":
         import gymnasium as gym
@@ -92,11 +130,13 @@ def env_fn(env: str) -> Callable[[], Any]:
         return lambda: RogueEnv(config_dict=config, max_steps=500, obs="symbol_index")
     if env == "slow":
         return _slow_env
+    if env == "text":
+        return _text_env
     raise ValueError(f"unknown env {env}")
 
 
 def num_actions(env: str) -> int:
-    return {"cartpole": 2, "rogue-py": 11, "slow": 4}[env]
+    return {"cartpole": 2, "rogue-py": 11, "slow": 4, "text": 4}[env]
 
 
 def build(backend: str, env: str, n: int, workers: int) -> tuple[Any, Callable[[Any], Any]]:
@@ -114,13 +154,14 @@ def build(backend: str, env: str, n: int, workers: int) -> tuple[Any, Callable[[
         v = rogue_gym.make_vec(n, config="paper", num_workers=workers, obs="symbol_index", seed=0)
         v.reset(seed=0)
         return v, v.step
-    if backend in ("gym-sync", "gym-async-shm"):
+    if backend in ("gym-sync", "gym-async-shm", "gym-async"):
         import gymnasium as gym
 
         if backend == "gym-sync":
             v = gym.vector.SyncVectorEnv([fn] * n)
         else:
-            v = gym.vector.AsyncVectorEnv([fn] * n, shared_memory=True)
+            shm = backend == "gym-async-shm"
+            v = gym.vector.AsyncVectorEnv([fn] * n, shared_memory=shm)
         v.reset(seed=0)
         return v, v.step
     if backend == "sb3-subproc":
@@ -275,8 +316,8 @@ def key(c: dict[str, Any]) -> tuple[str, str, int, int]:
 
 def main(argv: Optional[list[str]] = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--envs", nargs="+", default=ENVS, choices=ENVS)
-    p.add_argument("--backends", nargs="+", default=BACKENDS, choices=BACKENDS)
+    p.add_argument("--envs", nargs="+", default=DEFAULT_ENVS, choices=ENVS)
+    p.add_argument("--backends", nargs="+", default=BACKENDS, choices=BACKENDS + EXTRA_BACKENDS)
     p.add_argument("--num-envs", nargs="+", type=int, default=[64])
     p.add_argument("--workers", nargs="+", type=int, default=[2])
     p.add_argument("--reps", type=int, default=3)

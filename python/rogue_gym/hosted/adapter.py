@@ -3,10 +3,10 @@ speaks the pool's flat bytes.
 
 The pool's Rust worker loop calls :class:`HostedEnv` (through ``python/src/hosted.rs``) for
 every reset of the env, and steps the env itself with the parts of :meth:`HostedEnv.step_parts`
-(the hot path has no Python frame of ours). An observation's dynamic leaves (Text, Graph, Sequence, OneOf,
-custom spaces) travel pickled in the command's info, under :data:`DYNAMIC_OBS_KEY`; a step's
-dynamic actions arrive before it, by a ``set_actions`` call. Any exception of the env is raised as
-:class:`EncodedEnvError`, whose message carries the exception (type, message, worker-side
+(the hot path has no Python frame of ours). An observation's dynamic leaves (Text, Graph,
+Sequence, OneOf, custom spaces) travel pickled in the command's info, under
+:data:`DYNAMIC_OBS_KEY`; a step's dynamic actions arrive before it, by a ``set_actions`` call.
+Any exception of the env is raised as :class:`EncodedEnvError`, whose message carries the exception (type, message, worker-side
 traceback, and the exception itself pickled when it can be) to the caller, where
 :func:`decode_exception` rebuilds it.
 """
