@@ -1,5 +1,6 @@
-"""Two builds of the Python package side by side: the Python ``step()`` of the native game and
-of hosted CartPole, at 64 envs, each build in its own fresh process, in turns (A B A B ...).
+"""Two builds of the Python package side by side: the Python ``step()`` of the native game, of
+hosted CartPole and of hosted HalfCheetah (``--kinds ... halfcheetah``, where MuJoCo imports:
+``.venv-bench``), at 64 envs, each build in its own fresh process, in turns (A B A B ...).
 
 Each turn runs ``--seconds`` of steps after a warm-up and reports env-steps/s; the table gives
 each build's median and the median of the B/A ratios of neighbouring turns (a ratio pair by
@@ -26,7 +27,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = Path(__file__).resolve().parent / "results" / "builds_ab"
-KINDS = ("native", "hosted")
+KINDS = ("native", "hosted", "halfcheetah")
+#: The kinds run when ``--kinds`` is not given.
+DEFAULT_KINDS = ("native", "hosted")
 
 
 def child(kind: str, num_envs: int, seconds: float, workers: int) -> float:
@@ -38,10 +41,15 @@ def child(kind: str, num_envs: int, seconds: float, workers: int) -> float:
     if kind == "native":
         env = rogue_gym.make_vec(num_envs, config="paper", num_workers=workers, seed=0)
         actions = np.random.default_rng(0).integers(0, 11, size=(256, num_envs))
-    else:
+    elif kind == "hosted":
         fns = [lambda: gym.make("CartPole-v1")] * num_envs
         env = rogue_gym.PoolVectorEnv(fns, num_workers=workers)
         actions = np.random.default_rng(0).integers(0, 2, size=(256, num_envs))
+    else:
+        fns = [lambda: gym.make("HalfCheetah-v5")] * num_envs
+        env = rogue_gym.PoolVectorEnv(fns, num_workers=workers)
+        rng = np.random.default_rng(0)
+        actions = rng.uniform(-1, 1, size=(256, num_envs, 6)).astype(np.float32)
     try:
         env.reset(seed=0)
         for i in range(50):
@@ -94,7 +102,7 @@ def main() -> None:
         help="1 (default) leaves a core to the caller: 2 workers and the caller on 2 cores "
         "measure the scheduler more than the builds",
     )
-    ap.add_argument("--kinds", nargs="+", default=list(KINDS), choices=KINDS)
+    ap.add_argument("--kinds", nargs="+", default=list(DEFAULT_KINDS), choices=KINDS)
     ap.add_argument("--out", type=Path, default=RESULTS)
     ap.add_argument("--child", choices=KINDS, help=argparse.SUPPRESS)
     args = ap.parse_args()

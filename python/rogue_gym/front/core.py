@@ -33,7 +33,9 @@ __all__ = [
     "copy_tree",
     "flags",
     "mark_restarted",
+    "raised_in_worker",
     "reraise",
+    "row_of",
     "scalar_actions",
 ]
 
@@ -314,7 +316,7 @@ class Core:
     def final_obs(self, env: int) -> Any:
         """(SAME_STEP) env ``env``'s final observation of the last call, a fresh copy."""
         assert self.final is not None
-        return copy_tree(first_row(self.kind.batch_views(self.final[env : env + 1])))
+        return copy_tree(row_of(self.kind.batch_views(self.final[env : env + 1]), 0))
 
     # -- async (EnvPool-style) -------------------------------------------------------------
 
@@ -414,13 +416,26 @@ def copy_tree(value: Any) -> Any:
     return value.copy() if isinstance(value, np.ndarray) else value
 
 
-def first_row(tree: Any) -> Any:
-    """Row 0 of a batch tree."""
+def row_of(tree: Any, i: int) -> Any:
+    """Row ``i`` of a batch tree (a dict / tuple of arrays; anything else is kept)."""
     if isinstance(tree, dict):
-        return {k: first_row(v) for k, v in tree.items()}
+        return {k: row_of(v, i) for k, v in tree.items()}
     if isinstance(tree, tuple):
-        return tuple(first_row(v) for v in tree)
-    return tree[0] if isinstance(tree, np.ndarray) else tree
+        return tuple(row_of(v, i) for v in tree)
+    return tree[i] if isinstance(tree, np.ndarray) else tree
+
+
+def raised_in_worker(detail: str, where: str) -> Optional[BaseException]:
+    """The env's exception encoded in ``detail`` (by the worker's adapter), with a note (Python
+    3.11+) saying ``where`` it was raised and the worker-side traceback; ``None`` if ``detail``
+    is no such encoding."""
+    decoded = decode_exception(detail)
+    if decoded is None:
+        return None
+    exc, tb = decoded
+    if hasattr(exc, "add_note"):
+        exc.add_note(f"raised by {where}. Worker-side traceback:\n{tb}")
+    return exc
 
 
 def env_exception(err: BaseException) -> BaseException:
@@ -428,16 +443,11 @@ def env_exception(err: BaseException) -> BaseException:
     as a note on Python 3.11+), or ``err`` itself if it carries none."""
     if not isinstance(err, EnvFailedError):
         return err
-    decoded = decode_exception(err.detail)
-    if decoded is None:
-        return err
-    exc, tb = decoded
-    if hasattr(exc, "add_note"):  # Python 3.11+
-        exc.add_note(
-            f"raised by env {err.env} during {err.context} in worker {err.worker} (pid {err.pid}); "
-            f"call reset() to continue. Worker-side traceback:\n{tb}"
-        )
-    return exc
+    where = (
+        f"env {err.env} during {err.context} in worker {err.worker} (pid {err.pid}); call "
+        "reset() to continue"
+    )
+    return raised_in_worker(err.detail, where) or err
 
 
 def reraise(err: EnvFailedError) -> NoReturn:

@@ -24,6 +24,7 @@ from stable_baselines3.common.vec_env.base_vec_env import (
     VecEnvStepReturn,
 )
 
+from .core import copy_tree, row_of
 from .stats import PoolStats
 from .vector_env import FrontVectorEnv
 
@@ -154,7 +155,7 @@ class FrontVecEnv(VecEnv):
                     info["terminal_observation"] = infos["final_obs"][i]
                 else:  # a restarted worker: the last observation returned stands for it
                     info = dict(top)
-                    info["terminal_observation"] = _row_copy(prev_obs, i)
+                    info["terminal_observation"] = copy_tree(row_of(prev_obs, i))
                 info["TimeLimit.truncated"] = cut[i]
                 if restarted:
                     info["worker_restarted"] = True
@@ -225,12 +226,3 @@ def _stack(actions: list[Any], space: spaces.Space) -> Any:
     if isinstance(space, spaces.Tuple):
         return tuple(_stack([a[i] for a in actions], sub) for i, sub in enumerate(space.spaces))
     return np.stack([np.asarray(a) for a in actions])
-
-
-def _row_copy(obs: Any, i: int) -> Any:
-    """A copy of env ``i``'s row of a batch (an array, or a dict / tuple of them)."""
-    if isinstance(obs, dict):
-        return {k: _row_copy(v, i) for k, v in obs.items()}
-    if isinstance(obs, tuple):
-        return tuple(_row_copy(v, i) for v in obs)
-    return np.array(obs[i])

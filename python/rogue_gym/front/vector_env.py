@@ -72,6 +72,8 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         self._async_ids: Optional[np.ndarray] = None
         self._last_slot: Optional[int] = None
         self._stats_base: Optional[PoolStats] = None
+        #: Whether the env was closed (gymnasium's ``close()`` sets it).
+        self.closed = False
         self._core = Core(kind, same_step=self._same_step, copy=self.copy)
 
     # -- the pool --------------------------------------------------------------------------
@@ -351,16 +353,6 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         return self._kind.render(self._core)
 
     # -- close -----------------------------------------------------------------------------
-
-    @property
-    def closed(self) -> bool:
-        """Whether the env was closed."""
-        core = getattr(self, "_core", None)
-        return core is None or core.closed
-
-    @closed.setter
-    def closed(self, value: bool) -> None:
-        pass  # gymnasium's VectorEnv.close sets it; the core is the truth
 
     def close_extras(self, **kwargs: Any) -> None:
         """Stop the workers and remove the pool's shared-memory files (idempotent). A pending

@@ -32,10 +32,11 @@ from ..front.core import (
     SUMMARY_RESTARTED,
     flags,
     mark_restarted,
+    raised_in_worker,
     reraise,
     scalar_actions,
 )
-from ..hosted.adapter import DYNAMIC_OBS_KEY, NO_SEED, decode_exception
+from ..hosted.adapter import DYNAMIC_OBS_KEY, NO_SEED
 from ..hosted.infos import HEAD, InfoDecoder, split_joined, vector_infos
 from ..hosted.layout import FIXED_SPACES, SpaceLayout, UnsupportedSpaceError
 from ..hosted.vector_adapter import check_vector_env
@@ -479,15 +480,8 @@ class HostedKind:
         for env, data in replies:
             status, value = pickle.loads(data)
             if status == "err":
-                decoded = decode_exception(value)
-                if decoded is None:
-                    raise RuntimeError(f"env {env}: {value}")
-                exc, tb = decoded
-                if hasattr(exc, "add_note"):
-                    exc.add_note(
-                        f"raised by env {env} during {op}({name!r}); worker-side traceback:\n{tb}"
-                    )
-                raise exc
+                exc = raised_in_worker(value, f"env {env} during {op}({name!r})")
+                raise exc if exc is not None else RuntimeError(f"env {env}: {value}")
             results.append(value)
         return results
 
