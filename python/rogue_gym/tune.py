@@ -18,8 +18,11 @@ gymnasium id with its own vector entry point, one such vector env per worker
 (:meth:`rogue_gym.PoolVectorEnv.from_vector_env`). ``SyncVectorEnv`` in this process is timed
 too: where it is faster, tune says so and recommends it. Each candidate runs in a fresh pool
 for ``seconds`` of random actions after a warm-up, every candidate once per round, in a new
-order each round, then the leaders (up to four, within 10% of the best) as many rounds again;
-the table gives each one's median steps/s and its ``stats()`` breakdown.
+order each round, then the leaders (up to four, within 10% of the best) as many rounds again,
+then, when the two fastest are within 10%, as many back-to-back pairs of those two, whose
+median ratio decides between them (pairs see the same machine: a shared VM's speed drifts by
+more than the gap between close layouts); the table gives each one's median steps/s and its
+``stats()`` breakdown.
 The whole run is bounded: tune says how long it will take before it starts and stops timing
 new rounds when the bound has passed.
 """
@@ -50,6 +53,9 @@ __all__ = ["Candidate", "TuneResult", "main", "tune"]
 _START_S = {"native": 0.3, "hosted": 1.2, "sync": 0.2}
 #: How many of the fastest candidates are timed again (those within 10% of the best).
 LEADERS = 4
+#: The two fastest are timed back to back, in pairs, when the second is within this fraction
+#: of the first: run by run, the machine's drift cancels out of their ratio.
+DUEL_BAND = 0.1
 #: Steps before the clock starts.
 _WARMUP_STEPS = 20
 NATIVE_NAMES = (ENV_ID, "native", "rogue")
@@ -98,6 +104,9 @@ class TuneResult:
     timings: list[Timing]
     num_envs: int
     seconds: float
+    #: The final duel of the two fastest, if they were close: ``(first, second, median of
+    #: first/second over back-to-back pairs)``; its winner is ranked first.
+    duel: Optional[tuple[str, str, float]] = None
 
     @property
     def best(self) -> Timing:
@@ -123,13 +132,20 @@ class TuneResult:
             lines.append(
                 f"{t.candidate.label:<58} {t.median:>12,.0f} {env:>5} {transport:>9} {caller:>6}"
             )
+        if self.duel is not None:
+            first, second, ratio = self.duel
+            lines.append(f"back to back: {first} at {ratio:.3f}x {second} (median of pairs)")
         return "\n".join(lines)
 
     def advice(self) -> str:
         """The line to paste (or the advice to use ``SyncVectorEnv``)."""
         pool = self.best_pool
         if self.best.candidate.mode == "sync" or pool is None:
-            ratio = f" ({self.best.median / pool.median:.2f}x the best pool layout)" if pool else ""
+            x = 0.0
+            if pool is not None:
+                duel = self.duel is not None and self.duel[1] == pool.candidate.label
+                x = self.duel[2] if duel and self.duel else self.best.median / pool.median
+            ratio = f" ({x:.2f}x the best pool layout)" if pool else ""
             return (
                 f"SyncVectorEnv is the fastest here{ratio}: this env is too cheap for worker "
                 "processes at this size on this machine; use gymnasium.vector.SyncVectorEnv"
@@ -249,10 +265,10 @@ def _duration(seconds: float) -> str:
 
 
 def estimate_seconds(kind: str, n_candidates: int, seconds: float, rounds: int) -> float:
-    """How long tune takes: each candidate's start-up and timed seconds, every round, and as
-    many rounds again for the leaders."""
+    """How long tune takes: each candidate's start-up and timed seconds, every round, as many
+    rounds again for the leaders, and as many pairs for the final duel."""
     per = seconds + _START_S[kind] + 0.2
-    return (n_candidates + min(LEADERS, n_candidates)) * rounds * per
+    return (n_candidates + min(LEADERS, n_candidates) + 2) * rounds * per
 
 
 def tune(
@@ -316,7 +332,31 @@ def tune(
             run_round([t.candidate for t in leaders])
         say(f"tune: {len(leaders)} leaders timed again")
     ranked = sorted(timings.values(), key=lambda t: t.median, reverse=True)
-    result = TuneResult(ranked, int(num_envs), seconds)
+    duel = None
+    if len(ranked) > 1 and ranked[1].median >= (1 - DUEL_BAND) * ranked[0].median > 0:
+        first, second = ranked[0], ranked[1]
+        ratios = []
+        for i in range(rounds):
+            if time.monotonic() > deadline:
+                say("tune: time bound reached")
+                break
+            pair = {}
+            for t in (first, second) if i % 2 == 0 else (second, first):
+                try:
+                    rate, _ = _time_one(kind, env_fn, gym_id, int(num_envs), t.candidate, seconds)
+                except Exception:  # it ran before: a failure now leaves the ranking as it is
+                    break
+                pair[t.candidate.label] = rate
+            if len(pair) == 2:
+                ratios.append(pair[first.candidate.label] / pair[second.candidate.label])
+        if ratios:
+            ratio = statistics.median(ratios)
+            if ratio < 1:
+                ranked[0], ranked[1] = second, first
+                ratio = 1 / ratio
+            duel = (ranked[0].candidate.label, ranked[1].candidate.label, ratio)
+            say(f"tune: the two fastest timed back to back, {len(ratios)} pairs")
+    result = TuneResult(ranked, int(num_envs), seconds, duel)
     say(result.table())
     say(result.advice())
     return result

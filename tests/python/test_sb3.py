@@ -69,12 +69,14 @@ def test_rollout_double_buffering(make_sb3) -> None:
 def test_ppo_learns_a_few_steps(make_sb3) -> None:
     import torch
     from stable_baselines3 import PPO
+    from stable_baselines3.common.logger import Logger
 
     torch.set_num_threads(1)
     env = make_sb3(4, obs="symbol_index", max_steps=50)
     model = PPO(
         "MlpPolicy", env, n_steps=32, batch_size=64, n_epochs=1, seed=0, device="cpu", verbose=0
     )
+    model.set_logger(Logger(None, []))  # SB3's default logger leaves a folder in /tmp
     model.learn(total_timesteps=512)
     assert model.num_timesteps >= 512
     assert len(model.ep_info_buffer) > 0  # episodes reported through infos["episode"]

@@ -23,6 +23,7 @@ import cloudpickle
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.error import CustomSpaceError
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_differing_spaces
 
@@ -105,10 +106,10 @@ def _refuse_unshared(space: spaces.Space) -> None:
             "memory. Leave shared_memory out (or False) to carry it pickled per env."
         )
     elif not isinstance(space, (spaces.Text, *FIXED_SPACES)):
-        raise ValueError(
+        raise ValueError(  # from a CustomSpaceError, as AsyncVectorEnv raises it
             f"shared_memory=True needs spaces it can lay out, and {space} is a custom space; "
             "leave shared_memory out (or False) to carry it pickled per env"
-        )
+        ) from CustomSpaceError(f"{type(space).__name__} has no shared-memory layout")
 
 
 def _space_of(fn: EnvFn) -> spaces.Space:
