@@ -287,3 +287,30 @@ class BoundedEnv(RaisingEnv):
     def __init__(self, high: float) -> None:
         super().__init__()
         self.observation_space = spaces.Box(-high, high, (4,), np.float32)
+
+
+class Word(spaces.Space):
+    """A custom space: any string."""
+
+    def contains(self, x: Any) -> bool:
+        return isinstance(x, str)
+
+    def sample(self, mask: Any = None, probability: Any = None) -> str:
+        return "w"
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Word)
+
+
+class WordEnv(RaisingEnv):
+    """A custom observation space (:class:`Word`): the observation counts the steps in words."""
+
+    observation_space = Word()  # type: ignore[assignment]
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> Any:
+        super().reset(seed=seed)
+        return "reset", {}
+
+    def step(self, action: Any) -> Any:
+        self.t += 1
+        return f"step {self.t}", 0.0, False, False, {}

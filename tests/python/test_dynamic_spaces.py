@@ -15,7 +15,7 @@ from gymnasium.vector import AutoresetMode, SyncVectorEnv
 from rogue_gym import PoolVectorEnv
 from rogue_gym.hosted import UnsupportedSpaceError
 
-from hosted_envs import NestedEnv, NoteEnv, TextEnv
+from hosted_envs import NestedEnv, NoteEnv, TextEnv, WordEnv
 from test_hosted import assert_tree_equal, run_both, tracked
 
 
@@ -98,12 +98,20 @@ def test_text_only_spaces_both_ways(pool) -> None:
 def test_shared_memory_true_and_vector_envs_refuse_dynamic_leaves_as_gymnasium_does(
     pool,
 ) -> None:
-    """``shared_memory=True`` refuses what AsyncVectorEnv's shared memory cannot hold (a
-    Sequence here) with its TypeError, and takes Text, as it does."""
+    """``shared_memory=True`` refuses what AsyncVectorEnv's shared memory cannot hold with its
+    errors (a TypeError for a Sequence, a ValueError for a custom space) and takes Text, as it
+    does; without it, a custom space is carried."""
     with pytest.raises(TypeError, match="dynamic shape"):
         PoolVectorEnv([NoteEnv] * 2, num_workers=1, shared_memory=True)
     text = pool([TextEnv] * 2, num_workers=1, shared_memory=True)
     assert text.reset(seed=0)[0] == ("start", "start")
+
+    with pytest.raises(ValueError, match="custom space") as refused:
+        PoolVectorEnv([WordEnv] * 2, num_workers=1, shared_memory=True)
+    assert isinstance(refused.value.__cause__, gym.error.CustomSpaceError)
+    words = pool([WordEnv] * 2, num_workers=1)
+    assert words.reset(seed=0)[0] == ("reset", "reset")
+    assert words.step(np.zeros(2, np.int64))[0] == ("step 1", "step 1")
 
     def text_vector(n: int) -> gym.vector.VectorEnv:
         return SyncVectorEnv([TextEnv] * n)
