@@ -97,7 +97,10 @@ def _text_env() -> Any:
         """A grid and a short mission string that changes with each episode."""
 
         observation_space = spaces.Dict(
-            {"grid": spaces.Box(0, 10, (7, 7, 3), np.uint8), "mission": spaces.Text(64)}
+            {
+                "grid": spaces.Box(0, 10, (7, 7, 3), np.uint8),
+                "mission": spaces.Text(64, charset="abcdefghijklmnopqrstuvwxyz0123456789 "),
+            }
         )
         action_space = spaces.Discrete(4)
 

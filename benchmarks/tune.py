@@ -1,6 +1,6 @@
 """``rogue_gym.tune``'s pick against an exhaustive sweep of the same candidates.
 
-For each env and size, ``tune`` runs as a user would (short runs), then an independent sweep
+For each env and size, ``tune`` runs as a user would (its defaults), then an independent sweep
 times every one of its candidates again, longer and in more rounds; the pick's sweep median is
 compared with the sweep's best. PufferLib's ``autotune`` runs beside it where pufferlib
 imports.
@@ -95,8 +95,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--envs", nargs="+", default=list(ENVS), choices=ENVS)
     ap.add_argument("--num-envs", nargs="+", type=int, default=[8, 64, 256])
-    ap.add_argument("--tune-seconds", type=float, default=0.5)
-    ap.add_argument("--tune-rounds", type=int, default=2)
+    # tune as a user runs it: its own defaults.
+    ap.add_argument("--tune-seconds", type=float, default=2.0)
+    ap.add_argument("--tune-rounds", type=int, default=3)
     ap.add_argument("--sweep-seconds", type=float, default=1.0)
     ap.add_argument("--sweep-rounds", type=int, default=3)
     ap.add_argument(
