@@ -1,9 +1,10 @@
 """``rogue_gym.tune``'s pick against an exhaustive sweep of the same candidates.
 
 For each env and size, ``tune`` runs as a user would (its defaults), then an independent sweep
-times every one of its candidates again, longer and in more rounds; the pick's sweep median is
-compared with the sweep's best. PufferLib's ``autotune`` runs beside it where pufferlib
-imports.
+times every one of its candidates again; the pick's sweep median is compared with the sweep's
+best, and where they differ the two are timed back to back in pairs (``--final-pairs``), whose
+median ratio is the figure that holds on a machine whose speed drifts. PufferLib's
+``autotune`` runs beside it where pufferlib imports.
 
     .venv-bench/bin/python benchmarks/tune.py                       # every env and size
     .venv-bench/bin/python benchmarks/tune.py --envs cartpole --num-envs 64
