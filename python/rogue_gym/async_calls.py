@@ -1,4 +1,5 @@
-"""gymnasium's split async API (``step_async``/``step_wait``, ``reset_async``/``reset_wait``):
+"""gymnasium's split async API (``step_async``/``step_wait``, ``reset_async``/``reset_wait``,
+``call_async``/``call_wait``):
 the errors and warnings every env kind raises for calls out of order, written once, with
 gymnasium's own types and messages (as ``AsyncVectorEnv`` raises them)."""
 
@@ -14,7 +15,8 @@ __all__ = ["already_pending", "no_async_call", "timed_out", "warn_close_pending"
 
 
 def already_pending(caller: str, pending: str) -> AlreadyPendingCallError:
-    """``caller`` (e.g. ``"step_async"``) while ``pending`` (``"step"``/``"reset"``) waits."""
+    """``caller`` (e.g. ``"step_async"``) while ``pending`` (``"step"``, ``"reset"`` or
+    ``"call"``) waits."""
     return AlreadyPendingCallError(
         f"Calling `{caller}` while waiting for a pending call to `{pending}` to complete", pending
     )

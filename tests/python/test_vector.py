@@ -644,8 +644,9 @@ def test_disabled_autoreset_waits_for_a_reset_mask(kind, make_vec) -> None:
 
 @pytest.mark.parametrize("kind", ["native", "hosted"])
 def test_the_split_async_api_matches_step_and_reset(kind, make_vec) -> None:
-    """``reset_async``/``reset_wait`` and ``step_async``/``step_wait`` give what ``reset`` and
-    ``step`` give, in both kinds, and calls out of order raise gymnasium's errors."""
+    """``reset_async``/``reset_wait``, ``step_async``/``step_wait`` and ``call_async``/
+    ``call_wait`` give what ``reset``, ``step`` and ``call`` give, in both kinds, and calls out
+    of order raise gymnasium's errors."""
     from gymnasium.error import AlreadyPendingCallError, NoAsyncCallError
 
     split, plain = make_kind(kind, make_vec), make_kind(kind, make_vec)
@@ -668,7 +669,19 @@ def test_the_split_async_api_matches_step_and_reset(kind, make_vec) -> None:
             got, want = split.step_wait(), plain.step(actions)
             for a, b in zip(got[:4], want[:4]):
                 assert np.array_equal(a, b)
+        # call_async/call_wait: the results call gives; a pending call refuses other calls.
+        with pytest.raises(NoAsyncCallError, match="`call_wait` without"):
+            split.call_wait()
+        split.call_async("render_mode")
+        with pytest.raises(AlreadyPendingCallError, match="pending call to `call`"):
+            split.get_attr("render_mode")
+        assert split.call_wait(timeout=1) == plain.call("render_mode")
+        split.call_async("no_such_attribute")
+        with pytest.raises(AttributeError):
+            split.call_wait()
         split.step_async(split.action_space.sample())
+        with pytest.raises(AlreadyPendingCallError, match="pending call to `step`"):
+            split.call_async("render_mode")
         with pytest.warns(UserWarning, match="while waiting for a pending call to `step`"):
             split.close()
     finally:

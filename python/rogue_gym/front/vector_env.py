@@ -37,8 +37,8 @@ class FrontVectorEnv(gym.vector.VectorEnv):
     * ``autoreset_mode``: ``NEXT_STEP`` (default), ``SAME_STEP`` (``final_obs`` and
       ``final_info`` in the infos) or ``DISABLED`` (reset ended envs with ``reset_mask``;
       stepping them is a ``ValueError``).
-    * ``step_async``/``step_wait`` and ``reset_async``/``reset_wait`` with timeouts, and
-      gymnasium's errors for calls out of order.
+    * ``step_async``/``step_wait``, ``reset_async``/``reset_wait`` (with timeouts) and
+      ``call_async``/``call_wait``, and gymnasium's errors for calls out of order.
     * A lost worker is restarted (its envs report ``truncated=True`` and
       ``infos["worker_restarted"]``) or raises :class:`rogue_gym.WorkerCrashedError`; every call
       returns or raises within ``step_timeout + start_timeout``.
@@ -318,10 +318,32 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         envs ``indices`` (default all), with ``arguments[j]`` = ``(args, kwargs)`` for the
         ``j``-th of them; their results in that order. An env's exception is re-raised here."""
         self._core.check_open()
+        self._not_pending("call")
         envs = list(range(self.num_envs)) if indices is None else [int(i) for i in indices]
         if len(arguments) != len(envs):
             raise ValueError(f"{len(arguments)} argument sets for {len(envs)} envs")
         return self._kind.call(self._core, op, name, arguments, envs)
+
+    def call_async(self, name: str, *args: Any, **kwargs: Any) -> None:
+        """The first half of :meth:`call` (gymnasium's ``AsyncVectorEnv.call_async``). Env
+        calls are off the hot path: the call runs here, whole, within the pool's bound, and
+        :meth:`call_wait` returns its results (or raises its error)."""
+        self._core.check_open()
+        self._not_pending("call_async")
+        try:
+            done: tuple[str, Any] = ("ok", self.call(name, *args, **kwargs))
+        except Exception as exc:  # raised by call_wait, as AsyncVectorEnv raises it there
+            done = ("err", exc)
+        self._pending = ("call", done)
+
+    def call_wait(self, timeout: Optional[float] = None) -> tuple[Any, ...]:
+        """The second half of :meth:`call_async`: one result per env (``timeout`` is accepted
+        for gymnasium's signature: the call has already run)."""
+        self._core.check_open()
+        status, value = self._take_pending("call")
+        if status == "err":
+            raise value
+        return value
 
     def _call_all(self, op: str, name: str, args: tuple[Any, ...] = (), **kwargs: Any) -> list[Any]:
         return self.call_envs(op, name, [(args, kwargs)] * self.num_envs)
