@@ -380,7 +380,7 @@ def write(args: argparse.Namespace, results: dict, failed: dict) -> None:
         v = results[k]
         ratio = f"{med[k] / sync:.2f}x" if sync else ""
         procs = {"gym-sync": "in-process", "gym-async-shm": f"{n} (one per env)"}
-        procs["sb3-subproc"] = procs["gym-async-shm"]
+        procs["sb3-subproc"] = procs["gym-async"] = procs["gym-async-shm"]
         lines.append(
             f"| {env} | {n} | {backend} | {procs.get(backend, w)} | {med[k]:,.0f} | {min(v):,.0f}-{max(v):,.0f} | {ratio} |"
         )
@@ -444,7 +444,7 @@ def plot(med: dict[tuple[str, str, int, int], float], path: Path) -> None:
                 pts = sorted((k[2], v) for k, v in cells if (k[1], k[3]) == (backend, workers))
                 ours = backend in ("pool", "native-pool")
                 procs = {"gym-sync": "", "gym-async-shm": " (1 proc/env)"}
-                procs["sb3-subproc"] = procs["gym-async-shm"]
+                procs["sb3-subproc"] = procs["gym-async"] = procs["gym-async-shm"]
                 ax.plot(
                     [n for n, _ in pts],
                     [v for _, v in pts],
