@@ -23,8 +23,9 @@ then, when the two fastest are within 10%, as many back-to-back pairs of those t
 median ratio decides between them (pairs see the same machine: a shared VM's speed drifts by
 more than the gap between close layouts); the table gives each one's median steps/s and its
 ``stats()`` breakdown.
-The whole run is bounded: tune says how long it will take before it starts and stops timing
-new rounds when the bound has passed.
+The whole run is bounded: tune times one start-up of the envs (an env slow to build makes
+every candidate slow to start), says how long it will take, and stops timing new rounds when
+the bound has passed.
 """
 
 from __future__ import annotations
@@ -264,11 +265,28 @@ def _duration(seconds: float) -> str:
     return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.1f} min"
 
 
-def estimate_seconds(kind: str, n_candidates: int, seconds: float, rounds: int) -> float:
-    """How long tune takes: each candidate's start-up and timed seconds, every round, as many
-    rounds again for the leaders, and as many pairs for the final duel."""
-    per = seconds + _START_S[kind] + 0.2
+def estimate_seconds(
+    kind: str, n_candidates: int, seconds: float, rounds: int, start_s: Optional[float] = None
+) -> float:
+    """How long tune takes: each candidate's start-up (``start_s``, as measured; at least the
+    kind's usual) and timed seconds, every round, as many rounds again for the leaders, and as
+    many pairs for the final duel."""
+    per = seconds + max(_START_S[kind], start_s or 0.0) + 0.2
     return (n_candidates + min(LEADERS, n_candidates) + 2) * rounds * per
+
+
+def _start_seconds(
+    kind: str, env_fn: Any, gym_id: Optional[str], num_envs: int, c: Candidate
+) -> float:
+    """Seconds ``c``'s pool takes to start, reset and close (an env that is slow to build makes
+    every candidate slow to start: the estimate must know it)."""
+    t0 = time.monotonic()
+    env = _build(kind, env_fn, gym_id, num_envs, c)
+    try:
+        env.reset(seed=0)
+    finally:
+        env.close()
+    return time.monotonic() - t0
 
 
 def tune(
@@ -288,11 +306,13 @@ def tune(
     if isinstance(env_fn, list) and len(env_fn) != num_envs:
         num_envs = len(env_fn)
     cands = candidates(kind, int(num_envs), gym_id, cpus or os.cpu_count() or 1)
-    est = estimate_seconds(kind, len(cands), seconds, rounds)
     say = (lambda m: print(m, file=out, flush=True)) if out is not None else (lambda m: None)
+    say(f"tune: timing one start-up of {num_envs} envs")
+    start_s = _start_seconds(kind, env_fn, gym_id, int(num_envs), cands[0])
+    est = estimate_seconds(kind, len(cands), seconds, rounds, start_s)
     say(
-        f"tune: {len(cands)} layouts x {rounds} rounds of {seconds:g} s, {num_envs} envs: "
-        f"about {_duration(est)} (at most {_duration(1.5 * est)})"
+        f"tune: {len(cands)} layouts x {rounds} rounds of {seconds:g} s, {num_envs} envs, "
+        f"{start_s:.1f} s to start each: about {_duration(est)} (at most {_duration(1.5 * est)})"
     )
     timings = {c.label: Timing(c) for c in cands}
     deadline = time.monotonic() + 1.5 * est
