@@ -308,11 +308,17 @@ def tune(
     cands = candidates(kind, int(num_envs), gym_id, cpus or os.cpu_count() or 1)
     say = (lambda m: print(m, file=out, flush=True)) if out is not None else (lambda m: None)
     say(f"tune: timing one start-up of {num_envs} envs")
-    start_s = _start_seconds(kind, env_fn, gym_id, int(num_envs), cands[0])
+    # The pool with the most workers starts its envs side by side, as most candidates do.
+    probe = [c for c in cands if c.mode == "pool"][-1]
+    try:
+        start_s: Optional[float] = _start_seconds(kind, env_fn, gym_id, int(num_envs), probe)
+    except Exception:  # the candidates' own runs report what fails
+        start_s = None
     est = estimate_seconds(kind, len(cands), seconds, rounds, start_s)
+    started = "" if start_s is None else f", {start_s:.1f} s to start each"
     say(
-        f"tune: {len(cands)} layouts x {rounds} rounds of {seconds:g} s, {num_envs} envs, "
-        f"{start_s:.1f} s to start each: about {_duration(est)} (at most {_duration(1.5 * est)})"
+        f"tune: {len(cands)} layouts x {rounds} rounds of {seconds:g} s, {num_envs} envs"
+        f"{started}: about {_duration(est)} (at most {_duration(1.5 * est)})"
     )
     timings = {c.label: Timing(c) for c in cands}
     deadline = time.monotonic() + 1.5 * est
