@@ -2,8 +2,9 @@
 
 For each env and size, ``tune`` runs as a user would (its defaults), then an independent sweep
 times every one of its candidates again; the pick's sweep median is compared with the sweep's
-best, and where they differ the two are timed back to back in pairs (``--final-pairs``), whose
-median ratio is the figure that holds on a machine whose speed drifts. PufferLib's
+best, and where they differ the two are timed side by side in pairs (``--final-pairs``), whose
+median ratio is the figure that holds on a machine whose speed drifts (``rogue_gym.tune.duel``:
+both pools alive, stepped in alternating bursts). PufferLib's
 ``autotune`` runs beside it where pufferlib imports.
 
     .venv-bench/bin/python benchmarks/tune.py                       # every env and size
@@ -71,25 +72,17 @@ def puffer_autotune(name: str, n: int, seconds: float) -> dict[str, Any]:
 
 
 def head_to_head(
-    env: Any, n: int, pick: Any, best: Any, seconds: float, pairs: int
+    env: Any, n: int, pick: Any, best: Any, pairs: int, burst: float
 ) -> dict[str, Any]:
-    """The pick against the sweep's best, side by side: ``pairs`` alternating runs of each (a
-    fresh pool every run), and the median of the per-pair ratios. The sweep's medians of four
-    runs move by more than 5% between sweeps on this VM; pairs taken back to back do not see
-    the machine's slow drift."""
+    """The pick against the sweep's best, side by side (``rogue_gym.tune.duel``: both pools
+    alive, ``pairs`` pairs of alternating bursts): the median of the pairs' ratios, pick over
+    best. The sweep's medians move by more than 5% between sweeps on this VM; bursts a fraction
+    of a second apart do not see the machine's drift."""
     if pick == best:
-        return {"pairs": 0, "ratio": 1.0, "pick": [], "best": []}
-    from rogue_gym.tune import _resolve, _time_one
-
-    kind, fn, gym_id = _resolve(env)
-    a: list[float] = []
-    b: list[float] = []
-    for i in range(pairs):
-        order = [(pick, a), (best, b)] if i % 2 == 0 else [(best, b), (pick, a)]
-        for cand, into in order:
-            into.append(_time_one(kind, fn, gym_id, n, cand, seconds)[0])
-    ratios = sorted(x / y for x, y in zip(a, b))
-    return {"pairs": pairs, "ratio": statistics.median(ratios), "pick": a, "best": b}
+        return {"pairs": 0, "ratio": 1.0, "ratios": []}
+    d = rogue_gym.tune.duel(env, n, pick, best, pairs=pairs, burst=burst)
+    ratios = d.ratios if d.first == pick.label else [1 / r for r in d.ratios]
+    return {"pairs": pairs, "ratio": statistics.median(ratios), "ratios": ratios}
 
 
 def main() -> None:
@@ -104,10 +97,11 @@ def main() -> None:
     ap.add_argument(
         "--final-pairs",
         type=int,
-        default=8,
-        help="where tune's pick is not the sweep's best: this many alternating runs of each, "
-        "side by side, for the ratio",
+        default=40,
+        help="where tune's pick is not the sweep's best: this many pairs of alternating "
+        "bursts of the two, side by side, for the ratio",
     )
+    ap.add_argument("--final-burst", type=float, default=0.25, help="seconds of each burst")
     ap.add_argument("--out", type=Path, default=RESULTS)
     ap.add_argument(
         "--puffer-path",
@@ -137,8 +131,8 @@ def main() -> None:
                 n,
                 pick.best.candidate,
                 sweep.best.candidate,
-                args.sweep_seconds,
                 args.final_pairs,
+                args.final_burst,
             )
             row = {
                 "env": name,
@@ -165,7 +159,7 @@ def main() -> None:
             print(
                 f"{name} x {n}: tune picked {chosen} ({row['pick_in_sweep']:,.0f} steps/s in the "
                 f"sweep), sweep best {row['sweep_best']} ({row['sweep_best_steps_per_s']:,.0f}): "
-                f"{row['ratio']:.3f}, head to head {final['ratio']:.3f}; tune took {tune_s:.0f} s",
+                f"{row['ratio']:.3f}, side by side {final['ratio']:.3f}; tune took {tune_s:.0f} s",
                 flush=True,
             )
     print(write(args, rows))
@@ -179,7 +173,7 @@ def write(args: argparse.Namespace, rows: list[dict[str, Any]]) -> str:
         f"{os.cpu_count()} CPUs",
         "",
         "| env | envs | tune's pick | sweep's best | pick / best (sweep medians) | "
-        "pick / best (head to head) | best steps/s | tune took | PufferLib autotune's best |",
+        "pick / best (side by side) | best steps/s | tune took | PufferLib autotune's best |",
         "|---|---:|---|---|---:|---:|---:|---:|---|",
     ]
     for r in rows:

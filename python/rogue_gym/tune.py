@@ -18,19 +18,21 @@ gymnasium id with its own vector entry point, one such vector env per worker
 (:meth:`rogue_gym.PoolVectorEnv.from_vector_env`). ``SyncVectorEnv`` in this process is timed
 too: where it is faster, tune says so and recommends it. Each candidate runs in a fresh pool
 for ``seconds`` of random actions after a warm-up, every candidate once per round, in a new
-order each round, then the leaders (up to four, within 10% of the best) as many rounds again,
-then, when the two fastest are within 10%, as many back-to-back pairs of those two, whose
-median ratio decides between them (pairs see the same machine: a shared VM's speed drifts by
-more than the gap between close layouts); the table gives each one's median steps/s and its
-``stats()`` breakdown.
+order each round, then the leaders (up to four, within 10% of the best) as many rounds again.
+Last, the fastest meets each other leader within 10% in a duel (:func:`duel`): both pools
+alive, stepped in ``8 * rounds`` pairs of alternating bursts of ``seconds / 8``, whose median
+ratio decides; the winner stays on. Runs minutes apart see a shared machine at different
+speeds, by more than the gap between close layouts; bursts a fraction of a second apart do
+not. The table gives each one's median steps/s, its ``stats()`` breakdown and the duels.
 The whole run is bounded: tune times one start-up of the envs (an env slow to build makes
-every candidate slow to start), says how long it will take, and stops timing new rounds when
-the bound has passed.
+every candidate slow to start, and gets a start-up bound to match), says how long it will take,
+and starts no new run once that time and half again have passed.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import functools
 import importlib
 import os
@@ -46,8 +48,9 @@ import gymnasium as gym
 import numpy as np
 
 from .registration import ENV_ID
+from .settings import PoolOptions
 
-__all__ = ["Candidate", "TuneResult", "main", "tune"]
+__all__ = ["Candidate", "Duel", "TuneResult", "duel", "main", "tune"]
 
 #: Seconds a fresh pool takes to start and warm up, for the estimate (hosted envs start a
 #: Python interpreter per worker; the native game's workers start in milliseconds).
@@ -105,9 +108,9 @@ class TuneResult:
     timings: list[Timing]
     num_envs: int
     seconds: float
-    #: The final duel of the two fastest, if they were close: ``(first, second, median of
-    #: first/second over back-to-back pairs)``; its winner is ranked first.
-    duel: Optional[tuple[str, str, float]] = None
+    #: The fastest against each other leader within :data:`DUEL_BAND`, side by side, in the
+    #: order run; the last winner is ranked first.
+    duels: list[Duel] = field(default_factory=list)
 
     @property
     def best(self) -> Timing:
@@ -133,9 +136,11 @@ class TuneResult:
             lines.append(
                 f"{t.candidate.label:<58} {t.median:>12,.0f} {env:>5} {transport:>9} {caller:>6}"
             )
-        if self.duel is not None:
-            first, second, ratio = self.duel
-            lines.append(f"back to back: {first} at {ratio:.3f}x {second} (median of pairs)")
+        for d in self.duels:
+            lines.append(
+                f"side by side: {d.first} at {d.ratio:.3f}x {d.second} "
+                f"(median of {len(d.ratios)} pairs)"
+            )
         return "\n".join(lines)
 
     def advice(self) -> str:
@@ -144,8 +149,10 @@ class TuneResult:
         if self.best.candidate.mode == "sync" or pool is None:
             x = 0.0
             if pool is not None:
-                duel = self.duel is not None and self.duel[1] == pool.candidate.label
-                x = self.duel[2] if duel and self.duel else self.best.median / pool.median
+                x = self.best.median / pool.median
+                for d in self.duels:
+                    if (d.first, d.second) == (self.best.candidate.label, pool.candidate.label):
+                        x = d.ratio
             ratio = f" ({x:.2f}x the best pool layout)" if pool else ""
             return (
                 f"SyncVectorEnv is the fastest here{ratio}: this env is too cheap for worker "
@@ -198,10 +205,19 @@ def candidates(kind: str, num_envs: int, gym_id: Optional[str], cpus: int) -> li
     return out
 
 
-def _build(kind: str, env_fn: Any, gym_id: Optional[str], num_envs: int, c: Candidate) -> Any:
+def _build(
+    kind: str,
+    env_fn: Any,
+    gym_id: Optional[str],
+    num_envs: int,
+    c: Candidate,
+    start_timeout: Optional[float] = None,
+) -> Any:
     import rogue_gym
 
     kw = dict(c.kwargs)
+    if start_timeout is not None and kind == "hosted" and c.mode != "sync":
+        kw["start_timeout"] = start_timeout
     fns = env_fn if isinstance(env_fn, list) else [env_fn] * num_envs
     if c.mode == "sync":
         return gym.vector.SyncVectorEnv(fns)
@@ -218,70 +234,179 @@ def _vector_env(gym_id: str, n: int) -> Any:
     return gym.make_vec(gym_id, n, vectorization_mode="vector_entry_point")
 
 
+@dataclass(frozen=True)
+class _Target:
+    """What tune times: the env kind, its factory (or factories), its gymnasium id if any, the
+    number of envs, and the start-up bound each pool gets."""
+
+    kind: str
+    env_fn: Any
+    gym_id: Optional[str]
+    num_envs: int
+    start_timeout: Optional[float] = None
+
+
+class _Live:
+    """One candidate's vector env, built, reset and warmed up, stepped in bursts of random
+    actions (sampled in advance) until closed."""
+
+    def __init__(self, target: _Target, c: Candidate) -> None:
+        self.candidate = c
+        self.env = _build(
+            target.kind, target.env_fn, target.gym_id, target.num_envs, c, target.start_timeout
+        )
+        try:
+            self.env.action_space.seed(0)
+            acts = [self.env.action_space.sample() for _ in range(16)]
+            if c.mode == "async":
+                self.rows = int(c.kwargs["batch_size"])
+                self.acts = [np.asarray(a)[: self.rows] for a in acts]
+                self.env.async_reset()
+            else:
+                self.rows = target.num_envs
+                self.acts = acts
+                self.env.reset(seed=0)
+            self._steps(_WARMUP_STEPS)
+        except BaseException:
+            self.env.close()
+            raise
+
+    def _steps(self, n: int) -> None:
+        env, acts = self.env, self.acts
+        if self.candidate.mode == "async":
+            for i in range(n):
+                env.recv()
+                env.send(acts[i % 16])
+        else:
+            for i in range(n):
+                env.step(acts[i % 16])
+
+    def burst(self, seconds: float) -> float:
+        """Steps/s over about ``seconds`` of stepping."""
+        steps, t0 = 0, time.perf_counter()
+        while time.perf_counter() - t0 < seconds:
+            self._steps(10)
+            steps += 10 * self.rows
+        return steps / (time.perf_counter() - t0)
+
+    def reset_stats(self) -> None:
+        """Start the pool's counters afresh (``SyncVectorEnv`` has none)."""
+        if hasattr(self.env, "stats"):
+            self.env.stats(reset=True)
+
+    def shares(self) -> tuple[float, float, float]:
+        """The pool's shares of the time since :meth:`reset_stats`: env, transport, caller."""
+        if not hasattr(self.env, "stats"):
+            return (float("nan"),) * 3
+        s = self.env.stats()
+        return (s.env_share, s.transport_share, s.caller_share)
+
+    def __enter__(self) -> _Live:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.env.close()
+
+
 def _time_one(
-    kind: str, env_fn: Any, gym_id: Optional[str], num_envs: int, c: Candidate, seconds: float
+    target: _Target, c: Candidate, seconds: float
 ) -> tuple[float, tuple[float, float, float]]:
     """Steps/s of one fresh pool, and its shares of the time (env, transport, caller)."""
-    env = _build(kind, env_fn, gym_id, num_envs, c)
-    try:
-        env.action_space.seed(0)
-        acts = [env.action_space.sample() for _ in range(16)]
-        if c.mode == "async":
-            env.async_reset()
-            rows = c.kwargs["batch_size"]
-            sub = [np.asarray(a)[:rows] for a in acts]
-            for i in range(_WARMUP_STEPS):
-                env.recv()
-                env.send(sub[i % 16])
-            env.stats(reset=True)
-            steps, t0 = 0, time.perf_counter()
-            while time.perf_counter() - t0 < seconds:
-                for i in range(10):
-                    env.recv()
-                    env.send(sub[i % 16])
-                steps += 10 * rows
-        else:
-            env.reset(seed=0)
-            for i in range(_WARMUP_STEPS):
-                env.step(acts[i % 16])
-            if hasattr(env, "stats"):
-                env.stats(reset=True)
-            steps, t0 = 0, time.perf_counter()
-            while time.perf_counter() - t0 < seconds:
-                for i in range(10):
-                    env.step(acts[i % 16])
-                steps += 10 * num_envs
-        rate = steps / (time.perf_counter() - t0)
-        shares = (float("nan"),) * 3
-        if hasattr(env, "stats"):
-            s = env.stats()
-            shares = (s.env_share, s.transport_share, s.caller_share)
-        return rate, shares
-    finally:
-        env.close()
+    with _Live(target, c) as live:
+        live.reset_stats()
+        rate = live.burst(seconds)
+        return rate, live.shares()
+
+
+@dataclass(frozen=True)
+class Duel:
+    """Two layouts timed side by side: both pools alive, stepped in alternating short bursts
+    (the order swapped every pair), so that the machine's drift cancels out of each pair's
+    ratio."""
+
+    #: The labels of the two layouts, the faster first.
+    first: str
+    second: str
+    #: Each pair's ratio, ``first / second``.
+    ratios: list[float]
+
+    @property
+    def ratio(self) -> float:
+        """The median of the pairs' ratios (at least 1: the faster is first)."""
+        return statistics.median(self.ratios)
+
+
+def _duel(target: _Target, a: Candidate, b: Candidate, pairs: int, burst: float) -> Duel:
+    with _Live(target, a) as live_a, _Live(target, b) as live_b:
+        ratios = []
+        for i in range(pairs):
+            if i % 2 == 0:
+                ra = live_a.burst(burst)
+                rb = live_b.burst(burst)
+            else:
+                rb = live_b.burst(burst)
+                ra = live_a.burst(burst)
+            ratios.append(ra / rb)
+    if statistics.median(ratios) >= 1:
+        return Duel(a.label, b.label, ratios)
+    return Duel(b.label, a.label, [1 / r for r in ratios])
+
+
+def duel(
+    env: EnvLike,
+    num_envs: int,
+    a: Candidate,
+    b: Candidate,
+    *,
+    pairs: int = 24,
+    burst: float = 0.25,
+) -> Duel:
+    """Time layouts ``a`` and ``b`` of ``num_envs`` envs of ``env`` side by side: both pools
+    alive, ``pairs`` pairs of alternating bursts of ``burst`` seconds; the faster comes first in
+    the result. On a shared machine, whose speed drifts by more than the gap between close
+    layouts, this is the measure that holds: runs minutes apart are not comparable."""
+    kind, env_fn, _gym_id = _resolve(env)
+    n = len(env_fn) if isinstance(env_fn, list) else int(num_envs)
+    return _duel(_Target(kind, env_fn, _gym_id, n), a, b, pairs, burst)
 
 
 def _duration(seconds: float) -> str:
     return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.1f} min"
 
 
+def _start_factor(c: Candidate, cpus: int) -> float:
+    """How much longer than the probe (the most workers, envs built side by side on every CPU)
+    ``c``'s envs take to start: a pool of fewer workers than CPUs builds them less in parallel,
+    ``SyncVectorEnv`` one after another."""
+    workers = 1 if c.mode == "sync" else int(c.kwargs.get("num_workers", cpus))
+    return cpus / max(1, min(workers, cpus))
+
+
 def estimate_seconds(
-    kind: str, n_candidates: int, seconds: float, rounds: int, start_s: Optional[float] = None
+    kind: str,
+    cands: Sequence[Candidate],
+    seconds: float,
+    rounds: int,
+    start_s: Optional[float] = None,
+    cpus: int = 1,
 ) -> float:
-    """How long tune takes: each candidate's start-up (``start_s``, as measured; at least the
-    kind's usual) and timed seconds, every round, as many rounds again for the leaders, and as
-    many pairs for the final duel."""
-    per = seconds + max(_START_S[kind], start_s or 0.0) + 0.2
-    return (n_candidates + min(LEADERS, n_candidates) + 2) * rounds * per
+    """How long tune takes: each candidate's start-up (``start_s`` as measured on the pool with
+    the most workers, scaled by :func:`_start_factor`; at least the kind's usual) and timed
+    seconds, every round, as many rounds again for the leaders, and the duels of the fastest
+    with the other leaders (two start-ups and ``2 * rounds * seconds`` each)."""
+    start = max(_START_S[kind], start_s or 0.0)
+    per = [seconds + 0.2 + start * _start_factor(c, cpus) for c in cands]
+    leaders = min(LEADERS, len(cands))
+    slowest = sorted(per, reverse=True)
+    duels = (leaders - 1) * (2 * max(per) + 2 * rounds * seconds)
+    return (sum(per) + sum(slowest[:leaders])) * rounds + duels
 
 
-def _start_seconds(
-    kind: str, env_fn: Any, gym_id: Optional[str], num_envs: int, c: Candidate
-) -> float:
+def _start_seconds(target: _Target, c: Candidate) -> float:
     """Seconds ``c``'s pool takes to start, reset and close (an env that is slow to build makes
     every candidate slow to start: the estimate must know it)."""
     t0 = time.monotonic()
-    env = _build(kind, env_fn, gym_id, num_envs, c)
+    env = _build(target.kind, target.env_fn, target.gym_id, target.num_envs, c)
     try:
         env.reset(seed=0)
     finally:
@@ -301,21 +426,27 @@ def tune(
     """Time every candidate layout of ``num_envs`` envs of ``env`` (see the module doc) and
     return the timings, best first; progress and the table go to ``out`` (``None``: quiet).
 
-    Bounded: after the estimated time (printed first) plus half of it, no new round starts."""
+    Bounded: after the estimated time (printed first) plus half of it, no new run starts."""
     kind, env_fn, gym_id = _resolve(env)
     if isinstance(env_fn, list) and len(env_fn) != num_envs:
         num_envs = len(env_fn)
-    cands = candidates(kind, int(num_envs), gym_id, cpus or os.cpu_count() or 1)
+    ncpu = cpus or os.cpu_count() or 1
+    cands = candidates(kind, int(num_envs), gym_id, ncpu)
     say = (lambda m: print(m, file=out, flush=True)) if out is not None else (lambda m: None)
     say(f"tune: timing one start-up of {num_envs} envs")
-    # The pool with the most workers starts its envs side by side, as most candidates do.
+    target = _Target(kind, env_fn, gym_id, int(num_envs))
+    # The pool with the most workers starts its envs side by side on every CPU; the others
+    # take longer in proportion, and each gets a start-up bound that allows for it.
     probe = [c for c in cands if c.mode == "pool"][-1]
     try:
-        start_s: Optional[float] = _start_seconds(kind, env_fn, gym_id, int(num_envs), probe)
+        start_s: Optional[float] = _start_seconds(target, probe)
     except Exception:  # the candidates' own runs report what fails
         start_s = None
-    est = estimate_seconds(kind, len(cands), seconds, rounds, start_s)
-    started = "" if start_s is None else f", {start_s:.1f} s to start each"
+    if start_s is not None:
+        default = PoolOptions.start_timeout
+        target = dataclasses.replace(target, start_timeout=max(default, 3 * ncpu * start_s))
+    est = estimate_seconds(kind, cands, seconds, rounds, start_s, ncpu)
+    started = "" if start_s is None else f", {start_s:.1f} s to start"
     say(
         f"tune: {len(cands)} layouts x {rounds} rounds of {seconds:g} s, {num_envs} envs"
         f"{started}: about {_duration(est)} (at most {_duration(1.5 * est)})"
@@ -324,65 +455,61 @@ def tune(
     deadline = time.monotonic() + 1.5 * est
     rng = random.Random(0)
 
-    def run_round(group: list[Candidate]) -> None:
+    def run_round(group: list[Candidate], first: bool) -> bool:
+        """Time each of ``group`` once, in a new order; ``False`` once the bound has passed
+        (the first round always runs whole: every candidate gets one run)."""
         order = list(group)
         rng.shuffle(order)
         for c in order:
+            if not first and time.monotonic() > deadline:
+                say("tune: time bound reached")
+                return False
             t = timings[c.label]
             if t.error is not None:
                 continue
             try:
-                rate, shares = _time_one(kind, env_fn, gym_id, int(num_envs), c, seconds)
+                rate, shares = _time_one(target, c, seconds)
             except Exception as exc:  # a layout that cannot run is reported, not fatal
                 t.error = f"{type(exc).__name__}: {exc}"
                 continue
             t.steps_per_s.append(rate)
             t.shares.append(shares)
+        return True
 
     for r in range(rounds):
-        if r and time.monotonic() > deadline:
-            say(f"tune: time bound reached after {r} rounds")
+        if not run_round(cands, first=r == 0):
             break
-        run_round(cands)
         say(f"tune: round {r + 1} of {rounds} done")
     # The leaders (within 10% of the best) again, as many rounds: near-ties are where a few
     # noisy runs decide, so they get the most runs.
     best = max(t.median for t in timings.values())
     leaders = sorted(timings.values(), key=lambda t: -t.median)[:LEADERS]
-    leaders = [t for t in leaders if t.median >= 0.9 * best]
+    leaders = [t for t in leaders if t.median >= 0.9 * best > 0]
     if len(leaders) > 1:
         for _ in range(rounds):
-            if time.monotonic() > deadline:
-                say("tune: time bound reached")
+            if not run_round([t.candidate for t in leaders], first=False):
                 break
-            run_round([t.candidate for t in leaders])
         say(f"tune: {len(leaders)} leaders timed again")
     ranked = sorted(timings.values(), key=lambda t: t.median, reverse=True)
-    duel = None
-    if len(ranked) > 1 and ranked[1].median >= (1 - DUEL_BAND) * ranked[0].median > 0:
-        first, second = ranked[0], ranked[1]
-        ratios = []
-        for i in range(rounds):
-            if time.monotonic() > deadline:
-                say("tune: time bound reached")
-                break
-            pair = {}
-            for t in (first, second) if i % 2 == 0 else (second, first):
-                try:
-                    rate, _ = _time_one(kind, env_fn, gym_id, int(num_envs), t.candidate, seconds)
-                except Exception:  # it ran before: a failure now leaves the ranking as it is
-                    break
-                pair[t.candidate.label] = rate
-            if len(pair) == 2:
-                ratios.append(pair[first.candidate.label] / pair[second.candidate.label])
-        if ratios:
-            ratio = statistics.median(ratios)
-            if ratio < 1:
-                ranked[0], ranked[1] = second, first
-                ratio = 1 / ratio
-            duel = (ranked[0].candidate.label, ranked[1].candidate.label, ratio)
-            say(f"tune: the two fastest timed back to back, {len(ratios)} pairs")
-    result = TuneResult(ranked, int(num_envs), seconds, duel)
+    # The fastest against each other leader within DUEL_BAND, side by side: the winner stays.
+    duels: list[Duel] = []
+    champion = ranked[0]
+    for rival in ranked[1:LEADERS]:
+        if rival.median < (1 - DUEL_BAND) * ranked[0].median or rival.median <= 0:
+            break
+        if time.monotonic() > deadline:
+            say("tune: time bound reached")
+            break
+        try:
+            d = _duel(target, champion.candidate, rival.candidate, 8 * rounds, seconds / 8)
+        except Exception:  # both ran before: a failure now leaves the ranking as it is
+            continue
+        duels.append(d)
+        say(f"tune: {d.first} at {d.ratio:.3f}x {d.second}, side by side")
+        if d.first == rival.candidate.label:
+            champion = rival
+    ranked.remove(champion)
+    result = TuneResult([champion, *ranked], int(num_envs), seconds, duels)
     say(result.table())
     say(result.advice())
     return result

@@ -4,6 +4,7 @@ that fail on purpose. Workers import this module by name (it is on the caller's 
 from __future__ import annotations
 
 import os
+import time
 from typing import Any, Optional
 
 import gymnasium as gym
@@ -314,3 +315,22 @@ class WordEnv(RaisingEnv):
     def step(self, action: Any) -> Any:
         self.t += 1
         return f"step {self.t}", 0.0, False, False, {}
+
+
+class SleepEnv(gym.Env):
+    """An env whose step waits ``delay`` seconds and uses no CPU: ``k`` workers step ``k``
+    of them at once whatever the core count."""
+
+    observation_space = spaces.Box(0.0, 1.0, (1,), np.float32)
+    action_space = spaces.Discrete(2)
+
+    def __init__(self, delay: float = 0.001) -> None:
+        self.delay = delay
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> Any:
+        super().reset(seed=seed)
+        return np.zeros(1, np.float32), {}
+
+    def step(self, action: Any) -> Any:
+        time.sleep(self.delay)
+        return np.zeros(1, np.float32), 0.0, False, False, {}

@@ -3,6 +3,7 @@ names a layout it measured."""
 
 from __future__ import annotations
 
+import functools
 import io
 import re
 import subprocess
@@ -12,6 +13,9 @@ import time
 import gymnasium as gym
 import pytest
 import rogue_gym
+import rogue_gym.tune as tune_mod
+
+from hosted_envs import SleepEnv
 
 
 def cartpole() -> gym.Env:
@@ -32,13 +36,16 @@ def test_tune_finishes_within_its_stated_time_and_names_a_layout() -> None:
     # 1 CPU: 1 and 2 workers, lent or not, async with 2 workers, and SyncVectorEnv.
     assert len(labels) == 6 and "SyncVectorEnv" in labels
     assert all(t.error is None and t.median > 0 for t in result.timings)
-    # Best first: by median, but for a back-to-back duel of the two fastest, which it names.
-    assert result.timings[1:] == sorted(result.timings[1:], key=lambda t: -t.median)
-    if result.duel is None:
-        assert result.timings[0].median >= result.timings[1].median
+    # Best first: by median, but for the winner of the side-by-side duels, which it names.
+    ranked = result.timings
+    assert ranked[1:] == sorted(ranked[1:], key=lambda t: -t.median)
+    if not result.duels:
+        assert ranked[0].median >= ranked[1].median
     else:
-        assert result.duel[:2] == tuple(t.candidate.label for t in result.timings[:2])
-        assert result.duel[2] >= 1 and "back to back" in text
+        assert result.duels[-1].first == ranked[0].candidate.label
+        for d in result.duels:
+            assert d.ratio >= 1 and len(d.ratios) == 8
+            assert f"side by side: {d.first} at {d.ratio:.3f}x {d.second}" in text
     assert result.advice() in text and ("make_vec" in result.advice() or "Sync" in result.advice())
 
 
@@ -68,3 +75,13 @@ def test_tune_runs_from_the_command_line_on_the_native_game() -> None:
 def test_tune_refuses_what_it_cannot_build() -> None:
     with pytest.raises(ValueError, match="not a registered gymnasium id"):
         rogue_gym.tune("NoSuchEnv-v9", 4)
+
+
+def test_a_duel_names_the_faster_layout_first() -> None:
+    # A single worker stepping 4 envs of 2 ms each cannot match 4 workers stepping one each.
+    slow = [functools.partial(SleepEnv, 0.002)] * 4
+    one = tune_mod.Candidate("pool", {"num_workers": 1, "copy": True})
+    four = tune_mod.Candidate("pool", {"num_workers": 4, "copy": True})
+    d = tune_mod.duel(slow, 4, one, four, pairs=4, burst=0.1)
+    assert (d.first, d.second) == (four.label, one.label)
+    assert len(d.ratios) == 4 and d.ratio > 1.5
