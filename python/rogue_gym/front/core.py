@@ -105,10 +105,11 @@ class Kind(Protocol):
         space, without a copy."""
         ...
 
-    def complete_obs(self, obs: Any, env_ids: Optional[np.ndarray]) -> Any:
-        """A batch of observations (of every env, or of ``env_ids``) made whole, after the
-        call's infos were read: the values of leaves of no fixed size, which travel apart;
-        ``obs`` itself for a kind that has none."""
+    def obs_filler(self) -> Optional[Callable[[Any, Optional[np.ndarray]], Any]]:
+        """``None`` when the slot's observations are whole; else the function that makes a
+        batch of them (of every env, or of ``env_ids``) whole, after the call's infos were
+        read: the values of leaves of no fixed size, which travel apart. Bound once, at
+        construction: a kind without such leaves costs the hot path nothing."""
         ...
 
     def actions(self, actions: Any, env_ids: Optional[Sequence[int]]) -> np.ndarray:

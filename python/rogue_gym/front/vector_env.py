@@ -62,6 +62,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         self.spec = kind.spec
         self.copy = bool(copy)
         self._kind = kind
+        self._fill = kind.obs_filler()
         self._same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
         self._disabled = self.autoreset_mode == AutoresetMode.DISABLED
         #: Envs whose episode ended at the last call (DISABLED refuses to step them).
@@ -150,7 +151,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
             slot = core.reset_envs(mask)
             self._done &= ~mask
             infos = self._kind.reset_infos(core, slot, mask)
-            result = (self._kind.complete_obs(core.observations(slot), None), infos)
+            result = (self._observations(slot), infos)
             self._last_slot = slot
             self._pending = ("reset", result)
             return
@@ -178,7 +179,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         self._started = True
         self._last_slot = slot
         infos = self._kind.reset_infos(self._core, slot, None)
-        return self._kind.complete_obs(self._core.observations(slot), None), infos
+        return self._observations(slot), infos
 
     # -- step ------------------------------------------------------------------------------
 
@@ -228,8 +229,12 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         terminated, truncated = cols["terminated"].copy(), cols["truncated"].copy()
         if self._disabled:
             self._done = terminated | truncated
-        obs = self._kind.complete_obs(core.observations(slot), None)
-        return obs, cols["reward"].copy(), terminated, truncated, infos
+        return self._observations(slot), cols["reward"].copy(), terminated, truncated, infos
+
+    def _observations(self, slot: int) -> Any:
+        """Every env's observations in ``slot``, made whole where the kind needs it."""
+        obs = self._core.observations(slot)
+        return obs if self._fill is None else self._fill(obs, None)
 
     def _not_pending(self, caller: str) -> None:
         if self._pending is not None:
@@ -300,7 +305,8 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         self._async_ids = env_id
         terminated, truncated, restarted, _ = flags(recs)
         infos = self._kind.recv_infos(core, recs, blocks, env_id)
-        obs = self._kind.complete_obs(obs, env_id)
+        if self._fill is not None:
+            obs = self._fill(obs, env_id)
         mark_restarted(infos, restarted)
         infos["env_id"] = env_id
         return obs, recs["reward"].astype(np.float64), terminated, truncated, infos

@@ -23,7 +23,15 @@ from typing import Any, Callable, Iterator, Sequence, Union
 import numpy as np
 from gymnasium import spaces
 
-__all__ = ["Leaf", "SpaceLayout", "UnsupportedSpaceError", "is_fixed"]
+__all__ = [
+    "Leaf",
+    "SpaceLayout",
+    "UnsupportedSpaceError",
+    "at_path",
+    "is_fixed",
+    "map_leaves",
+    "space_leaves",
+]
 
 #: Alignment of a batch row (so leaves of every dtype stay aligned in every row).
 ROW_ALIGN = 8
@@ -70,6 +78,41 @@ class Leaf:
         return self.count * self.dtype.itemsize
 
 
+def space_leaves(space: spaces.Space, path: Path = ()) -> Iterator[tuple[Path, spaces.Space]]:
+    """The leaves of ``space`` with their paths, in walk order (a ``Dict`` in its key order, a
+    ``Tuple`` in index order): every walk of a space in this module goes this way."""
+    if isinstance(space, spaces.Dict):
+        for key, sub in space.spaces.items():
+            yield from space_leaves(sub, (*path, key))
+    elif isinstance(space, spaces.Tuple):
+        for i, sub in enumerate(space.spaces):
+            yield from space_leaves(sub, (*path, i))
+    else:
+        yield path, space
+
+
+def map_leaves(space: spaces.Space, node: Any, fn: Callable[[spaces.Space, Any], Any]) -> Any:
+    """A tree of ``space``'s structure (dicts and tuples) whose leaves are ``fn(leaf space,
+    node's value there)``, walking ``node`` alongside (``None``: no tree, ``fn`` gets
+    ``None``), in the walk order of :func:`space_leaves`."""
+    if isinstance(space, spaces.Dict):
+        return {
+            k: map_leaves(s, None if node is None else node[k], fn) for k, s in space.spaces.items()
+        }
+    if isinstance(space, spaces.Tuple):
+        return tuple(
+            map_leaves(s, None if node is None else node[i], fn) for i, s in enumerate(space.spaces)
+        )
+    return fn(space, node)
+
+
+def at_path(value: Any, path: Path) -> Any:
+    """The part of ``value`` (a value or a batch) at a leaf's ``path``."""
+    for key in path:
+        value = value[key]
+    return value
+
+
 def _leaf_array(space: spaces.Space) -> tuple[np.dtype, tuple[int, ...]]:
     if isinstance(space, spaces.Box):
         return np.dtype(space.dtype), tuple(space.shape)
@@ -93,27 +136,16 @@ class SpaceLayout:
         #: Whether each leaf, in the order of a walk of the space, is dynamic.
         self._order: list[bool] = []
         offset = 0
-
-        def visit(s: spaces.Space, path: Path) -> None:
-            nonlocal offset
-            if isinstance(s, spaces.Dict):
-                for key, sub in s.spaces.items():
-                    visit(sub, (*path, key))
-            elif isinstance(s, spaces.Tuple):
-                for i, sub in enumerate(s.spaces):
-                    visit(sub, (*path, i))
-            elif not is_fixed(s):
+        for path, s in space_leaves(space):
+            self._order.append(not is_fixed(s))
+            if not is_fixed(s):
                 self.dynamic.append((path, s))
-                self._order.append(True)
-            else:
-                self._order.append(False)
-                dtype, shape = _leaf_array(s)
-                offset = -(-offset // dtype.itemsize) * dtype.itemsize
-                leaf = Leaf(path, dtype, shape, offset, s)
-                self.leaves.append(leaf)
-                offset += leaf.nbytes
-
-        visit(space, ())
+                continue
+            dtype, shape = _leaf_array(s)
+            offset = -(-offset // dtype.itemsize) * dtype.itemsize
+            leaf = Leaf(path, dtype, shape, offset, s)
+            self.leaves.append(leaf)
+            offset += leaf.nbytes
         #: Bytes of one value (unpadded).
         self.nbytes = offset
         #: Bytes of one row of a batch (``nbytes`` rounded up to 8, at least 8).
@@ -172,10 +204,7 @@ class SpaceLayout:
 
         def write_tree(value: Any) -> None:
             for leaf, dst in views:
-                v = value
-                for key in leaf.path:
-                    v = v[key]
-                put(leaf, dst, v)
+                put(leaf, dst, at_path(value, leaf.path))
 
         return write_tree
 
@@ -219,8 +248,8 @@ class SpaceLayout:
         buf = bytearray(data)
         if self.single:
             return self._leaf_value(buf, self.leaves[0])
-        leaves = [self._leaf_value(buf, leaf) for leaf in self.leaves]
-        return self._assemble(self.space, (), self._merged(leaves, dynamic))
+        leaves = self._merged([self._leaf_value(buf, leaf) for leaf in self.leaves], dynamic)
+        return map_leaves(self.space, None, lambda _s, _n: next(leaves))
 
     def _merged(self, fixed: Sequence[Any], dynamic: Sequence[Any]) -> Iterator[Any]:
         """The leaves in walk order: fixed ones from ``fixed``, dynamic ones from ``dynamic``
@@ -230,13 +259,7 @@ class SpaceLayout:
 
     def dynamic_values(self, value: Any) -> list[Any]:
         """The values of the dynamic leaves of one value (or, of a batch, their batches)."""
-        out = []
-        for path, _ in self.dynamic:
-            v = value
-            for key in path:
-                v = v[key]
-            out.append(v)
-        return out
+        return [at_path(value, path) for path, _ in self.dynamic]
 
     def fill(self, tree: Any, dynamic: Sequence[Any]) -> Any:
         """``tree`` (a value, or a batch, as :meth:`decode` or :meth:`batch_views` build it)
@@ -252,28 +275,17 @@ class SpaceLayout:
     def _rebuild(self, tree: Any, dynamic: Sequence[Any], ints: bool) -> Any:
         values = iter(dynamic)
 
-        def walk(space: spaces.Space, node: Any) -> Any:
-            if isinstance(space, spaces.Dict):
-                return {k: walk(s, node[k]) for k, s in space.spaces.items()}
-            if isinstance(space, spaces.Tuple):
-                return tuple(walk(s, node[i]) for i, s in enumerate(space.spaces))
+        def leaf(space: spaces.Space, node: Any) -> Any:
             if not is_fixed(space):
                 return next(values, None)
             return int(node) if ints and isinstance(space, spaces.Discrete) else node
 
-        return walk(self.space, tree)
+        return map_leaves(self.space, tree, leaf)
 
     @staticmethod
     def _leaf_value(buf: bytearray, leaf: Leaf) -> Any:
         arr = np.frombuffer(buf, leaf.dtype, leaf.count, leaf.offset).reshape(leaf.shape)
         return arr[()] if leaf.shape == () else arr
-
-    def _assemble(self, space: spaces.Space, path: Path, leaves: Any) -> Any:
-        if isinstance(space, spaces.Dict):
-            return {k: self._assemble(s, (*path, k), leaves) for k, s in space.spaces.items()}
-        if isinstance(space, spaces.Tuple):
-            return tuple(self._assemble(s, (*path, i), leaves) for i, s in enumerate(space.spaces))
-        return next(leaves)
 
     # -- batches (front end) ---------------------------------------------------------------
 
@@ -288,17 +300,15 @@ class SpaceLayout:
             .reshape((n, *leaf.shape))
             for leaf in self.leaves
         ]
-        return self._assemble(self.space, (), self._merged(views, ()))
+        leaves = self._merged(views, ())
+        return map_leaves(self.space, None, lambda _s, _n: next(leaves))
 
     def write_batch(self, values: Any, rows: np.ndarray) -> None:
         """Write a batch (the structure of the space, one ``(n, *shape)`` array per leaf) into
         ``rows``, casting to each leaf's dtype; raises ``ValueError`` on a shape mismatch."""
         n = rows.shape[0]
         for leaf in self.leaves:
-            v = values
-            for key in leaf.path:
-                v = v[key]
-            arr = np.asarray(v)
+            arr = np.asarray(at_path(values, leaf.path))
             if arr.shape != (n, *leaf.shape):
                 where = "".join(f"[{k!r}]" for k in leaf.path) or "actions"
                 raise ValueError(

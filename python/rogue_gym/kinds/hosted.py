@@ -39,7 +39,7 @@ from ..front.core import (
 )
 from ..hosted.adapter import DYNAMIC_OBS_KEY, NO_SEED
 from ..hosted.infos import HEAD, InfoDecoder, split_joined, vector_infos
-from ..hosted.layout import FIXED_SPACES, SpaceLayout, UnsupportedSpaceError
+from ..hosted.layout import FIXED_SPACES, SpaceLayout, UnsupportedSpaceError, space_leaves
 from ..hosted.vector_adapter import check_vector_env
 from ..settings import PoolOptions
 
@@ -94,22 +94,20 @@ def _check_dynamic(obs: SpaceLayout, act: SpaceLayout, vector_env: bool, static_
 
 def _refuse_unshared(space: spaces.Space) -> None:
     """Raise ``AsyncVectorEnv(shared_memory=True)``'s error if it cannot hold ``space``."""
-    if isinstance(space, spaces.OneOf):
-        for sub in space.spaces:
-            _refuse_unshared(sub)
-    elif isinstance(space, (spaces.Dict, spaces.Tuple)):
-        for sub in space.spaces.values() if isinstance(space, spaces.Dict) else space.spaces:
-            _refuse_unshared(sub)
-    elif isinstance(space, (spaces.Graph, spaces.Sequence)):
-        raise TypeError(
-            f"As {space} has a dynamic shape so its not possible to make a static shared "
-            "memory. Leave shared_memory out (or False) to carry it pickled per env."
-        )
-    elif not isinstance(space, (spaces.Text, *FIXED_SPACES)):
-        raise ValueError(  # from a CustomSpaceError, as AsyncVectorEnv raises it
-            f"shared_memory=True needs spaces it can lay out, and {space} is a custom space; "
-            "leave shared_memory out (or False) to carry it pickled per env"
-        ) from CustomSpaceError(f"{type(space).__name__} has no shared-memory layout")
+    for _, leaf in space_leaves(space):
+        if isinstance(leaf, spaces.OneOf):
+            for sub in leaf.spaces:
+                _refuse_unshared(sub)
+        elif isinstance(leaf, (spaces.Graph, spaces.Sequence)):
+            raise TypeError(
+                f"As {leaf} has a dynamic shape so its not possible to make a static shared "
+                "memory. Leave shared_memory out (or False) to carry it pickled per env."
+            )
+        elif not isinstance(leaf, (spaces.Text, *FIXED_SPACES)):
+            raise ValueError(  # from a CustomSpaceError, as AsyncVectorEnv raises it
+                f"shared_memory=True needs spaces it can lay out, and {leaf} is a custom space; "
+                "leave shared_memory out (or False) to carry it pickled per env"
+            ) from CustomSpaceError(f"{type(leaf).__name__} has no shared-memory layout")
 
 
 def _space_of(fn: EnvFn) -> spaces.Space:
@@ -260,11 +258,13 @@ class HostedKind:
         """Slot rows as a batch of the observation space, leaf by leaf (views)."""
         return self._obs_layout.batch_views(rows)
 
-    def complete_obs(self, obs: Any, env_ids: Optional[np.ndarray]) -> Any:
+    def obs_filler(self) -> Optional[Callable[[Any, Optional[np.ndarray]], Any]]:
+        """:meth:`_fill_dynamic` for a space with dynamic leaves; ``None`` otherwise."""
+        return self._fill_dynamic if self._obs_layout.dynamic else None
+
+    def _fill_dynamic(self, obs: Any, env_ids: Optional[np.ndarray]) -> Any:
         """``obs`` with its dynamic leaves (one tuple of values per leaf, as gymnasium batches
-        them) from the envs' last infos; ``obs`` itself when the space has none."""
-        if not self._obs_layout.dynamic:
-            return obs
+        them) from the envs' last infos."""
         ids = range(self.num_envs) if env_ids is None else [int(e) for e in env_ids]
         values = [self._dynamic_obs[e] for e in ids]
         columns = [tuple(v[j] for v in values) for j in range(len(self._obs_layout.dynamic))]

@@ -136,9 +136,9 @@ class NativeKind:
         """Slot rows as observations of the engine's dtype and shape (a view)."""
         return rows.view(self.obs_dtype).reshape((rows.shape[0], *self.obs_shape))
 
-    def complete_obs(self, obs: np.ndarray, env_ids: Optional[np.ndarray]) -> np.ndarray:
-        """The game's observations are whole: ``obs`` itself."""
-        return obs
+    def obs_filler(self) -> None:
+        """The game's observations are whole as they come."""
+        return None
 
     # -- actions and seeds -----------------------------------------------------------------
 
