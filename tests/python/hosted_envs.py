@@ -245,7 +245,7 @@ class NoteEnv(gym.Env):
     def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> Any:
         super().reset(seed=seed)
         self.t, self.said = 0, ""
-        return self._obs(), {}
+        return self._obs(), {"first": True}  # an info of its own beside the dynamic values
 
     def _obs(self) -> dict[str, Any]:
         k = int(self.np_random.integers(0, 5))

@@ -4,8 +4,8 @@ speaks the pool's flat bytes.
 The pool's Rust worker loop calls :class:`HostedEnv` (through ``python/src/hosted.rs``) for
 every reset of the env, and steps the env itself with the parts of :meth:`HostedEnv.step_parts`
 (the hot path has no Python frame of ours). An observation's dynamic leaves (Text, Graph,
-Sequence, OneOf, custom spaces) travel pickled in the command's info, under
-:data:`DYNAMIC_OBS_KEY`; a step's dynamic actions arrive before it, by a ``set_actions`` call.
+Sequence, OneOf, custom spaces) travel pickled in the command's info, as entries of their own
+beside the env's info (``STEP_OBS``, ``RESET_OBS``); a step's dynamic actions arrive before it, by a ``set_actions`` call.
 Any exception of the env is raised as :class:`EncodedEnvError`, whose message carries the exception (type, message, worker-side
 traceback, and the exception itself pickled when it can be) to the caller, where
 :func:`decode_exception` rebuilds it.
@@ -24,12 +24,11 @@ from typing import Any, Optional
 import cloudpickle
 import numpy as np
 
-from .infos import FlatPlan, InfoEncoder
+from .infos import RESET_OBS, STEP_OBS, FlatPlan, InfoEncoder
 from .layout import SpaceLayout
 
 __all__ = [
     "CALL_OPS",
-    "DYNAMIC_OBS_KEY",
     "NO_SEED",
     "EncodedEnvError",
     "HostedEnv",
@@ -55,10 +54,6 @@ CALL_OPS = (
     "set_reset_seed",
     "set_actions",
 )
-
-#: The info key under which an observation's dynamic leaves travel (a list of their values in
-#: the order of :attr:`SpaceLayout.dynamic`); the front end takes it out of the infos.
-DYNAMIC_OBS_KEY = "rogue_gym.dynamic_obs"
 
 #: The key of an encoded exception in an env error message.
 _KEY = "rogue_gym_exception"
@@ -156,10 +151,30 @@ def _space_mismatch(got: Any, want: Any, same: bool, what: str = "observation") 
     )
 
 
+class _StepInfo(dict[str, Any]):
+    """A step's info as the env returned it, with the values of the observation's dynamic
+    leaves beside it (``dynamic``), not in it; always true, so that the worker encodes it
+    (:meth:`HostedEnv.step_info`) even when the env's own info is empty."""
+
+    def __init__(self, info: dict[str, Any], dynamic: list[Any]) -> None:
+        super().__init__(info)
+        self.dynamic = dynamic
+
+    def __bool__(self) -> bool:
+        return True
+
+
+def _step_entries(info: dict[str, Any]) -> list[tuple[str, Any]]:
+    """A step's encoded entries: its info if any, and its observation's dynamic values."""
+    entries: list[tuple[str, Any]] = [("step", dict(info))] if len(info) else []
+    if isinstance(info, _StepInfo):
+        entries.append((STEP_OBS, info.dynamic))
+    return entries
+
+
 class _DynamicObsEnv:
     """The env as the worker's Rust step calls it when the observation has dynamic leaves:
-    ``step`` returns the info with their values added (a new dict) under
-    :data:`DYNAMIC_OBS_KEY`."""
+    ``step`` returns the info as a :class:`_StepInfo` that carries their values."""
 
     def __init__(self, env: Any, layout: SpaceLayout) -> None:
         self.env = env
@@ -167,8 +182,7 @@ class _DynamicObsEnv:
 
     def step(self, action: Any) -> tuple[Any, ...]:
         obs, reward, terminated, truncated, info = self.env.step(action)
-        info = {**info, DYNAMIC_OBS_KEY: self.layout.dynamic_values(obs)}
-        return obs, reward, terminated, truncated, info
+        return obs, reward, terminated, truncated, _StepInfo(info, self.layout.dynamic_values(obs))
 
 
 class HostedEnv:
@@ -233,7 +247,7 @@ class HostedEnv:
         convention). ``step_info``: the info of the step this reset follows in the same command
         (an autoreset), if any. Returns the command's info bytes, or ``None``."""
         try:
-            infos = [] if step_info is None else [("step", step_info)]
+            infos = [] if step_info is None else _step_entries(step_info)
             use_seed = seed if (episode == 0 or self._fresh) and seed != NO_SEED else None
             self._fresh = False
             if self._seed is not None:  # a partial reset's own seed for this env
@@ -241,10 +255,10 @@ class HostedEnv:
             options, self._options = self._options, None
             obs, info = self.env.reset(seed=use_seed, options=options)
             self.write_obs(obs, address)
-            if self._obs.dynamic:
-                info = {**info, DYNAMIC_OBS_KEY: self._obs.dynamic_values(obs)}
             if info:
                 infos.append(("reset", info))
+            if self._obs.dynamic:
+                infos.append((RESET_OBS, self._obs.dynamic_values(obs)))
             return self._info_encoder.encode(infos) if infos else None
         except BaseException as exc:
             raise EncodedEnvError(encode_exception(exc)) from exc
@@ -277,6 +291,8 @@ class HostedEnv:
     def step_info(self, info: dict[str, Any]) -> tuple[bytes, Optional[FlatPlan]]:
         """The bytes of a step's (non-empty) info, and the plan of its layout when it is a
         flat row of scalars (which the worker then packs itself while infos keep it)."""
+        if isinstance(info, _StepInfo):
+            return self._info_encoder.encode(_step_entries(info)), None
         return self._info_encoder.encode_step(info)
 
     def call(self, request: bytes) -> bytes:

@@ -25,6 +25,8 @@ from typing import Any, Callable, NamedTuple, Optional
 import numpy as np
 
 __all__ = [
+    "RESET_OBS",
+    "STEP_OBS",
     "FlatPlan",
     "InfoDecoder",
     "InfoEncoder",
@@ -42,6 +44,9 @@ HEADER_BYTES = _HEADER.size
 #: The bytes that tell a row's kind and structure (magic, kind, padding, hash).
 HEAD = 16
 KINDS = ("reset", "step")
+#: The entries that carry the values of an observation's dynamic leaves (a list, in the order
+#: of ``SpaceLayout.dynamic``): of the step's observation, and of the reset's. Always pickled.
+STEP_OBS, RESET_OBS = "step_obs", "reset_obs"
 #: At most this many structures are remembered per env (an env whose shapes never repeat
 #: falls back to pickles rather than growing without bound).
 MAX_STRUCTURES = 64
@@ -192,10 +197,10 @@ class InfoEncoder:
         #: then matched by its plan's keys and value types without hashing a signature.
         self._flat: Optional[_Layout] = None
 
-    def encode(self, entries: list[tuple[str, dict[str, Any]]]) -> bytes:
+    def encode(self, entries: list[tuple[str, Any]]) -> bytes:
         """The bytes of one call's entries: a typed row for a single typed info, else the
         pickled entries."""
-        if len(entries) == 1:
+        if len(entries) == 1 and entries[0][0] in KINDS:
             kind, info = entries[0]
             data, _ = self._typed(info, KINDS.index(kind))
             if data is not None:
@@ -382,8 +387,9 @@ class InfoDecoder:
             self._layouts[head[8:16]] = layout
         return layout
 
-    def entries(self, data: bytes) -> list[tuple[str, dict[str, Any]]]:
-        """One env's ``("reset" | "step", info)`` entries."""
+    def entries(self, data: bytes) -> list[tuple[str, Any]]:
+        """One env's entries: ``("reset" | "step", info)``, and :data:`STEP_OBS` or
+        :data:`RESET_OBS` with an observation's dynamic values."""
         if data[:4] != MAGIC:
             self.pickled_rows += 1
             return pickle.loads(data)
@@ -489,7 +495,7 @@ def vector_infos(
     decoder: InfoDecoder,
     extras: list[tuple[int, bytes]],
     n: int,
-    env_info: Callable[[int, list[tuple[str, dict[str, Any]]]], dict[str, Any]],
+    env_info: Callable[[int, list[tuple[str, Any]]], dict[str, Any]],
     special: Iterable[int] = (),
 ) -> dict[str, Any]:
     """gymnasium's vector infos of one call: ``extras`` are ``(row, info bytes)`` of a batch

@@ -37,8 +37,8 @@ from ..front.core import (
     reraise,
     scalar_actions,
 )
-from ..hosted.adapter import DYNAMIC_OBS_KEY, NO_SEED
-from ..hosted.infos import HEAD, InfoDecoder, split_joined, vector_infos
+from ..hosted.adapter import NO_SEED
+from ..hosted.infos import HEAD, RESET_OBS, STEP_OBS, InfoDecoder, split_joined, vector_infos
 from ..hosted.layout import FIXED_SPACES, SpaceLayout, UnsupportedSpaceError, space_leaves
 from ..hosted.vector_adapter import check_vector_env
 from ..settings import PoolOptions
@@ -432,7 +432,7 @@ class HostedKind:
         )
 
     def _env_info(
-        self, core: Core, env: int, entries: list[tuple[str, dict[str, Any]]], final: bool
+        self, core: Core, env: int, entries: list[tuple[str, Any]], final: bool
     ) -> dict[str, Any]:
         """One env's info for this call, as gymnasium's vector envs build it: the reset's (or
         step's) info and, when the episode ended in SAME_STEP mode, ``final_obs`` and the last
@@ -441,14 +441,14 @@ class HostedKind:
         final_info: dict[str, Any] = {}
         final_dynamic: list[Any] = []
         for kind, entry in entries:
-            dynamic = entry.pop(DYNAMIC_OBS_KEY, None)
-            if kind == "step" and final:
+            if kind == STEP_OBS and final:
+                final_dynamic = entry
+            elif kind in (STEP_OBS, RESET_OBS):
+                self._dynamic_obs[env] = entry
+            elif kind == "step" and final:
                 final_info = entry
-                final_dynamic = dynamic or []
             else:
                 info.update(entry)
-                if dynamic is not None:
-                    self._dynamic_obs[env] = dynamic
         if final and core.final is not None:
             info["final_obs"] = self._obs_layout.env_value(core.final_obs(env), final_dynamic)
             info["final_info"] = final_info
