@@ -1,16 +1,21 @@
 """Two builds of the Python package side by side: the Python ``step()`` of the native game, of
 hosted CartPole and of hosted HalfCheetah (``--kinds ... halfcheetah``, where MuJoCo imports:
-``.venv-bench``), at 64 envs, each build in its own fresh process, in turns (A B A B ...).
+``.venv-bench``), at 64 envs.
 
-Each turn runs ``--seconds`` of steps after a warm-up and reports env-steps/s; the table gives
-each build's median and the median of the B/A ratios of neighbouring turns (a ratio pair by
-pair holds when the machine's speed drifts, as this shared VM's does).
+Each build runs in its own process, both alive at once, each with its pool built, reset and
+warmed up; this process has them step in alternating bursts of ``--seconds`` (A B, then B A,
+...), one pair after another. The table gives each build's median env-steps/s, the median of
+the B/A ratios of the pairs and a 95% interval of that median (bootstrap over pairs): bursts a
+fraction of a second apart see the same machine, so the ratio holds when the machine's speed
+drifts, as this shared VM's does, and many short pairs resolve differences of 1%.
 
     # A: another checkout with its extension built (e.g. a git worktree of the commit before)
-    .venv/bin/python benchmarks/builds_ab.py --a /tmp/old/python --pairs 12
+    .venv/bin/python benchmarks/builds_ab.py --a /tmp/old/python --pairs 400 --seconds 0.1
 
 ``--a`` and ``--b`` are directories put first on ``PYTHONPATH`` (``--b`` defaults to this
 checkout's ``python/``). Writes ``results/builds_ab/builds_ab.{md,json}`` (``--out``).
+What the pool's counters cost: build A without them (``maturin develop --release
+--no-default-features -m python/Cargo.toml`` in a worktree) and B as it is.
 """
 
 from __future__ import annotations
@@ -19,11 +24,13 @@ import argparse
 import json
 import os
 import platform
+import random
 import statistics
 import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = Path(__file__).resolve().parent / "results" / "builds_ab"
@@ -32,68 +39,100 @@ KINDS = ("native", "hosted", "halfcheetah")
 DEFAULT_KINDS = ("native", "hosted")
 
 
-def child(kind: str, num_envs: int, seconds: float, workers: int) -> float:
-    """Env-steps/s of ``kind`` under the build this process imports."""
+def make_env(kind: str, num_envs: int, workers: int) -> tuple[Any, Any]:
+    """The vector env of ``kind`` under the build this process imports, and 256 batches of
+    actions for it."""
     import gymnasium as gym
     import numpy as np
     import rogue_gym
 
+    rng = np.random.default_rng(0)
     if kind == "native":
         env = rogue_gym.make_vec(num_envs, config="paper", num_workers=workers, seed=0)
-        actions = np.random.default_rng(0).integers(0, 11, size=(256, num_envs))
-    elif kind == "hosted":
+        return env, rng.integers(0, 11, size=(256, num_envs))
+    if kind == "hosted":
         fns = [lambda: gym.make("CartPole-v1")] * num_envs
         env = rogue_gym.PoolVectorEnv(fns, num_workers=workers)
-        actions = np.random.default_rng(0).integers(0, 2, size=(256, num_envs))
-    else:
-        fns = [lambda: gym.make("HalfCheetah-v5")] * num_envs
-        env = rogue_gym.PoolVectorEnv(fns, num_workers=workers)
-        rng = np.random.default_rng(0)
-        actions = rng.uniform(-1, 1, size=(256, num_envs, 6)).astype(np.float32)
+        return env, rng.integers(0, 2, size=(256, num_envs))
+    fns = [lambda: gym.make("HalfCheetah-v5")] * num_envs
+    env = rogue_gym.PoolVectorEnv(fns, num_workers=workers)
+    return env, rng.uniform(-1, 1, size=(256, num_envs, 6)).astype(np.float32)
+
+
+def serve(kind: str, num_envs: int, workers: int) -> None:
+    """A build's side: build, reset and warm up the env, say ``ready``, then for every line
+    ``burst SECONDS`` on stdin step for that long and print env-steps/s; stop at end of
+    input."""
+    env, actions = make_env(kind, num_envs, workers)
     try:
         env.reset(seed=0)
         for i in range(50):
             env.step(actions[i % 256])
-        steps, t0 = 0, time.perf_counter()
-        while time.perf_counter() - t0 < seconds:
-            for i in range(100):
-                env.step(actions[i % 256])
-            steps += 100
-        return steps * num_envs / (time.perf_counter() - t0)
+        print("ready", flush=True)
+        i = 0
+        for line in sys.stdin:
+            seconds = float(line.split()[1])
+            steps, t0 = 0, time.perf_counter()
+            while time.perf_counter() - t0 < seconds:
+                for _ in range(20):
+                    env.step(actions[i % 256])
+                    i += 1
+                steps += 20
+            print(steps * num_envs / (time.perf_counter() - t0), flush=True)
     finally:
         env.close()
 
 
-def run_turn(path: str, kind: str, args: argparse.Namespace) -> float:
-    env = {**os.environ, "PYTHONPATH": path}
-    out = subprocess.run(
-        [
-            sys.executable,
-            __file__,
-            "--child",
-            kind,
-            "--num-envs",
-            str(args.num_envs),
-            "--seconds",
-            str(args.seconds),
-            "--num-workers",
-            str(args.num_workers),
-        ],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=True,
-    ).stdout
-    return float(out.strip().splitlines()[-1])
+class Side:
+    """One build's serving process."""
+
+    def __init__(self, path: str, kind: str, args: argparse.Namespace) -> None:
+        cmd = [sys.executable, __file__, "--serve", kind, "--num-envs", str(args.num_envs)]
+        cmd += ["--num-workers", str(args.num_workers)]
+        env = {**os.environ, "PYTHONPATH": path}
+        self.proc = subprocess.Popen(
+            cmd, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+        )
+        self._expect("ready")
+
+    def _expect(self, what: str) -> str:
+        assert self.proc.stdout is not None
+        line = self.proc.stdout.readline()
+        if not line or (what and line.strip() != what):
+            self.close()
+            raise RuntimeError(f"a build's process stopped (exit {self.proc.wait(10)})")
+        return line
+
+    def burst(self, seconds: float) -> float:
+        """Env-steps/s over a burst of ``seconds``."""
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(f"burst {seconds}\n")
+        self.proc.stdin.flush()
+        return float(self._expect(""))
+
+    def close(self) -> None:
+        if self.proc.stdin is not None and not self.proc.stdin.closed:
+            self.proc.stdin.close()
+        try:
+            self.proc.wait(30)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+
+
+def median_interval(ratios: list[float], draws: int = 2000) -> tuple[float, float]:
+    """A 95% bootstrap interval of the median of ``ratios``."""
+    rng = random.Random(0)
+    meds = sorted(statistics.median(rng.choices(ratios, k=len(ratios))) for _ in range(draws))
+    return meds[int(0.025 * draws)], meds[int(0.975 * draws) - 1]
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--a", help="PYTHONPATH of build A (the baseline)")
     ap.add_argument("--b", default=str(ROOT / "python"), help="PYTHONPATH of build B")
-    ap.add_argument("--pairs", type=int, default=10)
-    ap.add_argument("--seconds", type=float, default=2.0)
+    ap.add_argument("--pairs", type=int, default=200, help="pairs of bursts per kind")
+    ap.add_argument("--seconds", type=float, default=0.1, help="seconds of each burst")
     ap.add_argument("--num-envs", type=int, default=64)
     ap.add_argument(
         "--num-workers",
@@ -104,22 +143,30 @@ def main() -> None:
     )
     ap.add_argument("--kinds", nargs="+", default=list(DEFAULT_KINDS), choices=KINDS)
     ap.add_argument("--out", type=Path, default=RESULTS)
-    ap.add_argument("--child", choices=KINDS, help=argparse.SUPPRESS)
+    ap.add_argument("--serve", choices=KINDS, help=argparse.SUPPRESS)
     args = ap.parse_args()
-    if args.child:
-        print(child(args.child, args.num_envs, args.seconds, args.num_workers))
+    if args.serve:
+        serve(args.serve, args.num_envs, args.num_workers)
         return
     if not args.a:
         ap.error("--a (the baseline build's PYTHONPATH) is required")
     per: dict[str, dict[str, list[float]]] = {k: {"a": [], "b": []} for k in args.kinds}
-    for p in range(args.pairs):
-        for kind in args.kinds:
-            # Alternate which build goes first, so neither always meets a warmer machine.
-            order = ("a", "b") if p % 2 == 0 else ("b", "a")
-            for side in order:
-                per[kind][side].append(run_turn(getattr(args, side), kind, args))
-            a, b = per[kind]["a"][-1], per[kind]["b"][-1]
-            print(f"pair {p} {kind}: A {a:,.0f}  B {b:,.0f}  B/A {b / a:.3f}", flush=True)
+    for kind in args.kinds:
+        sides: dict[str, Side] = {}
+        try:
+            sides["a"] = Side(args.a, kind, args)
+            sides["b"] = Side(args.b, kind, args)
+            for p in range(args.pairs):
+                # Alternate which build goes first, so neither always meets a warmer machine.
+                for side in ("a", "b") if p % 2 == 0 else ("b", "a"):
+                    per[kind][side].append(sides[side].burst(args.seconds))
+                if (p + 1) % 50 == 0 or p + 1 == args.pairs:
+                    r = per[kind]
+                    now = statistics.median(b / a for a, b in zip(r["a"], r["b"]))
+                    print(f"{kind}: {p + 1} pairs, B/A median {now:.4f}", flush=True)
+        finally:
+            for side in sides.values():
+                side.close()
     rows = []
     for kind, r in per.items():
         ratios = [b / a for a, b in zip(r["a"], r["b"])]
@@ -129,6 +176,7 @@ def main() -> None:
                 "a_median": statistics.median(r["a"]),
                 "b_median": statistics.median(r["b"]),
                 "ratio_median": statistics.median(ratios),
+                "ratio_interval": median_interval(ratios),
                 "ratio_min": min(ratios),
                 "ratio_max": max(ratios),
                 "a": r["a"],
@@ -137,16 +185,18 @@ def main() -> None:
         )
     lines = [
         f"{args.pairs} pairs, {args.num_envs} envs, {args.num_workers} worker(s), "
-        f"{args.seconds:g} s a turn; "
+        f"bursts of {args.seconds:g} s, both builds alive, alternating; "
         f"A = {args.a}, B = {args.b}",
         "",
-        "| kind | A median steps/s | B median steps/s | B/A median (min-max) |",
-        "|---|---:|---:|---:|",
+        "| kind | A median steps/s | B median steps/s | B/A median | 95% interval | min-max |",
+        "|---|---:|---:|---:|---:|---:|",
     ]
     for r in rows:
+        lo, hi = r["ratio_interval"]
         lines.append(
             f"| {r['kind']} | {r['a_median']:,.0f} | {r['b_median']:,.0f} | "
-            f"{r['ratio_median']:.3f} ({r['ratio_min']:.2f}-{r['ratio_max']:.2f}) |"
+            f"{r['ratio_median']:.4f} | {lo:.4f}-{hi:.4f} | "
+            f"{r['ratio_min']:.2f}-{r['ratio_max']:.2f} |"
         )
     print("\n".join(lines))
     args.out.mkdir(parents=True, exist_ok=True)

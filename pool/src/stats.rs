@@ -64,10 +64,13 @@ impl StatsBuffer {
         unsafe { &*(self.buf.as_ptr() as *const AtomicU64).add(worker * ROW_WORDS + c) }
     }
 
-    /// Add `v` to counter `c` of `worker`'s row.
+    /// Add `v` to counter `c` of `worker`'s row (nothing without the `counters` feature).
     pub(crate) fn add(&self, worker: usize, c: Counter, v: u64) {
+        #[cfg(feature = "counters")]
         self.word(worker, c as usize)
             .fetch_add(v, Ordering::Relaxed);
+        #[cfg(not(feature = "counters"))]
+        let _ = (worker, c, v);
     }
 
     /// Counter `c` of `worker`'s row.
@@ -126,9 +129,37 @@ impl StatsBuffer {
     }
 }
 
+/// A point in time a counter measures from: an `Instant`, or nothing (no clock read) without
+/// the `counters` feature.
+#[cfg(feature = "counters")]
+pub(crate) type Stamp = std::time::Instant;
+/// A point in time a counter measures from: nothing, without the `counters` feature.
+#[cfg(not(feature = "counters"))]
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Stamp;
+
+/// Now, for a counter.
+#[cfg(feature = "counters")]
+pub(crate) fn stamp() -> Stamp {
+    std::time::Instant::now()
+}
+
+/// Now, for a counter: nothing, without the `counters` feature.
+#[cfg(not(feature = "counters"))]
+pub(crate) fn stamp() -> Stamp {
+    Stamp
+}
+
 /// Nanoseconds since `t`, saturating.
-pub(crate) fn ns_since(t: std::time::Instant) -> u64 {
+#[cfg(feature = "counters")]
+pub(crate) fn ns_since(t: Stamp) -> u64 {
     u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX)
+}
+
+/// Nanoseconds since `t`: 0, without the `counters` feature.
+#[cfg(not(feature = "counters"))]
+pub(crate) fn ns_since(_t: Stamp) -> u64 {
+    0
 }
 
 #[cfg(test)]

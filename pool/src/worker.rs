@@ -6,7 +6,7 @@
 //! leading args): `--config <file> --index <k> --generation <g> --ppid <supervisor pid>`.
 
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use rogue_gym_ipc::{
     BlockHeader, IpcError, PoolId, WaitCall, WaitPolicy, WorkerPorts, hybrid_wait,
@@ -15,7 +15,7 @@ use rogue_gym_ipc::{
 use crate::config::AutoresetMode;
 use crate::env::MAX_INFO;
 use crate::registry::{Built, EnvRegistry};
-use crate::stats::{Counter, StatsBuffer, ns_since};
+use crate::stats::{Counter, StatsBuffer, ns_since, stamp};
 use crate::wire::layout::BlockLayout;
 use crate::wire::{
     BATCH_BUFFER, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_CALL, CMD_CLOSE, CMD_STEP,
@@ -222,7 +222,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
     let mut apart: Vec<(u32, Vec<u8>)> = Vec::new();
     loop {
         let mut cmd = None;
-        let waiting = Instant::now();
+        let waiting = stamp();
         hybrid_wait::<WorkerError>(ports.cmd_listener(), &policy, None, |call| {
             if call == WaitCall::Idle && nix::unistd::getppid().as_raw() != a.ppid {
                 return Err(WorkerError::ParentGone(a.ppid));
@@ -308,14 +308,14 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
             info: &mut info,
             apart: &mut apart,
         };
-        let serving = Instant::now();
+        let serving = stamp();
         let mut failed = hosted
             .serve(kind, &payload[..n], per_env, &mut out, &ctx)
             .err();
         stats.add(me, Counter::EnvNs, ns_since(serving));
         stats.add(me, Counter::EnvSteps, epw as u64);
         stats.add(me, Counter::Commands, 1);
-        let publishing = Instant::now();
+        let publishing = stamp();
         if failed.is_none() && !apart.is_empty() {
             // Info too long for the block's room goes beside it, in a private file named by
             // the block; the supervisor takes it with the block.

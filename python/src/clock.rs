@@ -1,11 +1,14 @@
 //! Where the caller's time goes: inside the pool's calls (waiting on the workers) or between
 //! them (the caller's own code, the policy, the Python front end). Two clock reads per call.
 
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::AtomicU64;
+#[cfg(feature = "counters")]
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 /// Time in and between the native pool's calls, since the pool started.
 #[derive(Debug)]
+#[cfg_attr(not(feature = "counters"), allow(dead_code))]
 pub(crate) struct CallClock {
     epoch: Instant,
     /// Nanoseconds since `epoch` at which the last call ended (0: none yet).
@@ -29,6 +32,7 @@ impl CallClock {
         }
     }
 
+    #[cfg(feature = "counters")]
     fn now(&self) -> u64 {
         u64::try_from(self.epoch.elapsed().as_nanos())
             .unwrap_or(u64::MAX)
@@ -36,6 +40,7 @@ impl CallClock {
     }
 
     /// A call begins: the time since the last one ended was the caller's. Returns the start.
+    #[cfg(feature = "counters")]
     pub(crate) fn begin(&self) -> u64 {
         let start = self.now();
         let last = self.last_end.load(Ordering::Relaxed);
@@ -46,7 +51,14 @@ impl CallClock {
         start
     }
 
+    /// A call begins (nothing is counted without the `counters` feature).
+    #[cfg(not(feature = "counters"))]
+    pub(crate) fn begin(&self) -> u64 {
+        0
+    }
+
     /// The call that began at `start` ends.
+    #[cfg(feature = "counters")]
     pub(crate) fn end(&self, start: u64) {
         let end = self.now();
         self.inside_ns
@@ -54,4 +66,8 @@ impl CallClock {
         self.calls.fetch_add(1, Ordering::Relaxed);
         self.last_end.store(end, Ordering::Relaxed);
     }
+
+    /// The call ends (nothing is counted without the `counters` feature).
+    #[cfg(not(feature = "counters"))]
+    pub(crate) fn end(&self, _start: u64) {}
 }
