@@ -402,16 +402,22 @@ def estimate_seconds(
     return (sum(per) + sum(slowest[:leaders])) * rounds + duels
 
 
-def _start_seconds(target: _Target, c: Candidate) -> float:
-    """Seconds ``c``'s pool takes to start, reset and close (an env that is slow to build makes
-    every candidate slow to start: the estimate must know it)."""
+def _first_run(target: _Target, timing: Timing, seconds: float) -> Optional[float]:
+    """Time ``timing``'s candidate once (its first round's run, recorded in ``timing``) and
+    return the seconds its pool took to start, reset and warm up: an env that is slow to build
+    makes every candidate slow to start, and the estimate must know it. ``None`` if it fails
+    (recorded as its error)."""
     t0 = time.monotonic()
-    env = _build(target.kind, target.env_fn, target.gym_id, target.num_envs, c)
     try:
-        env.reset(seed=0)
-    finally:
-        env.close()
-    return time.monotonic() - t0
+        with _Live(target, timing.candidate) as live:
+            start_s = time.monotonic() - t0
+            live.reset_stats()
+            timing.steps_per_s.append(live.burst(seconds))
+            timing.shares.append(live.shares())
+    except Exception as exc:  # a layout that cannot run is reported, not fatal
+        timing.error = f"{type(exc).__name__}: {exc}"
+        return None
+    return start_s
 
 
 def tune(
@@ -435,13 +441,12 @@ def tune(
     say = (lambda m: print(m, file=out, flush=True)) if out is not None else (lambda m: None)
     say(f"tune: timing one start-up of {num_envs} envs")
     target = _Target(kind, env_fn, gym_id, int(num_envs))
+    timings = {c.label: Timing(c) for c in cands}
     # The pool with the most workers starts its envs side by side on every CPU; the others
-    # take longer in proportion, and each gets a start-up bound that allows for it.
+    # take longer in proportion, and each gets a start-up bound that allows for it. Its
+    # start-up is timed on its first run.
     probe = [c for c in cands if c.mode == "pool"][-1]
-    try:
-        start_s: Optional[float] = _start_seconds(target, probe)
-    except Exception:  # the candidates' own runs report what fails
-        start_s = None
+    start_s = _first_run(target, timings[probe.label], seconds)
     if start_s is not None:
         default = PoolOptions.start_timeout
         target = dataclasses.replace(target, start_timeout=max(default, 3 * ncpu * start_s))
@@ -451,7 +456,6 @@ def tune(
         f"tune: {len(cands)} layouts x {rounds} rounds of {seconds:g} s, {num_envs} envs"
         f"{started}: about {_duration(est)} (at most {_duration(1.5 * est)})"
     )
-    timings = {c.label: Timing(c) for c in cands}
     deadline = time.monotonic() + 1.5 * est
     rng = random.Random(0)
 
@@ -477,7 +481,8 @@ def tune(
         return True
 
     for r in range(rounds):
-        if not run_round(cands, first=r == 0):
+        group = [c for c in cands if len(timings[c.label].steps_per_s) <= r]
+        if not run_round(group, first=r == 0):
             break
         say(f"tune: round {r + 1} of {rounds} done")
     # The leaders (within 10% of the best) again, as many rounds: near-ties are where a few
