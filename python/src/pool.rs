@@ -97,12 +97,7 @@ impl PyPool {
         });
         self.clock.end(start);
         res.map_err(|e| match e {
-            PoolError::Interrupted => self
-                .interrupted
-                .lock()
-                .ok()
-                .and_then(|mut s| s.take())
-                .unwrap_or_else(|| pool_error(py, PoolError::Interrupted)),
+            PoolError::Interrupted => take_interrupt(py, &self.interrupted),
             e => pool_error(py, e),
         })
     }
@@ -185,17 +180,30 @@ impl PyPool {
     }
 }
 
+/// The exception a signal handler raised during a wait (e.g. `KeyboardInterrupt`), or the
+/// pool's own error when there is none.
+fn take_interrupt(py: Python<'_>, slot: &Mutex<Option<PyErr>>) -> PyErr {
+    slot.lock()
+        .ok()
+        .and_then(|mut s| s.take())
+        .unwrap_or_else(|| pool_error(py, PoolError::Interrupted))
+}
+
 #[pymethods]
 impl PyPool {
     /// Start a pool (spawns the workers and waits until they are ready; GIL released).
     #[new]
     fn new(py: Python<'_>, settings_json: &str, worker_command: Vec<String>) -> PyResult<Self> {
         let cfg = settings::pool_config(settings_json, worker_command)?;
-        let mut pool = py
-            .detach(|| Pool::new(cfg, &crate::registry()))
-            .map_err(|e| pool_error(py, e))?;
         let interrupted = Arc::new(Mutex::new(None));
-        pool.set_interrupt_check(Some(interrupt_check(interrupted.clone())));
+        // The signal check runs during the start-up too: Ctrl-C stops a slow one at once.
+        let check = interrupt_check(interrupted.clone());
+        let pool = py
+            .detach(|| Pool::with_interrupt_check(cfg, &crate::registry(), Some(check)))
+            .map_err(|e| match e {
+                PoolError::Interrupted => take_interrupt(py, &interrupted),
+                e => pool_error(py, e),
+            })?;
         let spec = pool.spec().clone();
         let pids = pool.pids_handle();
         Ok(PyPool {

@@ -334,3 +334,11 @@ class SleepEnv(gym.Env):
     def step(self, action: Any) -> Any:
         time.sleep(self.delay)
         return np.zeros(1, np.float32), 0.0, False, False, {}
+
+
+def slow_in_workers(creator: int, delay: float) -> gym.Env:
+    """CartPole, built at once in the creating process and after ``delay`` seconds in any other
+    (a worker): a pool of it takes that long to start."""
+    if os.getpid() != creator:
+        time.sleep(delay)
+    return gym.make("CartPole-v1")

@@ -12,6 +12,7 @@ The fixtures close every pool and check that no worker or file is left behind.
 
 from __future__ import annotations
 
+import functools
 import os
 import random
 import signal
@@ -26,6 +27,7 @@ import pytest
 from rogue_gym import PoolVectorEnv, WorkerCrashedError
 
 from conftest import pid_alive, wait_until
+from hosted_envs import slow_in_workers
 
 #: Seconds of the storm faster than restarts, per env kind.
 STORM_S = 4.0
@@ -278,3 +280,38 @@ def test_every_class_shows_restarts_and_worker_pids(make_vec) -> None:
         for name, env in made.items():
             if name != "RogueVectorEnv":  # the fixture closes that one
                 env.close()
+
+
+def children() -> set[int]:
+    """This process's live child processes."""
+    out = set()
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as f:
+                    fields = f.read().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == os.getpid() and fields[0] != "Z":
+                out.add(int(entry))
+    return out
+
+
+@pytest.mark.timeout(60)
+def test_ctrl_c_stops_a_slow_start_up_at_once_and_leaves_nothing(sigint_handler) -> None:
+    """Workers whose envs take a minute to build, and a start-up bound of two: Ctrl-C half a
+    second in raises KeyboardInterrupt at once, not when the start-up ends, and the workers and
+    the pool's files are gone."""
+    before, shm = children(), set(os.listdir("/dev/shm"))
+    fn = functools.partial(slow_in_workers, os.getpid(), 60.0)
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    t0 = time.monotonic()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            PoolVectorEnv([fn] * 2, num_workers=2, start_timeout=120.0)
+    finally:
+        timer.cancel()
+    assert time.monotonic() - t0 < 10
+    assert wait_until(lambda: children() <= before), "workers left running"
+    assert set(os.listdir("/dev/shm")) <= shm, "pool files left behind"

@@ -124,6 +124,18 @@ impl Pool {
     /// workers and wait until all are ready. Call [`Pool::reset`] or [`Pool::async_reset`]
     /// next.
     pub fn new(cfg: PoolConfig, registry: &EnvRegistry) -> Result<Pool, PoolError> {
+        Pool::with_interrupt_check(cfg, registry, None)
+    }
+
+    /// [`Pool::new`] with [`Pool::set_interrupt_check`]'s check already installed, so that it
+    /// runs while the workers start too: a start-up of envs slow to build (its bound is
+    /// `start_timeout`) can be interrupted, with [`PoolError::Interrupted`], and everything it
+    /// started is cleaned up.
+    pub fn with_interrupt_check(
+        cfg: PoolConfig,
+        registry: &EnvRegistry,
+        interrupt: Option<InterruptCheck>,
+    ) -> Result<Pool, PoolError> {
         if cfg.num_workers == 0 || cfg.num_envs == 0 {
             return Err(PoolError::Config(
                 "num_envs and num_workers must be at least 1".into(),
@@ -211,7 +223,7 @@ impl Pool {
         let num_workers = cfg.num_workers;
         let mut pool = Pool {
             listener: None,
-            interrupt: None,
+            interrupt,
             core: Core {
                 cfg,
                 spec,
