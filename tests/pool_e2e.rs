@@ -411,6 +411,47 @@ fn partial_reset_needs_a_started_pool_and_a_full_mask() {
 }
 
 #[test]
+fn action_extras_reach_their_envs_with_the_step_even_by_send() {
+    // 5 envs on 2 workers: blocks 0..3 and 3..5.
+    let mut p = pool(config(EXE, test_env(), 5, 2));
+    let mut out = BatchOutput::default();
+    let extra =
+        |p: &mut Pool, env: usize| p.call_envs(&[(env, b"x".to_vec())]).unwrap()[0].1.clone();
+    p.reset_shared(&mut out).unwrap();
+    p.stage_action_extras(&[(1, b"one".to_vec()), (4, b"four".to_vec())])
+        .unwrap();
+    p.step_shared(&[0; 5], &mut out).unwrap();
+    assert_eq!(extra(&mut p, 1), b"one");
+    assert_eq!(extra(&mut p, 4), b"four");
+    assert_eq!(extra(&mut p, 0), b"");
+    // A reset drops what is staged; the next step carries nothing.
+    p.stage_action_extras(&[(0, b"zero".to_vec())]).unwrap();
+    p.reset_shared(&mut out).unwrap();
+    p.step_shared(&[0; 5], &mut out).unwrap();
+    assert_eq!(extra(&mut p, 0), b"");
+    // EnvPool-style: one worker's envs at a time, each send with its own staged extras.
+    p.stage_action_extras(&[(3, b"three".to_vec())]).unwrap();
+    p.send(&[0, 0], &[3, 4]).unwrap();
+    p.stage_action_extras(&[(1, b"uno".to_vec())]).unwrap();
+    p.send(&[0, 0, 0], &[0, 1, 2]).unwrap();
+    p.recv().unwrap();
+    assert_eq!(extra(&mut p, 3), b"three");
+    assert_eq!(extra(&mut p, 1), b"uno");
+    // An env that refuses its extra fails the step, naming it; a reset recovers.
+    p.stage_action_extras(&[(2, b"bad".to_vec())]).unwrap();
+    let e = p.step_shared(&[0; 5], &mut out).unwrap_err();
+    assert!(
+        matches!(&e, PoolError::EnvFailed { fault, .. } if fault.env == 2),
+        "{e}"
+    );
+    assert!(e.to_string().contains("a bad action extra"), "{e}");
+    let e = p.stage_action_extras(&[(7, b"x".to_vec())]).unwrap_err();
+    assert!(e.to_string().contains("env 7 does not exist"), "{e}");
+    p.reset_shared(&mut out).unwrap();
+    p.step_shared(&[0; 5], &mut out).unwrap();
+}
+
+#[test]
 fn env_calls_reach_the_chosen_envs_in_order_and_errors_name_the_env() {
     // 5 envs on 2 workers: blocks 0..3 and 3..5.
     let mut p = pool(config(EXE, test_env(), 5, 2));

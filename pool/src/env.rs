@@ -135,6 +135,15 @@ pub trait Env {
             "this env kind takes action indices, not raw action bytes",
         ))
     }
+    /// Take the part of the next step's action that has no fixed size, just before that step
+    /// (bytes whose meaning is the env's business; hosted envs: the pickled values of an
+    /// action space's leaves of no fixed size). The default says the env takes none.
+    fn set_action_extra(&mut self, extra: &[u8]) -> Result<(), EnvError> {
+        let _ = extra;
+        Err(EnvError::new(
+            "this env kind takes actions of a fixed size only (no action extras)",
+        ))
+    }
     /// Append the variable-size extra info of the last command (its `reset`, its `step`, or
     /// a step and its autoreset) to `out`; append nothing for none. Called once after each
     /// command, only for specs with [`EnvSpec::extra_bytes`] > 0; what the bytes mean is the

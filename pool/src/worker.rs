@@ -18,9 +18,9 @@ use crate::registry::{Built, EnvRegistry};
 use crate::stats::{Counter, StatsBuffer, ns_since, stamp};
 use crate::wire::layout::BlockLayout;
 use crate::wire::{
-    BATCH_BUFFER, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_CALL, CMD_CLOSE, CMD_STEP,
-    EnvFault, RELOAD_SEEDS, TARGET_SHIFT, WorkerConfig, calls, env_fault_path, extra_apart_path,
-    slot_bytes,
+    ACTION_EXTRAS, BATCH_BUFFER, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_CALL,
+    CMD_CLOSE, CMD_STEP, EnvFault, RELOAD_SEEDS, TARGET_BITS, TARGET_SHIFT, WorkerConfig, calls,
+    env_fault_path, extra_apart_path, slot_bytes,
 };
 
 mod block;
@@ -28,7 +28,7 @@ mod hosted;
 mod slot;
 
 use block::BlockHost;
-use hosted::{Hosted, answer_calls};
+use hosted::{Hosted, answer_calls, take_action_extras};
 use slot::{BlockOut, Slot, SlotCtx};
 
 #[derive(Debug, thiserror::Error)]
@@ -264,7 +264,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         payload[..n].copy_from_slice(&cmd.payload()[..n]);
         drop(cmd);
 
-        let target = ((h.kind & (RELOAD_SEEDS - 1)) >> TARGET_SHIFT) as usize;
+        let target = ((h.kind & TARGET_BITS) >> TARGET_SHIFT) as usize;
         if h.kind & RELOAD_SEEDS != 0 {
             seeds = read_config(&a.config).map_err(WorkerError::Msg)?.seeds;
         }
@@ -309,9 +309,17 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
             apart: &mut apart,
         };
         let serving = stamp();
-        let mut failed = hosted
-            .serve(kind, &payload[..n], per_env, &mut out, &ctx)
-            .err();
+        let extras = if kind == CMD_STEP && h.kind & ACTION_EXTRAS != 0 {
+            take_action_extras(&id, (a.index, a.generation), &mut hosted, first_env as u64)
+        } else {
+            Ok(())
+        };
+        let mut failed = match extras {
+            Ok(()) => hosted
+                .serve(kind, &payload[..n], per_env, &mut out, &ctx)
+                .err(),
+            Err(f) => Some(f),
+        };
         stats.add(me, Counter::EnvNs, ns_since(serving));
         stats.add(me, Counter::EnvSteps, epw as u64);
         stats.add(me, Counter::Commands, 1);

@@ -487,6 +487,16 @@ impl Env for HostedEnv {
         Ok(())
     }
 
+    fn set_action_extra(&mut self, extra: &[u8]) -> Result<(), EnvError> {
+        Python::attach(|py| {
+            self.adapter
+                .bind(py)
+                .call_method1(intern!(py, "set_action_extra"), (PyBytes::new(py, extra),))
+                .map_err(|e| env_error(py, &self.encoded, e))?;
+            Ok(())
+        })
+    }
+
     fn call(&mut self, request: &[u8]) -> Result<Vec<u8>, EnvError> {
         Python::attach(|py| {
             let b = self

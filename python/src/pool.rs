@@ -555,6 +555,13 @@ impl PyPool {
         Ok(list)
     }
 
+    /// Stage the parts of no fixed size of the next step's actions, `(env id, bytes)` each: the
+    /// next step command to each env's worker carries them, and the env takes them just before
+    /// it steps (hosted envs: `set_action_extra`).
+    fn stage_action_extras(&self, py: Python<'_>, extras: Vec<(usize, Vec<u8>)>) -> PyResult<()> {
+        self.with_pool(py, move |p, _| p.stage_action_extras(&extras))
+    }
+
     /// The envs worker `k` hosts, as `(start, end)` (contiguous blocks differing by at most one
     /// env, the larger first).
     fn worker_envs(&self, py: Python<'_>, k: usize) -> PyResult<(usize, usize)> {

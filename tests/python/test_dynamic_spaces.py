@@ -66,14 +66,23 @@ def test_partial_reset_keeps_the_other_envs_dynamic_values(pool) -> None:
     assert again["path"][0] == obs["path"][0] and again["path"][2] == obs["path"][2]
 
 
-def test_async_recv_carries_dynamic_observations_and_send_refuses_dynamic_actions(pool) -> None:
+def test_async_send_and_recv_carry_dynamic_values_both_ways(pool) -> None:
+    """EnvPool-style send/recv of some workers at a time: each env's Text action reaches it
+    with its own step (the others are busy meanwhile), and its Text observation comes back."""
     ours = pool([NoteEnv] * 4, num_workers=2, batch_size=2)
     ours.async_reset(seed=0)
-    obs, _, _, _, infos = ours.recv()
-    assert obs["note"] == ("", "") and len(obs["path"]) == 2 and obs["pos"].shape == (2, 2)
-    act = {"move": np.zeros(2, np.int64), "say": ("a", "b")}
-    with pytest.raises(ValueError, match=r"step\(\) or step_async\(\)"):
-        ours.send(act, infos["env_id"])
+    said: dict[int, str] = {}
+    for t in range(6):
+        obs, reward, _, _, infos = ours.recv()
+        ids = [int(e) for e in infos["env_id"]]
+        assert len(obs["note"]) == 2 and obs["pos"].shape == (2, 2)
+        for row, env in enumerate(ids):
+            if env in said:  # its last action's text, echoed (a step of its first episode)
+                assert obs["note"][row].startswith(said[env]), (env, obs["note"][row])
+                assert reward[row] == len(said[env])
+        words = tuple(f"e{env}t{t}" for env in ids)
+        said.update(zip(ids, words))
+        ours.send({"move": np.zeros(2, np.int64), "say": words}, infos["env_id"])
 
 
 def test_text_only_spaces_both_ways(pool) -> None:

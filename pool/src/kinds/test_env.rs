@@ -12,7 +12,8 @@ use crate::seeds::splitmix;
 /// JSON spec (all fields optional): `{"kind": "test", "obs_shape": [4, 8, 8], "dtype": "u8",
 /// "num_actions": 5, "max_steps": 50, "work": 0, "fail_on_action": null}`. `work` adds that
 /// many mixing rounds per step (simulated compute). `fail_on_action` makes `step` return an
-/// error for that action (fault injection).
+/// error for that action (fault injection). It takes action extras (kept until the next one;
+/// `b"bad"` is refused) and answers the calls `t` (its step count) and `x` (its last extra).
 #[derive(Debug, Clone)]
 pub struct TestEnv {
     spec: EnvSpec,
@@ -21,6 +22,7 @@ pub struct TestEnv {
     fail_on_action: Option<usize>,
     state: u64,
     t: u32,
+    extra: Vec<u8>,
 }
 
 fn get_u64(v: &Value, key: &str, default: u64) -> Result<u64, EnvError> {
@@ -77,6 +79,7 @@ impl TestEnv {
             fail_on_action,
             state: 0,
             t: 0,
+            extra: Vec::new(),
         })
     }
 
@@ -140,9 +143,18 @@ impl Env for TestEnv {
     }
 
     /// Calls: `b"t"` answers the episode's step count (u32, little endian).
+    fn set_action_extra(&mut self, extra: &[u8]) -> Result<(), EnvError> {
+        if extra == b"bad" {
+            return Err(EnvError::new("test env: a bad action extra"));
+        }
+        self.extra = extra.to_vec();
+        Ok(())
+    }
+
     fn call(&mut self, request: &[u8]) -> Result<Vec<u8>, EnvError> {
         match request {
             b"t" => Ok(self.t.to_le_bytes().to_vec()),
+            b"x" => Ok(self.extra.clone()),
             other => Err(EnvError::new(format!(
                 "test env: unknown call {:?}",
                 String::from_utf8_lossy(other)

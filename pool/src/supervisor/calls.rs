@@ -1,12 +1,54 @@
 //! Env calls: requests to chosen envs answered by their workers off the hot path (attribute
 //! reads and writes, method calls, renders), through files in the pool's directory.
 
-use super::Pool;
 use super::workers::SlotState;
+use super::{Core, Pool};
 use crate::error::PoolError;
 use crate::wire::{CMD_CALL, calls};
 
+/// One worker's entries of a call file: `(row in its block, bytes)`.
+type Entries<'a> = Vec<(u32, &'a [u8])>;
+
+impl Core {
+    /// `(env id, bytes)` entries grouped by worker.
+    fn per_worker<'a>(
+        &self,
+        entries: &'a [(usize, Vec<u8>)],
+    ) -> Result<Vec<Entries<'a>>, PoolError> {
+        let mut out: Vec<Entries<'a>> = vec![Vec::new(); self.blocks.len()];
+        for (env, bytes) in entries {
+            let k = self
+                .blocks
+                .iter()
+                .position(|b| b.contains(env))
+                .ok_or_else(|| {
+                    PoolError::Config(format!(
+                        "env {env} does not exist (the pool has {} envs)",
+                        self.cfg.num_envs
+                    ))
+                })?;
+            out[k].push(((env - self.blocks[k].start) as u32, bytes.as_slice()));
+        }
+        Ok(out)
+    }
+}
+
 impl Pool {
+    /// Stage the parts of no fixed size of the next step's actions, `(env id, bytes)` each:
+    /// the next step command to an env's worker carries them (in a private file beside it),
+    /// and the env takes them ([`crate::Env::set_action_extra`]) just before it steps. What
+    /// was staged before for those workers is replaced; a reset drops what it finds staged.
+    /// This works for EnvPool-style [`Pool::send_actions`] to some workers too.
+    pub fn stage_action_extras(&mut self, extras: &[(usize, Vec<u8>)]) -> Result<(), PoolError> {
+        let per_worker = self.core.per_worker(extras)?;
+        for (k, entries) in per_worker.iter().enumerate() {
+            if !entries.is_empty() {
+                self.core.slots[k].action_extras = Some(calls::encode(entries));
+            }
+        }
+        Ok(())
+    }
+
     /// Send `requests` (`(env id, request bytes)`) to their envs ([`crate::Env::call`]) and
     /// return the replies, `(env id, reply bytes)` in the same order. Needs no outstanding
     /// async request; works before the first reset. An env's error is
@@ -18,21 +60,8 @@ impl Pool {
     ) -> Result<Vec<(usize, Vec<u8>)>, PoolError> {
         self.begin_call()?;
         self.all_idle()?;
+        let per_worker = self.core.per_worker(requests)?;
         let c = &mut self.core;
-        let mut per_worker: Vec<Vec<(u32, &[u8])>> = vec![Vec::new(); c.blocks.len()];
-        for (env, request) in requests {
-            let k = c
-                .blocks
-                .iter()
-                .position(|b| b.contains(env))
-                .ok_or_else(|| {
-                    PoolError::Config(format!(
-                        "env {env} does not exist (the pool has {} envs)",
-                        c.cfg.num_envs
-                    ))
-                })?;
-            per_worker[k].push(((env - c.blocks[k].start) as u32, request.as_slice()));
-        }
         let mut asked = Vec::new();
         for (k, entries) in per_worker.iter().enumerate() {
             if entries.is_empty() {

@@ -297,6 +297,7 @@ impl Pool {
                 restart_streak: 0,
                 stderr_path: PathBuf::new(),
                 target: 0,
+                action_extras: None,
             });
         }
         c.node = Some(node);

@@ -17,8 +17,8 @@ use crate::batch::Block;
 use crate::config::{AutoresetMode, FailurePolicy};
 use crate::error::{FailureCause, PoolError, WorkerFailure};
 use crate::wire::{
-    BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE,
-    RELOAD_SEEDS, TARGET_SHIFT, calls, env_fault_path, extra_apart_path,
+    ACTION_EXTRAS, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_RESET, CMD_STEP, EnvFault,
+    KEEP_EPISODE, RELOAD_SEEDS, TARGET_SHIFT, calls, env_fault_path, extra_apart_path,
 };
 
 pub(super) enum SlotState {
@@ -71,6 +71,9 @@ pub(super) struct WorkerSlot {
     /// Failures of this worker in a row, with no answer to a command in between (see
     /// [`restart_backoff`]); an answer ends the streak.
     pub(super) restart_streak: u32,
+    /// Action extras staged for its next step ([`crate::Pool::stage_action_extras`]), encoded
+    /// as a call file.
+    pub(super) action_extras: Option<Vec<u8>>,
 }
 
 /// The longest wait before a restart.
@@ -164,6 +167,7 @@ impl Core {
         mask: Option<&[bool]>,
     ) -> Result<(), PoolError> {
         let range = self.env_range(k);
+        self.slots[k].action_extras = None; // staged for a step that a reset replaces
         // A replaced worker resets all its envs; in a partial reset they say why.
         let cut = std::mem::take(&mut self.slots[k].cut);
         self.slots[k].restarted |= cut && mask.is_some();
@@ -210,10 +214,15 @@ impl Core {
             return self.send_reset(k, target);
         }
         let aw = self.spec.action_words();
+        let mut kind = CMD_STEP | (target << TARGET_SHIFT);
+        if let Some(extras) = self.slots[k].action_extras.take() {
+            let path = calls::action_extras_path(&self.id, k, self.slots[k].generation);
+            calls::write(&path, &extras).map_err(PoolError::Io)?;
+            kind |= ACTION_EXTRAS;
+        }
         let s = &mut self.slots[k];
         s.seq += 1;
         s.target = target;
-        let kind = CMD_STEP | (target << TARGET_SHIFT);
         let words = self.blocks[k].len() * aw;
         s.ports.send_cmd(s.seq, kind, words, |p| match actions {
             Actions::Indices(a) => {

@@ -21,6 +21,13 @@ pub(crate) fn reply_path(id: &PoolId, k: usize, generation: u64) -> PathBuf {
     id.aux_dir().join(format!("w{k}.g{generation}.call-reply"))
 }
 
+/// Where the supervisor puts the action extras of worker `k`'s next step (generation
+/// `generation`), in the format of a call file: one entry per env that has any.
+pub(crate) fn action_extras_path(id: &PoolId, k: usize, generation: u64) -> PathBuf {
+    id.aux_dir()
+        .join(format!("w{k}.g{generation}.action-extras"))
+}
+
 /// Encode `(row, bytes)` entries.
 pub fn encode(entries: &[(u32, &[u8])]) -> Vec<u8> {
     let mut out = Vec::with_capacity(entries.iter().map(|(_, b)| 12 + b.len()).sum());

@@ -32,6 +32,11 @@ pub(crate) const CMD_CALL: u32 = 4;
 pub(crate) const TARGET_SHIFT: u32 = 8;
 /// Flag of a reset command: re-read the seed schedule from the config file first.
 pub(crate) const RELOAD_SEEDS: u32 = 1 << 16;
+/// Flag of a step command: hand the envs the parts of their actions of no fixed size, in the
+/// worker's action-extras file ([`calls::action_extras_path`]), before they step.
+pub(crate) const ACTION_EXTRAS: u32 = 1 << 17;
+/// The bits of a command kind that name its observation target (below the flags).
+pub(crate) const TARGET_BITS: u32 = RELOAD_SEEDS - 1;
 /// Name of the shared batch buffer (`/dev/shm/<prefix>batch`).
 pub(crate) const BATCH_BUFFER: &str = "batch";
 /// Default number of slots of the shared batch buffer (double buffering).

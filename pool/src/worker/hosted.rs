@@ -48,6 +48,37 @@ impl Hosted {
     }
 }
 
+/// The entries of one of the worker's call files, each handed to its env by `f` (env row,
+/// bytes); the first error stops them, as a fault of `context` naming the env (`first` is the
+/// block's first env id).
+fn for_each_entry<T>(
+    path: &std::path::Path,
+    hosted: &mut Hosted,
+    first: u64,
+    context: &str,
+    mut f: impl FnMut(&mut Hosted, usize, &[u8]) -> Result<T, crate::EnvError>,
+) -> Result<Vec<(u32, T)>, EnvFault> {
+    let fail = |env: u64, message: String| EnvFault {
+        env,
+        context: context.into(),
+        message,
+    };
+    let entries = calls::take(path).map_err(|e| fail(first, e))?;
+    let mut out = Vec::with_capacity(entries.len());
+    for (row, bytes) in &entries {
+        let j = *row as usize;
+        if j >= hosted.len() {
+            return Err(fail(
+                first,
+                format!("entry for row {row}, outside the block"),
+            ));
+        }
+        let value = f(hosted, j, bytes).map_err(|e| fail(first + j as u64, e.to_string()))?;
+        out.push((*row, value));
+    }
+    Ok(out)
+}
+
 /// Answer the call requests of the worker's call file ([`calls`]), env by env.
 pub(super) fn answer_calls(
     id: &PoolId,
@@ -55,35 +86,37 @@ pub(super) fn answer_calls(
     hosted: &mut Hosted,
     first: u64,
 ) -> Result<(), EnvFault> {
-    let fail = |env: u64, message: String| EnvFault {
-        env,
-        context: "a call".into(),
-        message,
-    };
-    let requests =
-        calls::take(&calls::request_path(id, index, generation)).map_err(|e| fail(first, e))?;
-    let mut replies = Vec::with_capacity(requests.len());
-    for (row, request) in &requests {
-        let j = *row as usize;
-        if j >= hosted.len() {
-            return Err(fail(
-                first,
-                format!("call for row {row}, outside the block"),
-            ));
-        }
-        let reply = match hosted {
-            Hosted::Each(slots) => slots[j].env.call(request),
-            Hosted::Block(host) => host.call(j, request),
-        };
-        replies.push((
-            *row,
-            reply.map_err(|e| fail(first + j as u64, e.to_string()))?,
-        ));
-    }
+    let path = calls::request_path(id, index, generation);
+    let replies = for_each_entry(&path, hosted, first, "a call", |h, j, request| match h {
+        Hosted::Each(slots) => slots[j].env.call(request),
+        Hosted::Block(host) => host.call(j, request),
+    })?;
     let entries: Vec<(u32, &[u8])> = replies.iter().map(|(r, b)| (*r, b.as_slice())).collect();
     calls::write(
         &calls::reply_path(id, index, generation),
         &calls::encode(&entries),
     )
-    .map_err(|e| fail(first, e))
+    .map_err(|message| EnvFault {
+        env: first,
+        context: "a call".into(),
+        message,
+    })
+}
+
+/// Hand each env its action extra of the next step, from the worker's action-extras file
+/// ([`calls::action_extras_path`]).
+pub(super) fn take_action_extras(
+    id: &PoolId,
+    (index, generation): (usize, u64),
+    hosted: &mut Hosted,
+    first: u64,
+) -> Result<(), EnvFault> {
+    let path = calls::action_extras_path(id, index, generation);
+    for_each_entry(&path, hosted, first, "actions", |h, j, extra| match h {
+        Hosted::Each(slots) => slots[j].env.set_action_extra(extra),
+        Hosted::Block(_) => Err(crate::EnvError::new(
+            "a vector env per worker takes actions of a fixed size only",
+        )),
+    })?;
+    Ok(())
 }

@@ -5,7 +5,8 @@ The pool's Rust worker loop calls :class:`HostedEnv` (through ``python/src/hoste
 every reset of the env, and steps the env itself with the parts of :meth:`HostedEnv.step_parts`
 (the hot path has no Python frame of ours). An observation's dynamic leaves (Text, Graph,
 Sequence, OneOf, custom spaces) travel pickled in the command's info, as entries of their own
-beside the env's info (``STEP_OBS``, ``RESET_OBS``); a step's dynamic actions arrive before it, by a ``set_actions`` call.
+beside the env's info (``STEP_OBS``, ``RESET_OBS``); a step's dynamic actions arrive with
+its command, in a private file beside it, and reach :meth:`HostedEnv.set_action_extra` first.
 Any exception of the env is raised as :class:`EncodedEnvError`, whose message carries the exception (type, message, worker-side
 traceback, and the exception itself pickled when it can be) to the caller, where
 :func:`decode_exception` rebuilds it.
@@ -52,7 +53,6 @@ CALL_OPS = (
     "render",
     "set_reset_options",
     "set_reset_seed",
-    "set_actions",
 )
 
 #: The key of an encoded exception in an env error message.
@@ -205,13 +205,13 @@ class HostedEnv:
         #: The last observation (for :meth:`observe`).
         self._last: Any = None
         self._info_encoder = InfoEncoder()
-        #: The dynamic leaves of the next step's action (set by a ``set_actions`` call).
+        #: The dynamic leaves of the next step's action (see :meth:`set_action_extra`).
         self._dynamic_actions: list[Any] = []
         self._decode = self._act.decoder() if not self._act.dynamic else self._decode_dynamic
 
     def _decode_dynamic(self, data: bytes) -> Any:
         """An action with dynamic leaves: its fixed leaves from ``data``, the others as the
-        last ``set_actions`` call left them (each used once)."""
+        step's command brought them (each used once)."""
         dynamic, self._dynamic_actions = self._dynamic_actions, []
         if len(dynamic) != len(self._act.dynamic):
             raise RuntimeError("no dynamic action values arrived for this step")
@@ -351,8 +351,18 @@ class HostedEnv:
     def _op_set_reset_seed(self, name: str, seed: int) -> None:
         self._seed = int(seed)
 
-    def _op_set_actions(self, name: str, values: list[Any]) -> None:
-        self._dynamic_actions = list(values)
+    @_guarded
+    def set_action_extra(self, data: bytes) -> None:
+        """The values of the dynamic leaves of the next step's action (a pickled list, in the
+        order of the action layout's dynamic leaves), from the step's command: a private file
+        of the pool's, written by the caller."""
+        values = pickle.loads(data)
+        if not isinstance(values, list) or len(values) != len(self._act.dynamic):
+            raise ValueError(
+                f"the step's action extra holds {values!r}; expected a list of "
+                f"{len(self._act.dynamic)} values"
+            )
+        self._dynamic_actions = values
 
     def observe(self, address: int) -> None:
         """Write the current observation again, at ``address`` (for partial resets)."""

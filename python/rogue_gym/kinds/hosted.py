@@ -283,17 +283,14 @@ class HostedKind:
         rows = self._act_rows if env_ids is None else np.zeros((n, self._act_bytes), np.uint8)
         flat = self._act_layout.flat_batch(actions, rows)
         if self._act_layout.dynamic:
-            self._send_dynamic_actions(actions, env_ids, n)
+            self._stage_dynamic_actions(actions, env_ids, n)
         return flat
 
-    def _send_dynamic_actions(self, actions: Any, env_ids: Optional[Sequence[int]], n: int) -> None:
-        """Hand each env the values of its action's dynamic leaves (one call, before the step
-        that uses them)."""
-        if env_ids is not None:
-            raise ValueError(
-                f"the action space {self.single_action_space} has leaves of no fixed size, which "
-                "travel by a call before each step: use step() or step_async(), not send()"
-            )
+    def _stage_dynamic_actions(
+        self, actions: Any, env_ids: Optional[Sequence[int]], n: int
+    ) -> None:
+        """Stage each env's values of its action's dynamic leaves (pickled) with the pool:
+        the step command to its worker carries them."""
         columns = self._act_layout.dynamic_values(actions)
         for (path, space), column in zip(self._act_layout.dynamic, columns):
             where = "".join(f"[{k!r}]" for k in path) or "actions"
@@ -303,10 +300,12 @@ class HostedKind:
                 raise ValueError(f"{where} has {len(column)} values of {space}; expected {n}")
         core = self._core() if self._core is not None else None
         assert core is not None  # bound before any step
-        per_env: list[tuple[tuple[Any, ...], dict[str, Any]]] = [
-            ((list(row),), {}) for row in zip(*columns)
+        ids = range(n) if env_ids is None else env_ids
+        extras = [
+            (int(env), pickle.dumps(list(row), protocol=pickle.HIGHEST_PROTOCOL))
+            for env, row in zip(ids, zip(*columns))
         ]
-        self.call(core, "set_actions", "", per_env, range(n))
+        core.pool.stage_action_extras(extras)
 
     def _discrete_indices(
         self, actions: Any, env_ids: Optional[Sequence[int]], n: int
