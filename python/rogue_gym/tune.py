@@ -205,35 +205,6 @@ def candidates(kind: str, num_envs: int, gym_id: Optional[str], cpus: int) -> li
     return out
 
 
-def _build(
-    kind: str,
-    env_fn: Any,
-    gym_id: Optional[str],
-    num_envs: int,
-    c: Candidate,
-    start_timeout: Optional[float] = None,
-) -> Any:
-    import rogue_gym
-
-    kw = dict(c.kwargs)
-    if start_timeout is not None and kind == "hosted" and c.mode != "sync":
-        kw["start_timeout"] = start_timeout
-    fns = env_fn if isinstance(env_fn, list) else [env_fn] * num_envs
-    if c.mode == "sync":
-        return gym.vector.SyncVectorEnv(fns)
-    if kind == "native":
-        return rogue_gym.make_vec(num_envs, config="paper", seed=0, **kw)
-    if c.mode == "vector":
-        assert gym_id is not None  # vector candidates exist for gymnasium ids only
-        make = functools.partial(_vector_env, gym_id)
-        return rogue_gym.PoolVectorEnv.from_vector_env(make, num_envs, **kw)
-    return rogue_gym.PoolVectorEnv(fns, **kw)
-
-
-def _vector_env(gym_id: str, n: int) -> Any:
-    return gym.make_vec(gym_id, n, vectorization_mode="vector_entry_point")
-
-
 @dataclass(frozen=True)
 class _Target:
     """What tune times: the env kind, its factory (or factories), its gymnasium id if any, the
@@ -246,15 +217,37 @@ class _Target:
     start_timeout: Optional[float] = None
 
 
+def _build(target: _Target, c: Candidate) -> Any:
+    """``c``'s vector env of ``target``'s envs."""
+    import rogue_gym
+
+    kw = dict(c.kwargs)
+    if target.start_timeout is not None and target.kind == "hosted" and c.mode != "sync":
+        kw["start_timeout"] = target.start_timeout
+    n, env_fn = target.num_envs, target.env_fn
+    fns = env_fn if isinstance(env_fn, list) else [env_fn] * n
+    if c.mode == "sync":
+        return gym.vector.SyncVectorEnv(fns)
+    if target.kind == "native":
+        return rogue_gym.make_vec(n, config="paper", seed=0, **kw)
+    if c.mode == "vector":
+        assert target.gym_id is not None  # vector candidates exist for gymnasium ids only
+        make = functools.partial(_vector_env, target.gym_id)
+        return rogue_gym.PoolVectorEnv.from_vector_env(make, n, **kw)
+    return rogue_gym.PoolVectorEnv(fns, **kw)
+
+
+def _vector_env(gym_id: str, n: int) -> Any:
+    return gym.make_vec(gym_id, n, vectorization_mode="vector_entry_point")
+
+
 class _Live:
     """One candidate's vector env, built, reset and warmed up, stepped in bursts of random
     actions (sampled in advance) until closed."""
 
     def __init__(self, target: _Target, c: Candidate) -> None:
         self.candidate = c
-        self.env = _build(
-            target.kind, target.env_fn, target.gym_id, target.num_envs, c, target.start_timeout
-        )
+        self.env = _build(target, c)
         try:
             self.env.action_space.seed(0)
             acts = [self.env.action_space.sample() for _ in range(16)]
