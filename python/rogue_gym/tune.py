@@ -243,23 +243,32 @@ def _vector_env(gym_id: str, n: int) -> Any:
 
 class _Live:
     """One candidate's vector env, built, reset and warmed up, stepped in bursts of random
-    actions (sampled in advance) until closed."""
+    actions (sampled in advance) until closed.
+
+    Between bursts nothing runs: an async layout receives every batch still in flight before a
+    burst ends and sends them their actions when the next begins. Otherwise its workers would
+    go on stepping while the other pool of a duel is timed, slowing that one and starting the
+    next burst with steps already done."""
 
     def __init__(self, target: _Target, c: Candidate) -> None:
         self.candidate = c
         self.env = _build(target, c)
+        self._held: list[Any] = []  # async: env ids of the batches received, not yet answered
         try:
             self.env.action_space.seed(0)
             acts = [self.env.action_space.sample() for _ in range(16)]
             if c.mode == "async":
                 self.rows = int(c.kwargs["batch_size"])
+                self.in_flight = target.num_envs // self.rows
                 self.acts = [np.asarray(a)[: self.rows] for a in acts]
                 self.env.async_reset()
             else:
                 self.rows = target.num_envs
+                self.in_flight = 0
                 self.acts = acts
                 self.env.reset(seed=0)
             self._steps(_WARMUP_STEPS)
+            self._drain()
         except BaseException:
             self.env.close()
             raise
@@ -274,12 +283,26 @@ class _Live:
             for i in range(n):
                 env.step(acts[i % 16])
 
+    def _resume(self) -> None:
+        """Async: answer the batches held since the last burst."""
+        for ids in self._held:
+            self.env.send(self.acts[0], env_id=ids)
+        self._held = []
+
+    def _drain(self) -> int:
+        """Async: receive every batch in flight and hold it; the rows received."""
+        for _ in range(self.in_flight):
+            self._held.append(self.env.recv()[4]["env_id"])
+        return self.in_flight * self.rows
+
     def burst(self, seconds: float) -> float:
-        """Steps/s over about ``seconds`` of stepping."""
+        """Steps/s over about ``seconds`` of stepping, with nothing left running after it."""
         steps, t0 = 0, time.perf_counter()
+        self._resume()
         while time.perf_counter() - t0 < seconds:
             self._steps(10)
             steps += 10 * self.rows
+        steps += self._drain()
         return steps / (time.perf_counter() - t0)
 
     def reset_stats(self) -> None:

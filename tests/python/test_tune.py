@@ -85,3 +85,17 @@ def test_a_duel_names_the_faster_layout_first() -> None:
     d = tune_mod.duel(slow, 4, one, four, pairs=4, burst=0.1)
     assert (d.first, d.second) == (four.label, one.label)
     assert len(d.ratios) == 4 and d.ratio > 1.5
+
+
+def test_an_async_layout_leaves_nothing_running_between_bursts() -> None:
+    # In a duel the other pool is timed between this one's bursts: steps still in flight would
+    # take its CPUs and start this one's next burst with work already done.
+    slow = [functools.partial(SleepEnv, 0.002)] * 4
+    target = tune_mod._Target("hosted", slow, None, 4)
+    batched = tune_mod.Candidate("async", {"num_workers": 4, "batch_size": 2})
+    with tune_mod._Live(target, batched) as live:
+        assert live.burst(0.1) > 0
+        before = live.env.stats().env_steps
+        time.sleep(0.2)  # 100 steps' time of each env, were any running
+        assert live.env.stats().env_steps == before
+        assert live.burst(0.1) > 0  # and the held batches go on where they stopped
