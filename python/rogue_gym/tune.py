@@ -324,16 +324,6 @@ class _Live:
         self.env.close()
 
 
-def _time_one(
-    target: _Target, c: Candidate, seconds: float
-) -> tuple[float, tuple[float, float, float]]:
-    """Steps/s of one fresh pool, and its shares of the time (env, transport, caller)."""
-    with _Live(target, c) as live:
-        live.reset_stats()
-        rate = live.burst(seconds)
-        return rate, live.shares()
-
-
 @dataclass(frozen=True)
 class Duel:
     """Two layouts timed side by side: both pools alive, stepped in alternating short bursts
@@ -418,11 +408,12 @@ def estimate_seconds(
     return (sum(per) + sum(slowest[:leaders])) * rounds + duels
 
 
-def _first_run(target: _Target, timing: Timing, seconds: float) -> Optional[float]:
-    """Time ``timing``'s candidate once (its first round's run, recorded in ``timing``) and
-    return the seconds its pool took to start, reset and warm up: an env that is slow to build
-    makes every candidate slow to start, and the estimate must know it. ``None`` if it fails
-    (recorded as its error)."""
+def _time_run(target: _Target, timing: Timing, seconds: float) -> Optional[float]:
+    """Time ``timing``'s candidate once on a fresh pool, recording its steps/s and shares of
+    the time in ``timing`` (or its error: a layout that cannot run is reported, not fatal).
+    Returns the seconds the pool took to start, reset and warm up (``None`` if it failed): an
+    env that is slow to build makes every candidate slow to start, and the estimate must know
+    it."""
     t0 = time.monotonic()
     try:
         with _Live(target, timing.candidate) as live:
@@ -430,7 +421,7 @@ def _first_run(target: _Target, timing: Timing, seconds: float) -> Optional[floa
             live.reset_stats()
             timing.steps_per_s.append(live.burst(seconds))
             timing.shares.append(live.shares())
-    except Exception as exc:  # a layout that cannot run is reported, not fatal
+    except Exception as exc:
         timing.error = f"{type(exc).__name__}: {exc}"
         return None
     return start_s
@@ -462,7 +453,7 @@ def tune(
     # take longer in proportion, and each gets a start-up bound that allows for it. Its
     # start-up is timed on its first run.
     probe = [c for c in cands if c.mode == "pool"][-1]
-    start_s = _first_run(target, timings[probe.label], seconds)
+    start_s = _time_run(target, timings[probe.label], seconds)
     if start_s is not None:
         default = PoolOptions.start_timeout
         target = dataclasses.replace(target, start_timeout=max(default, 3 * ncpu * start_s))
@@ -484,16 +475,8 @@ def tune(
             if not first and time.monotonic() > deadline:
                 say("tune: time bound reached")
                 return False
-            t = timings[c.label]
-            if t.error is not None:
-                continue
-            try:
-                rate, shares = _time_one(target, c, seconds)
-            except Exception as exc:  # a layout that cannot run is reported, not fatal
-                t.error = f"{type(exc).__name__}: {exc}"
-                continue
-            t.steps_per_s.append(rate)
-            t.shares.append(shares)
+            if timings[c.label].error is None:
+                _time_run(target, timings[c.label], seconds)
         return True
 
     for r in range(rounds):
