@@ -22,6 +22,18 @@ pub struct EnvFault {
 }
 
 impl EnvFault {
+    /// The fault of env `env` (global id) during `context`, with the error's `message`.
+    pub(crate) fn new(
+        env: u64,
+        context: impl Into<String>,
+        message: impl std::fmt::Display,
+    ) -> Self {
+        EnvFault {
+            env,
+            context: context.into(),
+            message: message.to_string(),
+        }
+    }
     /// Write the report as a private file (then rename, so a reader never sees a partial
     /// file).
     pub(crate) fn write(&self, path: &std::path::Path) -> Result<(), String> {

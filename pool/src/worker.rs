@@ -162,11 +162,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         .make_block(&cfg.env, globals.clone(), |g| building = g)
         .map_err(|e| {
             // Reported like a failed step (the supervisor raises it rather than retrying).
-            let fault = EnvFault {
-                env: building,
-                context: "construction".into(),
-                message: e.to_string(),
-            };
+            let fault = EnvFault::new(building, "construction", &e);
             let _ = fault.write(&fault_path);
             WorkerError::Msg(format!("cannot build env {building}: {e}"))
         })?;
@@ -331,11 +327,11 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
                 apart.iter().map(|(j, b)| (*j, b.as_slice())).collect();
             let path = extra_apart_path(&id, a.index, a.generation, h.seq);
             if let Err(e) = calls::write(&path, &calls::encode(&entries)) {
-                failed = Some(EnvFault {
-                    env: first_env as u64 + u64::from(apart[0].0),
-                    context: "extra info".into(),
-                    message: format!("cannot write the info that did not fit the block: {e}"),
-                });
+                failed = Some(EnvFault::new(
+                    first_env as u64 + u64::from(apart[0].0),
+                    "extra info",
+                    format!("cannot write the info that did not fit the block: {e}"),
+                ));
             }
         }
         if let Some(f) = failed {

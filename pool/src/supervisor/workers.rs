@@ -336,10 +336,12 @@ impl Core {
                         s.restart_streak = 0;
                         s.state = SlotState::Idle;
                         let path = env_fault_path(&self.id, k, s.generation);
-                        let fault = EnvFault::take(&path).unwrap_or_else(|e| EnvFault {
-                            env: self.blocks[k].start as u64,
-                            context: "a command".into(),
-                            message: format!("an env of the worker failed; {e}"),
+                        let fault = EnvFault::take(&path).unwrap_or_else(|e| {
+                            EnvFault::new(
+                                self.blocks[k].start as u64,
+                                "a command",
+                                format!("an env of the worker failed; {e}"),
+                            )
                         });
                         self.must_reset = true;
                         self.faults.push(PoolError::EnvFailed {

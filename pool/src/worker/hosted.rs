@@ -58,11 +58,7 @@ fn for_each_entry<T>(
     context: &str,
     mut f: impl FnMut(&mut Hosted, usize, &[u8]) -> Result<T, crate::EnvError>,
 ) -> Result<Vec<(u32, T)>, EnvFault> {
-    let fail = |env: u64, message: String| EnvFault {
-        env,
-        context: context.into(),
-        message,
-    };
+    let fail = |env: u64, message: String| EnvFault::new(env, context, message);
     let entries = calls::take(path).map_err(|e| fail(first, e))?;
     let mut out = Vec::with_capacity(entries.len());
     for (row, bytes) in &entries {
@@ -96,11 +92,7 @@ pub(super) fn answer_calls(
         &calls::reply_path(id, index, generation),
         &calls::encode(&entries),
     )
-    .map_err(|message| EnvFault {
-        env: first,
-        context: "a call".into(),
-        message,
-    })
+    .map_err(|message| EnvFault::new(first, "a call", message))
 }
 
 /// Hand each env its action extra of the next step, from the worker's action-extras file

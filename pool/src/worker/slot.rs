@@ -99,11 +99,7 @@ pub(crate) struct EnvOut<'a> {
 }
 
 pub(crate) fn fault<E>(s: &Slot<E>, context: String, message: impl std::fmt::Display) -> EnvFault {
-    EnvFault {
-        env: s.global,
-        context,
-        message: message.to_string(),
-    }
+    EnvFault::new(s.global, context, message)
 }
 
 fn do_reset(s: &mut Slot, obs: &mut [u8], ctx: &SlotCtx) -> Result<(), EnvFault> {
