@@ -17,8 +17,10 @@ with ``batch_size`` = one worker's envs) where the workers divide the envs; and 
 gymnasium id with its own vector entry point, one such vector env per worker
 (:meth:`rogue_gym.PoolVectorEnv.from_vector_env`). ``SyncVectorEnv`` in this process is timed
 too: where it is faster, tune says so and recommends it. Each candidate runs in a fresh pool
-for ``seconds`` of random actions after a warm-up, every candidate once per round, in a new
-order each round, then the leaders (up to four, within 10% of the best) as many rounds again.
+for ``seconds`` of random actions after a warm-up, every candidate in the first round, then
+those within half of the best (the others are out of the running, and out of the time) in the
+rounds after, in a new order each round; then the leaders (up to four, within 10% of the best)
+as many rounds again.
 Last, the fastest meets each other leader within 10% in a duel (:func:`duel`): both pools
 alive, stepped in ``8 * rounds`` pairs of alternating bursts of ``seconds / 8``, whose median
 ratio decides; the winner stays on. Runs minutes apart see a shared machine at different
@@ -60,6 +62,9 @@ LEADERS = 4
 #: The two fastest are timed back to back, in pairs, when the second is within this fraction
 #: of the first: run by run, the machine's drift cancels out of their ratio.
 DUEL_BAND = 0.1
+#: After the first round, only the candidates at least this fraction of the best are timed
+#: again: the gap between runs of one layout on a busy machine is far smaller.
+KEEP = 0.5
 #: Steps before the clock starts.
 _WARMUP_STEPS = 20
 NATIVE_NAMES = (ENV_ID, "native", "rogue")
@@ -395,17 +400,19 @@ def estimate_seconds(
     rounds: int,
     start_s: Optional[float] = None,
     cpus: int = 1,
+    rounds_done: int = 0,
 ) -> float:
-    """How long tune takes: each candidate's start-up (``start_s`` as measured on the pool with
-    the most workers, scaled by :func:`_start_factor`; at least the kind's usual) and timed
-    seconds, every round, as many rounds again for the leaders, and the duels of the fastest
-    with the other leaders (two start-ups and ``2 * rounds * seconds`` each)."""
+    """How long tune takes (after ``rounds_done`` rounds): each candidate's start-up
+    (``start_s`` as measured on the pool with the most workers, scaled by
+    :func:`_start_factor`; at least the kind's usual) and timed seconds, every round, as many
+    rounds again for the leaders, and the duels of the fastest with the other leaders (two
+    start-ups and ``2 * rounds * seconds`` each)."""
     start = max(_START_S[kind], start_s or 0.0)
     per = [seconds + 0.2 + start * _start_factor(c, cpus) for c in cands]
     leaders = min(LEADERS, len(cands))
     slowest = sorted(per, reverse=True)
     duels = (leaders - 1) * (2 * max(per) + 2 * rounds * seconds)
-    return (sum(per) + sum(slowest[:leaders])) * rounds + duels
+    return sum(per) * (rounds - rounds_done) + sum(slowest[:leaders]) * rounds + duels
 
 
 def _time_run(target: _Target, timing: Timing, seconds: float) -> Optional[float]:
@@ -479,11 +486,21 @@ def tune(
                 _time_run(target, timings[c.label], seconds)
         return True
 
+    running = cands
     for r in range(rounds):
-        group = [c for c in cands if len(timings[c.label].steps_per_s) <= r]
+        group = [c for c in running if len(timings[c.label].steps_per_s) <= r]
         if not run_round(group, first=r == 0):
             break
         say(f"tune: round {r + 1} of {rounds} done")
+        if r == 0:
+            top = max(t.median for t in timings.values())
+            running = [c for c in cands if timings[c.label].median >= KEEP * top > 0]
+            if r + 1 < rounds and len(running) < len(cands):
+                rest = estimate_seconds(kind, running, seconds, rounds, start_s, ncpu, 1)
+                say(
+                    f"tune: {len(running)} of {len(cands)} layouts within {KEEP:.0%} of the "
+                    f"best go on: about {_duration(rest)} more"
+                )
     # The leaders (within 10% of the best) again, as many rounds: near-ties are where a few
     # noisy runs decide, so they get the most runs.
     best = max(t.median for t in timings.values())

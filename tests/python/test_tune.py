@@ -99,3 +99,28 @@ def test_an_async_layout_leaves_nothing_running_between_bursts() -> None:
         time.sleep(0.2)  # 100 steps' time of each env, were any running
         assert live.env.stats().env_steps == before
         assert live.burst(0.1) > 0  # and the held batches go on where they stopped
+
+
+def test_tune_times_again_only_the_layouts_within_half_the_best(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # Each layout's speed, made up: the workers' count, a fifth more for shared-memory views.
+    def fake_run(target: object, timing: tune_mod.Timing, seconds: float) -> float:
+        kw = timing.candidate.kwargs
+        bonus = 1.2 if kw.get("copy") is False else 1.0
+        timing.steps_per_s.append(1000.0 * kw.get("num_workers", 1) * bonus)
+        timing.shares.append((0.5, 0.3, 0.2))
+        return 0.01
+
+    monkeypatch.setattr(tune_mod, "_time_run", fake_run)
+    out = io.StringIO()
+    result = rogue_gym.tune([cartpole] * 4, 4, seconds=0.01, rounds=3, cpus=2, out=out)
+    runs = {t.candidate.label: len(t.steps_per_s) for t in result.timings}
+    best = result.best.candidate
+    assert best.kwargs == {"num_workers": 4, "copy": False} and not result.duels
+    # 4,800 steps/s best: 1 worker (1,000 and 1,200) and SyncVectorEnv (1,000) run once.
+    assert runs["pool: num_workers=1, copy=True"] == runs["SyncVectorEnv"] == 1
+    assert runs["pool: num_workers=1, copy=False"] == 1
+    assert runs["pool: num_workers=3, copy=False"] == runs[best.label] == 3
+    kept = sum(1 for n in runs.values() if n == 3)
+    assert f"tune: {kept} of {len(runs)} layouts within 50% of the best go on" in out.getvalue()
