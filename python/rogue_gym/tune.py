@@ -21,7 +21,7 @@ for ``seconds`` of random actions after a warm-up, every candidate in the first 
 those within half of the best (the others are out of the running, and out of the time) in the
 rounds after, in a new order each round; then the leaders (up to four, within 10% of the best)
 as many rounds again.
-Last, the fastest meets each other leader within 10% in a duel (:func:`duel`): both pools
+Last, the fastest meets each of the next four within 25% in a duel (:func:`duel`): both pools
 alive, stepped in ``8 * rounds`` pairs of alternating bursts of ``seconds / 8``, whose median
 ratio decides; the winner stays on. Runs minutes apart see a shared machine at different
 speeds, by more than the gap between close layouts; bursts a fraction of a second apart do
@@ -57,11 +57,16 @@ __all__ = ["Candidate", "Duel", "TuneResult", "duel", "main", "tune"]
 #: Seconds a fresh pool takes to start and warm up, for the estimate (hosted envs start a
 #: Python interpreter per worker; the native game's workers start in milliseconds).
 _START_S = {"native": 0.3, "hosted": 1.2, "sync": 0.2}
-#: How many of the fastest candidates are timed again (those within 10% of the best).
+#: How many of the fastest candidates are timed again (those within :data:`LEADER_BAND`).
 LEADERS = 4
-#: The two fastest are timed back to back, in pairs, when the second is within this fraction
-#: of the first: run by run, the machine's drift cancels out of their ratio.
-DUEL_BAND = 0.1
+#: The leaders' band: within this fraction of the best median.
+LEADER_BAND = 0.1
+#: The fastest meets each of the next :data:`RIVALS` whose median is within this fraction of
+#: its own in a duel, side by side: single runs of one layout on a busy machine spread by
+#: 20-40%, so a layout 15% behind by medians may still be the fastest.
+DUEL_BAND = 0.25
+#: How many rivals (the next fastest by median) the fastest may meet.
+RIVALS = 4
 #: After the first round, only the candidates at least this fraction of the best are timed
 #: again: the gap between runs of one layout on a busy machine is far smaller.
 KEEP = 0.5
@@ -113,7 +118,7 @@ class TuneResult:
     timings: list[Timing]
     num_envs: int
     seconds: float
-    #: The fastest against each other leader within :data:`DUEL_BAND`, side by side, in the
+    #: The fastest against each rival within :data:`DUEL_BAND`, side by side, in the
     #: order run; the last winner is ranked first.
     duels: list[Duel] = field(default_factory=list)
 
@@ -405,13 +410,13 @@ def estimate_seconds(
     """How long tune takes (after ``rounds_done`` rounds): each candidate's start-up
     (``start_s`` as measured on the pool with the most workers, scaled by
     :func:`_start_factor`; at least the kind's usual) and timed seconds, every round, as many
-    rounds again for the leaders, and the duels of the fastest with the other leaders (two
-    start-ups and ``2 * rounds * seconds`` each)."""
+    rounds again for the leaders, and the duels of the fastest with its rivals (two start-ups
+    and ``2 * rounds * seconds`` each)."""
     start = max(_START_S[kind], start_s or 0.0)
     per = [seconds + 0.2 + start * _start_factor(c, cpus) for c in cands]
     leaders = min(LEADERS, len(cands))
     slowest = sorted(per, reverse=True)
-    duels = (leaders - 1) * (2 * max(per) + 2 * rounds * seconds)
+    duels = min(RIVALS, len(cands) - 1) * (2 * max(per) + 2 * rounds * seconds)
     return sum(per) * (rounds - rounds_done) + sum(slowest[:leaders]) * rounds + duels
 
 
@@ -501,21 +506,21 @@ def tune(
                     f"tune: {len(running)} of {len(cands)} layouts within {KEEP:.0%} of the "
                     f"best go on: about {_duration(rest)} more"
                 )
-    # The leaders (within 10% of the best) again, as many rounds: near-ties are where a few
+    # The leaders (within LEADER_BAND of the best) again, as many rounds: near-ties are where a few
     # noisy runs decide, so they get the most runs.
     best = max(t.median for t in timings.values())
     leaders = sorted(timings.values(), key=lambda t: -t.median)[:LEADERS]
-    leaders = [t for t in leaders if t.median >= 0.9 * best > 0]
+    leaders = [t for t in leaders if t.median >= (1 - LEADER_BAND) * best > 0]
     if len(leaders) > 1:
         for _ in range(rounds):
             if not run_round([t.candidate for t in leaders], first=False):
                 break
         say(f"tune: {len(leaders)} leaders timed again")
     ranked = sorted(timings.values(), key=lambda t: t.median, reverse=True)
-    # The fastest against each other leader within DUEL_BAND, side by side: the winner stays.
+    # The fastest against each rival within DUEL_BAND, side by side: the winner stays.
     duels: list[Duel] = []
     champion = ranked[0]
-    for rival in ranked[1:LEADERS]:
+    for rival in ranked[1 : 1 + RIVALS]:
         if rival.median < (1 - DUEL_BAND) * ranked[0].median or rival.median <= 0:
             break
         if time.monotonic() > deadline:
