@@ -9,6 +9,7 @@ both pools alive, stepped in alternating bursts). PufferLib's
 
     .venv-bench/bin/python benchmarks/tune.py                       # every env and size
     .venv-bench/bin/python benchmarks/tune.py --envs cartpole --num-envs 64
+    .venv-bench/bin/python benchmarks/tune.py --judge-again results/tune/tune.json  # judge only
 
 Envs: ``cartpole`` (the gymnasium id, so one CartPole vector env per worker is a candidate),
 ``halfcheetah`` (MuJoCo), ``pong`` (raw ``ALE/Pong-v5``), ``sleep`` (1 ms a step). Set-up:
@@ -29,7 +30,9 @@ from pathlib import Path
 from typing import Any
 
 import rogue_gym
+from rogue_gym.tune import Candidate
 
+from builds_ab import median_interval
 from hosted_throughput import env_fn as hosted_env_fn
 from real_envs import env_fn as real_env_fn
 
@@ -79,10 +82,52 @@ def head_to_head(
     best. The sweep's medians move by more than 5% between sweeps on this VM; bursts a fraction
     of a second apart do not see the machine's drift."""
     if pick == best:
-        return {"pairs": 0, "ratio": 1.0, "ratios": []}
+        return {"pairs": 0, "ratio": 1.0, "ratios": [], "interval": [1.0, 1.0]}
     d = rogue_gym.tune.duel(env, n, pick, best, pairs=pairs, burst=burst)
     ratios = d.ratios if d.first == pick.label else [1 / r for r in d.ratios]
-    return {"pairs": pairs, "ratio": statistics.median(ratios), "ratios": ratios}
+    return {
+        "pairs": pairs,
+        "ratio": statistics.median(ratios),
+        "ratios": ratios,
+        "interval": list(median_interval(ratios)),
+    }
+
+
+def candidate_of(label: str) -> Candidate:
+    """The candidate a table's label names (``"pool: num_workers=2, copy=True"``)."""
+    if label == "SyncVectorEnv":
+        return Candidate("sync")
+    mode, _, args = label.partition(": ")
+    kwargs = {}
+    for arg in args.split(", "):
+        key, _, value = arg.partition("=")
+        kwargs[key] = {"True": True, "False": False}.get(value, value)
+        if isinstance(kwargs[key], str):
+            kwargs[key] = int(value)
+    return Candidate(mode, kwargs)
+
+
+def judge_again(args: argparse.Namespace) -> None:
+    """The rows of an earlier run (``--judge-again``), their side-by-side figure timed again
+    with ``--final-pairs`` pairs where the pick is not the sweep's best."""
+    rows = json.loads(Path(args.judge_again).read_text())["rows"]
+    for row in rows:
+        if row["pick"] != row["sweep_best"]:
+            row["head_to_head"] = head_to_head(
+                env_of(row["env"]),
+                row["num_envs"],
+                candidate_of(row["pick"]),
+                candidate_of(row["sweep_best"]),
+                args.final_pairs,
+                args.final_burst,
+            )
+            row["judged_again"] = True
+            print(
+                f"{row['env']} x {row['num_envs']}: side by side {row['head_to_head']['ratio']:.3f}",
+                flush=True,
+            )
+        write(args, rows)
+    print(write(args, rows))
 
 
 def main() -> None:
@@ -97,7 +142,7 @@ def main() -> None:
     ap.add_argument(
         "--final-pairs",
         type=int,
-        default=40,
+        default=160,
         help="where tune's pick is not the sweep's best: this many pairs of alternating "
         "bursts of the two, side by side, for the ratio",
     )
@@ -109,7 +154,17 @@ def main() -> None:
         help="a folder holding pufferlib (pip install --no-deps --target DIR pufferlib-core "
         "psutil rich): run its autotune beside",
     )
+    ap.add_argument(
+        "--judge-again",
+        metavar="TUNE_JSON",
+        default=None,
+        help="an earlier run's tune.json: time its picks against its sweeps' bests side by "
+        "side again (--final-pairs pairs), nothing else",
+    )
     args = ap.parse_args()
+    if args.judge_again:
+        judge_again(args)
+        return
     if args.puffer_path:
         sys.path.insert(0, args.puffer_path)
     rows = []
@@ -173,15 +228,24 @@ def write(args: argparse.Namespace, rows: list[dict[str, Any]]) -> str:
         f"{os.cpu_count()} CPUs",
         "",
         "| env | envs | tune's pick | sweep's best | pick / best (sweep medians) | "
-        "pick / best (side by side) | best steps/s | tune took | PufferLib autotune's best |",
-        "|---|---:|---|---|---:|---:|---:|---:|---|",
+        "pick / best (side by side) | 95% interval | best steps/s | tune took | "
+        "PufferLib autotune's best |",
+        "|---|---:|---|---|---:|---:|---:|---:|---:|---|",
     ]
     for r in rows:
         puffer = r.get("puffer")
         p = f"{puffer['sps']:,.0f} ({puffer['config'][:60]})" if puffer else "-"
+        h = r["head_to_head"]
+        if h.get("interval"):
+            lo, hi = h["interval"]
+        elif h["ratios"]:
+            lo, hi = median_interval(h["ratios"])
+        else:
+            lo, hi = 1.0, 1.0
+        how = f" ({h['pairs']} pairs)" if h["pairs"] else " (the same)"
         lines.append(
             f"| {r['env']} | {r['num_envs']} | {r['pick']} | {r['sweep_best']} | "
-            f"{r['ratio']:.3f} | {r['head_to_head']['ratio']:.3f} | "
+            f"{r['ratio']:.3f} | {h['ratio']:.3f}{how} | {lo:.3f}-{hi:.3f} | "
             f"{r['sweep_best_steps_per_s']:,.0f} | {r['tune_seconds']:.0f} s | "
             f"{p} |"
         )
