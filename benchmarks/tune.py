@@ -93,20 +93,6 @@ def head_to_head(
     }
 
 
-def candidate_of(label: str) -> Candidate:
-    """The candidate a table's label names (``"pool: num_workers=2, copy=True"``)."""
-    if label == "SyncVectorEnv":
-        return Candidate("sync")
-    mode, _, args = label.partition(": ")
-    kwargs = {}
-    for arg in args.split(", "):
-        key, _, value = arg.partition("=")
-        kwargs[key] = {"True": True, "False": False}.get(value, value)
-        if isinstance(kwargs[key], str):
-            kwargs[key] = int(value)
-    return Candidate(mode, kwargs)
-
-
 def judge_again(args: argparse.Namespace) -> None:
     """The rows of an earlier run (``--judge-again``), their side-by-side figure timed again
     with ``--final-pairs`` pairs where the pick is not the sweep's best."""
@@ -116,8 +102,8 @@ def judge_again(args: argparse.Namespace) -> None:
             row["head_to_head"] = head_to_head(
                 env_of(row["env"]),
                 row["num_envs"],
-                candidate_of(row["pick"]),
-                candidate_of(row["sweep_best"]),
+                Candidate.from_label(row["pick"]),
+                Candidate.from_label(row["sweep_best"]),
                 args.final_pairs,
                 args.final_burst,
             )

@@ -94,6 +94,18 @@ class Candidate:
         args = ", ".join(f"{k}={v}" for k, v in self.kwargs.items())
         return f"{self.mode}: {args}"
 
+    @classmethod
+    def from_label(cls, label: str) -> Candidate:
+        """The candidate a :attr:`label` names (its keyword values are ints or bools)."""
+        if label == "SyncVectorEnv":
+            return cls("sync")
+        mode, _, args = label.partition(": ")
+        kwargs: dict[str, Any] = {}
+        for arg in args.split(", "):
+            key, _, value = arg.partition("=")
+            kwargs[key] = value == "True" if value in ("True", "False") else int(value)
+        return cls(mode, kwargs)
+
 
 @dataclass
 class Timing:

@@ -127,3 +127,8 @@ def test_tune_times_again_only_the_layouts_within_half_the_best(
     assert runs["pool: num_workers=4, copy=True"] == 3
     kept = sum(1 for n in runs.values() if n == 3)
     assert f"tune: {kept} of {len(runs)} layouts within 50% of the best go on" in out.getvalue()
+
+
+def test_a_candidate_is_named_by_its_label() -> None:
+    for c in tune_mod.candidates("hosted", 8, "CartPole-v1", 2):
+        assert tune_mod.Candidate.from_label(c.label) == c
