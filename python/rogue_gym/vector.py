@@ -238,15 +238,15 @@ class PoolVectorEnv(FrontVectorEnv):
 
 
 def make_vec(
-    env: Union[int, str, Callable[[], gym.Env]] = PoolSettings.num_envs,
+    env: Union[int, str, Callable[[], gym.Env], None] = None,
     num_envs: Optional[int] = None,
     config: ConfigLike = PoolSettings.config,
     **kwargs: Any,
 ) -> VectorEnv:
     """A vector env in the pool's worker processes.
 
-    * ``make_vec(64, config="paper", **pool_options)`` (or ``make_vec("RogueGym-v0", 64,
-      ...)``): the native game, :class:`RogueVectorEnv`.
+    * ``make_vec(64, config="paper", **pool_options)`` (or ``make_vec(num_envs=64, ...)``,
+      ``make_vec("RogueGym-v0", 64, ...)``): the native game, :class:`RogueVectorEnv`.
     * ``make_vec("CartPole-v1", 64, env_kwargs={...}, **options)``: any registered gymnasium
       id, hosted as Python envs (:class:`PoolVectorEnv`; ``options`` are its keywords).
     * ``make_vec(env_fn, 64, **options)``: ``env_fn()`` builds each env.
@@ -258,9 +258,16 @@ def make_vec(
         obs, rewards, terminated, truncated, infos = envs.step(envs.action_space.sample())
         envs.close()
     """
+    if env is None:  # the native game: make_vec(num_envs=64, ...) or make_vec()
+        return RogueVectorEnv(
+            PoolSettings.num_envs if num_envs is None else int(num_envs), config, **kwargs
+        )
     if isinstance(env, (int, np.integer)):
         if num_envs is not None:
-            raise TypeError("make_vec(num_envs, ...) got num_envs twice")
+            raise TypeError(
+                f"make_vec({env}, num_envs={num_envs}): the number of envs is given twice; "
+                "give it once, as make_vec(64, ...) or make_vec(num_envs=64, ...)"
+            )
         return RogueVectorEnv(int(env), config, **kwargs)
     if num_envs is None:
         raise TypeError(f"make_vec({env!r}, num_envs, ...) needs num_envs")

@@ -25,6 +25,7 @@ from typing import Any, Optional
 import cloudpickle
 import numpy as np
 
+from . import registry
 from .infos import RESET_OBS, STEP_OBS, FlatPlan, InfoEncoder
 from .layout import SpaceLayout
 
@@ -95,6 +96,30 @@ def decode_exception(message: str) -> Optional[tuple[BaseException, str]]:
     if not isinstance(exc, BaseException):
         exc = RuntimeError(f"{record['type']}: {record['message']}")
     return exc, str(record.get("traceback", ""))
+
+
+def prepare(cfg: dict[str, Any]) -> None:
+    """Make the caller's world before an env is built: its ``sys.path`` and its gymnasium
+    registry (:mod:`rogue_gym.hosted.registry`)."""
+    for path in reversed(cfg["sys_path"]):
+        if path not in sys.path:
+            sys.path.insert(0, path)
+    if cfg.get("registry"):
+        registry.install(cfg["registry"])
+
+
+@contextlib.contextmanager
+def explained() -> Any:
+    """Build an env; an error about its id or its entry point gets a note of what the worker
+    tried (:func:`rogue_gym.hosted.registry.explain_failure`)."""
+    try:
+        yield
+    except Exception as exc:
+        note = registry.explain_failure(exc)
+        if note:
+            notes = getattr(exc, "__notes__", None)
+            exc.__notes__ = [*(notes or []), note]  # add_note, also before Python 3.11
+        raise
 
 
 def _guarded(method: Any) -> Any:
@@ -224,12 +249,11 @@ class HostedEnv:
         ``sys_path``, the pickled callables and which one builds which env, and the spaces
         every env must have."""
         cfg = json.loads(config_json)
-        for path in reversed(cfg["sys_path"]):
-            if path not in sys.path:
-                sys.path.insert(0, path)
+        prepare(cfg)
         env_fn = cloudpickle.loads(base64.b64decode(cfg["env_fns"][cfg["fn_of_env"][index]]))
         obs_space, action_space = cloudpickle.loads(base64.b64decode(cfg["spaces"]))
-        env = env_fn()
+        with explained():
+            env = env_fn()
         problem = _space_mismatch(
             env.observation_space, obs_space, cfg.get("same_obs_space", True)
         ) or _space_mismatch(env.action_space, action_space, True, "action")

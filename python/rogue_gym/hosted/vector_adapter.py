@@ -18,14 +18,13 @@ import base64
 import contextlib
 import json
 import pickle
-import sys
 from typing import Any, Optional
 
 import cloudpickle
 import numpy as np
 from gymnasium.vector import AsyncVectorEnv, AutoresetMode, SyncVectorEnv, VectorEnv
 
-from .adapter import NO_SEED, EncodedEnvError, encode_exception
+from .adapter import NO_SEED, EncodedEnvError, encode_exception, explained, prepare
 from .infos import InfoEncoder, split_vector_info
 from .layout import SpaceLayout
 
@@ -95,12 +94,11 @@ class HostedVectorEnv:
         spaces and autoreset mode every env must have)."""
         try:
             cfg = json.loads(config_json)
-            for path in reversed(cfg["sys_path"]):
-                if path not in sys.path:
-                    sys.path.insert(0, path)
+            prepare(cfg)
             fn = cloudpickle.loads(base64.b64decode(cfg["vector_env_fn"]))
             obs_space, action_space = cloudpickle.loads(base64.b64decode(cfg["spaces"]))
-            envs = fn(count)
+            with explained():
+                envs = fn(count)
             try:
                 check_vector_env(envs, count, AutoresetMode(cfg["autoreset_mode"]))
                 for what, got, want in (

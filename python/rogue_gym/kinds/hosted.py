@@ -37,6 +37,7 @@ from ..front.core import (
     reraise,
     scalar_actions,
 )
+from ..hosted import registry
 from ..hosted.adapter import NO_SEED
 from ..hosted.infos import HEAD, RESET_OBS, STEP_OBS, InfoDecoder, split_joined, vector_infos
 from ..hosted.layout import FIXED_SPACES, SpaceLayout, UnsupportedSpaceError, space_leaves
@@ -216,6 +217,8 @@ class HostedKind:
         }
         adapter: dict[str, Any] = {
             "sys_path": [p for p in sys.path if p],
+            # Ids registered here exist in the workers too (never forked).
+            "registry": registry.capture(),
             "spaces": _b64(cloudpickle.dumps((self.single_observation_space, act))),
             "discrete_start": None if self._discrete is None else int(self._discrete.start),
             # Each env's observation space must equal env 0's, or only have its layout.
