@@ -39,7 +39,8 @@ impl SharedBuffer {
     }
 
     /// Create the buffer `name` of `len` bytes (zero-filled, mode 0600, exclusively and without
-    /// following a link: a name someone planted is an error) and map it.
+    /// following a link: a name someone planted is an error), reserve its pages (no room is
+    /// [`IpcError::NoRoom`], never a SIGBUS later) and map it.
     pub fn create(id: &PoolId, name: &str, len: usize) -> Result<Self, IpcError> {
         let path = Self::path_of(id, name);
         let f = create_private_file(&path)?;
@@ -48,6 +49,21 @@ impl SharedBuffer {
             path: path.clone(),
             source,
         })?;
+        // Take every page now: on a full tmpfs a write to a page never taken is a SIGBUS.
+        if len > 0
+            && let Err(e) = nix::fcntl::posix_fallocate(&f, 0, len as nix::libc::off_t)
+        {
+            drop(f);
+            let _ = fs::remove_file(&path);
+            return Err(match (e, crate::room::shm_room()) {
+                (nix::errno::Errno::ENOSPC, Ok(room)) => crate::room::no_room(len as u64, room),
+                _ => IpcError::Io {
+                    what: "reserve the pages of the shared buffer",
+                    path,
+                    source: std::io::Error::from(e),
+                },
+            });
+        }
         Self::map(f, path, len)
     }
 

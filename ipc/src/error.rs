@@ -38,6 +38,26 @@ pub enum IpcError {
         /// What is wrong with it.
         reason: String,
     },
+    /// The shared-memory filesystem has less free space than the pool needs (Docker, GitHub
+    /// Actions containers and Kubernetes pods give `/dev/shm` 64 MiB by default).
+    #[error(
+        "{dir} has {} free ({} in all), but this pool needs {}: give the container more shared memory \
+         (docker run --shm-size=1g, or --ipc=host; in Kubernetes an emptyDir with medium: Memory \
+         mounted at /dev/shm), or use fewer envs or smaller observations (the need is the \
+         batch of observations times its slots, 2 or 4, plus each worker's records); \
+         python -m rogue_gym.doctor checks a machine",
+        crate::room::mib(*free), crate::room::mib(*size), crate::room::mib(*need)
+    )]
+    NoRoom {
+        /// The filesystem's mount point.
+        dir: PathBuf,
+        /// Bytes the pool needs there.
+        need: u64,
+        /// Its total size.
+        size: u64,
+        /// Its free space.
+        free: u64,
+    },
     /// A shared resource does not have the size this side expects.
     #[error("size mismatch: {0}")]
     SizeMismatch(String),

@@ -19,6 +19,8 @@
 //!   pool decides what they mean.
 //! * **Shared batch buffer** ([`SharedBuffer`]): a plain `/dev/shm/<prefix>...` mapping that
 //!   workers can write observations into directly (the pool's copy-free sync path).
+//! * **Room** ([`room`]): the size and free space of `/dev/shm`, checked against a pool's need
+//!   before anything is created.
 //! * **Waiting** ([`WaitPolicy`], [`hybrid_wait`]): yield-poll for a bounded budget, then block
 //!   on an iceoryx2 event listener with a timeout. Never an unbounded spin.
 //! * **Cleanup** ([`remove_pool_files`], [`sweep_stale_pools`], [`cleanup_dead_nodes`]):
@@ -30,7 +32,7 @@
 //! [`ipc_threadsafe::Service`], so supervisor-side ports and received samples are `Send`.
 //!
 //! One module per job: [`naming`], [`private`], [`pool_files`], [`services`] (headers and service builders), [`ports`],
-//! [`buffer`], [`wait`], [`cleanup`] and [`error`].
+//! [`buffer`], [`room`], [`wait`], [`cleanup`] and [`error`].
 
 #![deny(missing_docs)]
 
@@ -41,6 +43,7 @@ pub mod naming;
 pub mod pool_files;
 pub mod ports;
 pub mod private;
+pub mod room;
 pub mod services;
 #[cfg(test)]
 mod tests;
@@ -59,6 +62,7 @@ pub use naming::{PoolId, pool_shm_files, process_start_time};
 pub use pool_files::{create_node_counter, verify_pool_files};
 pub use ports::{BlockListener, SupervisorPorts, WorkerPorts, words_as_bytes, words_as_bytes_mut};
 pub use private::{RUNTIME_DIR_ENV, default_runtime_dir, resolve_runtime_dir};
+pub use room::{ShmRoom, check_room, shm_room};
 pub use services::{
     BlockHeader, ChannelSettings, CmdHeader, block_event_service, block_service, cmd_event_service,
     cmd_service,

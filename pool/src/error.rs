@@ -216,6 +216,23 @@ pub enum PoolError {
         /// The end of its stderr.
         stderr_tail: String,
     },
+    /// A worker was killed by SIGBUS: a write to shared memory that the filesystem could not
+    /// back, most likely because `/dev/shm` is full. It is not restarted in a loop.
+    #[error(
+        "probably out of shared memory: /dev/shm has {}, and this pool needs {} there. Give the \
+         container more shared memory (docker run --shm-size=1g, or --ipc=host), or use fewer \
+         envs or smaller observations; python -m rogue_gym.doctor checks a machine. {failure}",
+        room.map(|r| format!("{} free of {}", rogue_gym_ipc::room::mib(r.free), rogue_gym_ipc::room::mib(r.size))).unwrap_or_else(|| "its size is unknown".into()),
+        rogue_gym_ipc::room::mib(*need)
+    )]
+    OutOfSharedMemory {
+        /// The worker's failure (signal 7).
+        failure: Box<WorkerFailure>,
+        /// Bytes the pool needs in /dev/shm.
+        need: u64,
+        /// The filesystem's size and free space when the worker died.
+        room: Option<rogue_gym_ipc::ShmRoom>,
+    },
     /// A worker died or hung (policy `raise`). The pool respawned it: call `reset` to go on.
     #[error("{0}; call reset() to continue")]
     WorkerFailed(Box<WorkerFailure>),

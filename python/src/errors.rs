@@ -1,6 +1,6 @@
 //! Pool errors as Python exceptions (never a panic across the FFI boundary).
 
-use pyo3::exceptions::{PyPermissionError, PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyOSError, PyPermissionError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rogue_gym_pool::{PoolError, WorkerFailure};
@@ -15,6 +15,16 @@ pub(crate) fn pool_error(py: Python<'_>, e: PoolError) -> PyErr {
             &last,
         ),
         e @ PoolError::NotBackInTime { .. } => not_back_in_time(py, e),
+        e @ PoolError::OutOfSharedMemory { .. } => {
+            let msg = e.to_string();
+            let PoolError::OutOfSharedMemory { failure, .. } = e else {
+                unreachable!("matched above")
+            };
+            crashed(py, &msg, &failure)
+        }
+        e @ PoolError::Ipc(rogue_gym_ipc::IpcError::NoRoom { .. }) => {
+            PyOSError::new_err((nix_enospc(), e.to_string()))
+        }
         PoolError::EnvFailed { fault, worker, pid } => {
             let msg = format!(
                 "env {} failed in {} (worker {worker}, pid {pid}): {}; call reset() to continue",
@@ -48,6 +58,11 @@ pub(crate) fn pool_error(py: Python<'_>, e: PoolError) -> PyErr {
         | PoolError::BadBuffer { .. }) => PyValueError::new_err(e.to_string()),
         e => PyRuntimeError::new_err(e.to_string()),
     }
+}
+
+/// `ENOSPC`, the errno of a full filesystem (an `OSError` with it reads as "No space left").
+fn nix_enospc() -> i32 {
+    28
 }
 
 /// Several failures of one call: the first as its own exception, the others (as exceptions)

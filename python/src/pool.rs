@@ -624,6 +624,11 @@ impl PyPool {
         self.peek(py, |p| p.id().name().to_string())
     }
 
+    /// Bytes the pool needs in /dev/shm (checked against its free space at creation).
+    fn shm_bytes(&self, py: Python<'_>) -> PyResult<u64> {
+        self.peek(py, |p| p.shm_bytes())
+    }
+
     /// Stop the workers and remove the pool's files (idempotent; GIL released).
     fn close(&self, py: Python<'_>) -> PyResult<()> {
         let taken = {

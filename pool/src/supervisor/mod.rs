@@ -28,7 +28,7 @@ use crate::seeds::SeedSchedule;
 use crate::stats::{StatsBuffer, SupervisorCounts, WorkerStats};
 use crate::wire::layout::BlockLayout;
 use crate::wire::{
-    BATCH_BUFFER, CMD_CLOSE, MAX_BATCH_SLOTS, WorkerConfig, block_range, slot_bytes,
+    BATCH_BUFFER, CMD_CLOSE, MAX_BATCH_SLOTS, WorkerConfig, block_range, shm_need, slot_bytes,
 };
 
 pub use stepping::{Actions, validate_actions};
@@ -51,6 +51,8 @@ struct Core {
     node: Option<rogue_gym_ipc::iceoryx2::node::Node<Svc>>,
     batch: Option<std::sync::Arc<rogue_gym_ipc::SharedBuffer>>,
     slot_bytes: usize,
+    /// Bytes the pool needs in /dev/shm ([`Pool::shm_bytes`]).
+    shm_need: u64,
     next_slot: usize,
     ready_order: VecDeque<usize>,
     cur_episode: Vec<Option<u64>>,
@@ -187,7 +189,7 @@ impl Pool {
             None => registry.make(&cfg.env, 0)?.spec(),
         };
         spec.validate()?;
-        let layouts = blocks
+        let layouts: Vec<BlockLayout> = blocks
             .iter()
             .map(|b| BlockLayout {
                 envs: b.len(),
@@ -196,6 +198,14 @@ impl Pool {
                 extra_bytes: spec.extra_bytes,
             })
             .collect();
+        // Before anything is created: a pool that does not fit /dev/shm fails now, with the
+        // fixes, not later with a SIGBUS in a worker.
+        let shm_need = shm_need(
+            cfg.batch_slots,
+            slot_bytes(cfg.num_envs, spec.obs_bytes()),
+            &layouts,
+        );
+        rogue_gym_ipc::check_room(shm_need)?;
         let runtime_dir = rogue_gym_ipc::resolve_runtime_dir(cfg.runtime_dir.as_deref())?;
         rogue_gym_ipc::sweep_stale_pools(&runtime_dir);
         let id = PoolId::new_unique(&runtime_dir)?;
@@ -240,6 +250,7 @@ impl Pool {
                 cur_seed: vec![0; num_envs],
                 batch: None,
                 slot_bytes: 0,
+                shm_need,
                 next_slot: 0,
                 restarts: 0,
                 must_reset: true,
@@ -352,6 +363,11 @@ impl Pool {
     /// Number of workers.
     pub fn num_workers(&self) -> usize {
         self.core.cfg.num_workers
+    }
+    /// Bytes the pool needs in `/dev/shm`, checked against its free space before the pool was
+    /// created: the batch buffer (its pages reserved) and the blocks' records and infos.
+    pub fn shm_bytes(&self) -> u64 {
+        self.core.shm_need
     }
     /// The envs worker `k` hosts (contiguous; blocks differ by at most one env, the larger
     /// first).

@@ -359,8 +359,8 @@ impl Core {
 
     /// Detect dead and hung workers, whatever they were doing (starting, restarting, or
     /// answering a command), and handle each per policy ([`Core::handle_failure`]). A failure
-    /// the caller must hear of is queued in `self.faults`; only a spent restart budget returns
-    /// at once.
+    /// the caller must hear of is queued in `self.faults`; only a spent restart budget, and a
+    /// SIGBUS during the pool's first start, return at once.
     pub(super) fn check_liveness(&mut self) -> Result<(), PoolError> {
         for k in 0..self.slots.len() {
             let range = self.env_range(k);
@@ -436,6 +436,7 @@ impl Core {
                     stderr_tail: tail,
                 });
             }
+            let sigbus = signal == Some(nix::libc::SIGBUS);
             let failure = WorkerFailure {
                 worker: k,
                 env_ids: range.clone(),
@@ -451,9 +452,42 @@ impl Core {
                 stderr_tail: tail,
                 starting,
             };
+            if sigbus {
+                // A page of shared memory the filesystem could not give: restarting would only
+                // die again. Fail the call (the pool's first start: the constructor) with the
+                // numbers; a later reset() tries once more.
+                let err = self.out_of_shared_memory(k, failure)?;
+                if !self.started {
+                    return Err(err);
+                }
+                self.faults.push(err);
+                continue;
+            }
             self.handle_failure(k, failure, then_reset)?;
         }
         Ok(())
+    }
+
+    /// Worker `k` was killed by SIGBUS: probably /dev/shm is full. Respawned once, not in a
+    /// loop; the call is to fail with the [`PoolError::OutOfSharedMemory`] returned.
+    fn out_of_shared_memory(
+        &mut self,
+        k: usize,
+        failure: WorkerFailure,
+    ) -> Result<PoolError, PoolError> {
+        self.deaths += 1;
+        self.counts[k].restarts += 1;
+        self.counts[k].last_failure = Some(failure.to_string());
+        self.must_reset = true;
+        let err = PoolError::OutOfSharedMemory {
+            failure: Box::new(failure),
+            need: self.shm_need,
+            room: rogue_gym_ipc::shm_room().ok(),
+        };
+        if self.started {
+            self.respawn_now(k, false)?;
+        }
+        Ok(err)
     }
 
     /// Forget worker `k`'s incarnation (its iceoryx2 leftovers and queued answers) and spawn the

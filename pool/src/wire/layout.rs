@@ -112,6 +112,11 @@ impl BlockLayout {
                 0
             }
     }
+    /// Bytes of a block besides its observation area (records, final observations, extra
+    /// infos): what a block adds in shared memory when observations go to the batch buffer.
+    pub fn side_bytes(&self) -> usize {
+        (self.words() - self.obs_area_words()) * 8
+    }
     /// Total words of a block.
     pub fn words(&self) -> usize {
         self.extra_offset_words() + (self.envs * self.extra_bytes).div_ceil(8)

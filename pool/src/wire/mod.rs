@@ -53,6 +53,28 @@ pub fn block_range(num_envs: usize, num_workers: usize, k: usize) -> std::ops::R
     start..start + q + usize::from(k < r)
 }
 
+/// Blocks of one worker whose pages a pool counts as taken in `/dev/shm`: the one a worker
+/// writes and the one the supervisor holds.
+const BLOCKS_IN_USE: usize = 2;
+/// Room counted for iceoryx2's own segments of one worker (management, commands, events).
+const SHM_PER_WORKER: usize = 64 * 1024;
+
+/// Bytes a pool needs in `/dev/shm` before it creates anything: the batch buffer (reserved
+/// when created), and per worker the records, final observations and extra infos of the
+/// blocks in use and iceoryx2's own segments. Observations travel in the batch buffer; in the
+/// async API they travel in the blocks too ([`BlockLayout::words`]), which this does not count.
+pub(crate) fn shm_need(
+    batch_slots: usize,
+    slot_bytes: usize,
+    layouts: &[layout::BlockLayout],
+) -> u64 {
+    let blocks: usize = layouts
+        .iter()
+        .map(|l| BLOCKS_IN_USE * l.side_bytes() + SHM_PER_WORKER)
+        .sum();
+    (batch_slots * slot_bytes + blocks) as u64
+}
+
 /// Bytes of one slot of the shared batch buffer (64-byte aligned).
 pub(crate) fn slot_bytes(num_envs: usize, obs_bytes: usize) -> usize {
     (num_envs * obs_bytes).div_ceil(64) * 64

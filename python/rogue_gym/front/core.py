@@ -11,6 +11,7 @@ wrote the slot), the SAME_STEP final-observation buffer, and the lending of slot
 
 from __future__ import annotations
 
+import errno
 import json
 import weakref
 from typing import Any, Callable, NoReturn, Optional, Protocol, Sequence
@@ -186,7 +187,15 @@ class Core:
         settings["batch_slots"] = leases.LENDING_SLOTS if lend else None
         _sigterm.install()
         try:
-            self.pool: Any = _native.Pool(json.dumps(settings), list(kind.worker_command))
+            try:
+                self.pool: Any = _native.Pool(json.dumps(settings), list(kind.worker_command))
+            except OSError as err:
+                if not (lend and err.errno == errno.ENOSPC):
+                    raise
+                # /dev/shm has no room for the lending slots: copy each batch out of two slots
+                # instead (what copy=True meant before lending); still too big: the error.
+                lend, settings["batch_slots"] = False, None
+                self.pool = _native.Pool(json.dumps(settings), list(kind.worker_command))
         except EnvFailedError as err:
             reraise(err)
         self._finalizer = weakref.finalize(self, _native.Pool.close, self.pool)
@@ -357,6 +366,7 @@ class Core:
             batches_lent=self.lent,
             batches_copied=self.copied,
             batches_viewed=self.viewed,
+            shm_bytes=int(self.pool.shm_bytes()),
         )
 
     @property

@@ -79,6 +79,9 @@ class PoolStats:
     batches_lent: int = 0
     batches_copied: int = 0
     batches_viewed: int = 0
+    #: Bytes the pool needs in ``/dev/shm`` (checked against its free space at creation; the
+    #: batch slots' pages reserved): not a count, the same in a difference of two readings.
+    shm_bytes: int = 0
 
     @property
     def env_steps(self) -> int:
@@ -121,7 +124,7 @@ class PoolStats:
         """The counts since ``base`` (an earlier reading of the same pool)."""
         changes: dict[str, Any] = {}
         for f in dataclasses.fields(self):
-            if f.name != "workers":
+            if f.name not in ("workers", "shm_bytes"):
                 changes[f.name] = getattr(self, f.name) - getattr(base, f.name)
         workers = []
         for k, w in enumerate(self.workers):
