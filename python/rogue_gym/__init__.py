@@ -1,20 +1,23 @@
 """Rogue-Gym: a roguelike benchmark for generalization in reinforcement learning.
 
-Three entry points:
+The entry points:
 
 * :class:`rogue_gym.envs.RogueEnv`: one game as a gymnasium ``Env`` (the original API).
 * :func:`rogue_gym.make_vec` / :class:`rogue_gym.vector.RogueVectorEnv`: many games stepped by
   worker processes over shared memory, as a ``gymnasium.vector.VectorEnv``.
 * :class:`rogue_gym.PoolVectorEnv`: any gymnasium env hosted in the same worker processes (a
   drop-in for ``AsyncVectorEnv``; ``make_vec("CartPole-v1", 64)`` builds one).
-* :class:`rogue_gym.sb3.RogueVecEnv`: the same pool as a Stable-Baselines3 ``VecEnv``
-  (imported lazily: ``import rogue_gym`` needs neither SB3 nor torch).
+* :class:`rogue_gym.sb3.RogueVecEnv` / :class:`rogue_gym.sb3.PoolVecEnv`: the same pools as
+  Stable-Baselines3 ``VecEnv`` s (imported lazily: ``import rogue_gym`` needs neither SB3 nor
+  torch).
+* :mod:`rogue_gym.envpool`: EnvPool's API (``envpool.make``) over any gymnasium id.
 
 ``RogueGym-v0`` is registered with gymnasium on import.
 """
 
 from __future__ import annotations
 
+import importlib
 from typing import Any
 
 from . import envs
@@ -59,17 +62,10 @@ register_envs()
 
 
 def __getattr__(name: str) -> Any:
-    # SB3 (and torch) load only when the SB3 facade is asked for.
+    # SB3 (and torch) load only when the SB3 facade is asked for. import_module, not
+    # ``from . import sb3``: that asks this function for ``sb3`` again, without end.
     if name in ("RogueVecEnv", "PoolVecEnv"):
-        from . import sb3
-
-        return getattr(sb3, name)
-    if name == "tune":  # the module, callable as tune(env, num_envs) (python -m rogue_gym.tune)
-        import importlib
-
-        return importlib.import_module(".tune", __name__)
-    if name == "sb3":
-        from . import sb3
-
-        return sb3
+        return getattr(importlib.import_module(".sb3", __name__), name)
+    if name in ("tune", "sb3"):  # tune is callable as tune(env, num_envs)
+        return importlib.import_module(f".{name}", __name__)
     raise AttributeError(f"module 'rogue_gym' has no attribute {name!r}")
