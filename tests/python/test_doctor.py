@@ -9,6 +9,7 @@ import subprocess
 import sys
 
 from rogue_gym import doctor
+
 from test_shm import _in_small_shm
 
 
