@@ -93,6 +93,12 @@ pub struct PoolConfig {
     pub max_restarts: u32,
     /// Blocks of one worker the caller may hold at once, plus one (see [`Block`]).
     pub max_borrowed: usize,
+    /// Replace a worker in a planned way once it has served this many env steps (leaky envs;
+    /// see [`crate::Pool`]'s recycling); `None`: never.
+    pub recycle_after_steps: Option<u64>,
+    /// Replace a worker in a planned way once its resident memory is above this many bytes;
+    /// `None`: never.
+    pub recycle_above_rss: Option<u64>,
     /// Slots of the shared batch buffer the synchronous `*_shared` calls write, 2 to
     /// [`crate::MAX_BATCH_SLOTS`]: 2 is double buffering; more let the caller keep several
     /// batches of observations without copying them (see [`crate::Pool::select_slot`]).
@@ -127,6 +133,8 @@ impl PoolConfig {
             start_timeout: Duration::from_secs(30),
             max_restarts: 100,
             max_borrowed: 4,
+            recycle_after_steps: None,
+            recycle_above_rss: None,
             batch_slots: crate::BATCH_SLOTS,
             worker,
             wait: WaitPolicy {

@@ -83,6 +83,7 @@ impl StatsBuffer {
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub(crate) struct SupervisorCounts {
     pub(crate) restarts: u64,
+    pub(crate) recycles: u64,
     pub(crate) timeouts: u64,
     pub(crate) spilled_bytes: u64,
     pub(crate) last_failure: Option<String>,
@@ -104,6 +105,9 @@ pub struct WorkerStats {
     pub publish_ns: u64,
     /// Times the worker was replaced (died or hung).
     pub restarts: u64,
+    /// Times it was replaced by plan (`recycle_after_steps`, `recycle_above_rss`), apart from
+    /// `restarts`.
+    pub recycles: u64,
     /// Times it did not answer within `step_timeout` (counted among `restarts`).
     pub timeouts: u64,
     /// Info bytes that did not fit the block and travelled beside it.
@@ -122,6 +126,7 @@ impl StatsBuffer {
             wait_ns: self.get(k, Counter::WaitNs),
             publish_ns: self.get(k, Counter::PublishNs),
             restarts: sup.restarts,
+            recycles: sup.recycles,
             timeouts: sup.timeouts,
             spilled_bytes: sup.spilled_bytes,
             last_failure: sup.last_failure.clone(),

@@ -20,7 +20,7 @@ use crate::wire::layout::BlockLayout;
 use crate::wire::{
     ACTION_EXTRAS, BATCH_BUFFER, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_CALL,
     CMD_CLOSE, CMD_STEP, EnvFault, RELOAD_SEEDS, TARGET_BITS, TARGET_SHIFT, WorkerConfig, calls,
-    env_fault_path, extra_apart_path, slot_bytes,
+    env_fault_path, extra_apart_path, slot_bytes, successor_go, successor_marker,
 };
 
 mod block;
@@ -46,6 +46,9 @@ struct Args {
     index: usize,
     generation: u64,
     ppid: i32,
+    /// A planned replacement ([`crate::wire::successor_marker`]): build the envs while the
+    /// worker it replaces still serves, say so, then take over its ports once they are free.
+    successor: bool,
 }
 
 fn parse_args(args: &[String]) -> Result<Args, String> {
@@ -53,6 +56,7 @@ fn parse_args(args: &[String]) -> Result<Args, String> {
     let mut index = None;
     let mut generation = 0u64;
     let mut ppid = None;
+    let mut successor = false;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         let mut val = |name: &str| {
@@ -75,6 +79,7 @@ fn parse_args(args: &[String]) -> Result<Args, String> {
                     .map_err(|e| format!("--generation: {e}"))?
             }
             "--ppid" => ppid = Some(val("--ppid")?.parse().map_err(|e| format!("--ppid: {e}"))?),
+            "--successor" => successor = true,
             other => return Err(format!("unexpected argument {other:?}")),
         }
     }
@@ -83,6 +88,7 @@ fn parse_args(args: &[String]) -> Result<Args, String> {
         index: index.ok_or("missing --index <worker index>")?,
         generation,
         ppid: ppid.ok_or("missing --ppid <supervisor pid>")?,
+        successor,
     })
 }
 
@@ -135,6 +141,20 @@ pub fn worker_main(args: &[String], registry: &EnvRegistry) -> i32 {
 /// Read the worker's config: a private file of this user in a private directory of this user
 /// (the pool's, inside its verified runtime directory), so that no one else can have written
 /// what the worker builds its envs from (hosted envs unpickle it).
+/// Wait for the supervisor's word that the worker this successor replaces is gone
+/// ([`successor_go`]), while the supervisor lives: a successor that is not needed is killed.
+fn wait_for_go(id: &PoolId, a: &Args) -> Result<(), WorkerError> {
+    let go = successor_go(id, a.index, a.generation);
+    while !go.exists() {
+        if nix::unistd::getppid().as_raw() != a.ppid {
+            return Err(WorkerError::ParentGone(a.ppid));
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let _ = std::fs::remove_file(&go);
+    Ok(())
+}
+
 fn read_config(path: &std::path::Path) -> Result<WorkerConfig, String> {
     let dir = path.parent().unwrap_or(std::path::Path::new("/"));
     let meta = std::fs::symlink_metadata(dir)
@@ -189,6 +209,11 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
     };
     let words = layout.words();
     let node = id.node(&format!("w{}g{}", a.index, a.generation))?;
+    if a.successor {
+        // The envs are built: the supervisor may now stop the worker this one replaces.
+        rogue_gym_ipc::private::create_private_file(&successor_marker(&id, a.index, a.generation))?;
+        wait_for_go(&id, a)?;
+    }
     let ports = WorkerPorts::new(&node, a.index, words, &cfg.channel_settings())?;
     let policy = WaitPolicy {
         poll_budget: Duration::from_micros(cfg.poll_budget_us),

@@ -31,6 +31,10 @@ FAILURE_POLICIES = ("restart", "raise")
 SEED_POLICIES = ("sample", "sequential")
 
 
+def _optional_int(value: Any) -> Optional[int]:
+    return None if value is None else int(value)
+
+
 @dataclasses.dataclass
 class PoolOptions:
     """The options of the pool itself, whatever env kind it hosts (see :class:`PoolSettings`
@@ -46,6 +50,8 @@ class PoolOptions:
     runtime_dir: Optional[str] = None
     poll_us: Optional[int] = None
     worker_poll_us: Optional[int] = None
+    recycle_after_steps: Optional[int] = None
+    recycle_above_rss: Optional[int] = None
 
     @classmethod
     def from_kwargs(cls, options: Mapping[str, Any]) -> Any:
@@ -80,6 +86,10 @@ class PoolOptions:
             value = getattr(self, name)
             if value is not None and int(value) < 0:
                 raise ValueError(f"{name} must be a number of microseconds >= 0, got {value}")
+        for name in ("recycle_after_steps", "recycle_above_rss"):
+            value = getattr(self, name)
+            if value is not None and int(value) < 1:
+                raise ValueError(f"{name} must be a positive number (or None: never), got {value}")
         command = self.worker_command
         if command is None:
             command = [sys.executable, "-m", "rogue_gym.worker"]
@@ -91,6 +101,8 @@ class PoolOptions:
             "worker_command": list(command),
             "poll_us": None if self.poll_us is None else int(self.poll_us),
             "worker_poll_us": None if self.worker_poll_us is None else int(self.worker_poll_us),
+            "recycle_after_steps": _optional_int(self.recycle_after_steps),
+            "recycle_above_rss": _optional_int(self.recycle_above_rss),
         }
 
     def pool_json(self, num_envs: int) -> dict[str, Any]:
@@ -105,6 +117,8 @@ class PoolOptions:
             "max_restarts": self.max_restarts,
             "poll_us": self.poll_us,
             "worker_poll_us": self.worker_poll_us,
+            "recycle_after_steps": self.recycle_after_steps,
+            "recycle_above_rss": self.recycle_above_rss,
             "runtime_dir": None if self.runtime_dir is None else os.fspath(self.runtime_dir),
         }
 
@@ -152,6 +166,12 @@ class PoolSettings(PoolOptions):
             ``/tmp/rogue-gym-<uid>`` (see docs/security.md).
         poll_us, worker_poll_us: how long the caller and the workers poll (yielding the CPU)
             before they block when waiting for each other, in µs (default: the pool's).
+        recycle_after_steps, recycle_above_rss: replace a worker by plan once it has served
+            this many env steps, or once its resident memory is above this many bytes (envs
+            that leak; default ``None``: never). The replacement builds its envs while the
+            worker serves on, then takes over between two calls; the worker's envs start new
+            episodes there (``truncated``, info ``worker_recycled``). Counted in ``stats()``
+            as ``recycles``, apart from crash restarts and outside the restart budget.
     """
 
     num_envs: int = 8

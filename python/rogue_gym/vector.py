@@ -121,8 +121,9 @@ class PoolVectorEnv(FrontVectorEnv):
             memory, valid until the second following ``step``/``reset``.
         autoreset_mode: ``NEXT_STEP`` (default), ``SAME_STEP`` or ``DISABLED``.
         on_worker_failure, step_timeout, start_timeout, max_restarts, batch_size,
-            worker_command, poll_us, runtime_dir: the pool's options (see
-            :class:`rogue_gym.settings.PoolSettings`).
+            worker_command, poll_us, runtime_dir, recycle_after_steps, recycle_above_rss: the
+            pool's options (see :class:`rogue_gym.settings.PoolSettings`; the last two replace
+            a worker by plan, for envs that leak).
         worker_poll_us: how long the workers poll before they block, in µs (default
             :data:`rogue_gym.kinds.hosted.HOSTED_WORKER_POLL_US`).
         info_bytes: room per env and step for the env's info in shared memory (typed rows of
@@ -167,6 +168,8 @@ class PoolVectorEnv(FrontVectorEnv):
         context: Optional[str] = None,
         daemon: bool = True,
         observation_mode: Any = "same",
+        recycle_after_steps: Optional[int] = None,
+        recycle_above_rss: Optional[int] = None,
     ) -> None:
         del context, daemon  # always spawned workers
         if not (observation_mode in ("same", "different") or _is_space_pair(observation_mode)):
@@ -186,6 +189,8 @@ class PoolVectorEnv(FrontVectorEnv):
             runtime_dir=runtime_dir,
             poll_us=poll_us,
             worker_poll_us=worker_poll_us,
+            recycle_after_steps=recycle_after_steps,
+            recycle_above_rss=recycle_above_rss,
         )
         kind = HostedKind(
             env_fns,

@@ -586,6 +586,7 @@ impl PyPool {
             d.set_item("publish_ns", w.publish_ns)?;
             d.set_item("restarts", w.restarts)?;
             d.set_item("timeouts", w.timeouts)?;
+            d.set_item("recycles", w.recycles)?;
             d.set_item("spilled_bytes", w.spilled_bytes)?;
             d.set_item("last_failure", w.last_failure)?;
             list.append(d)?;
@@ -622,6 +623,11 @@ impl PyPool {
     /// The pool's name (the prefix of its shared-memory files).
     fn name(&self, py: Python<'_>) -> PyResult<String> {
         self.peek(py, |p| p.id().name().to_string())
+    }
+
+    /// The envs whose worker was replaced by plan during the last call (recycling).
+    fn recycled_envs(&self, py: Python<'_>) -> PyResult<Vec<usize>> {
+        self.peek(py, |p| p.recycled_envs().to_vec())
     }
 
     /// Bytes the pool needs in /dev/shm (checked against its free space at creation).

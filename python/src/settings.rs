@@ -36,6 +36,12 @@ pub(crate) struct PyPoolSettings {
     max_restarts: Option<u32>,
     #[serde(default)]
     max_borrowed: Option<usize>,
+    /// Planned replacement of a worker after this many env steps.
+    #[serde(default)]
+    recycle_after_steps: Option<u64>,
+    /// Planned replacement of a worker above this resident memory, bytes.
+    #[serde(default)]
+    recycle_above_rss: Option<u64>,
     /// Slots of the shared batch buffer (`None`: the pool's default, two).
     #[serde(default)]
     batch_slots: Option<usize>,
@@ -91,6 +97,8 @@ pub(crate) fn pool_config(
     if let Some(m) = s.max_borrowed {
         cfg.max_borrowed = m;
     }
+    cfg.recycle_after_steps = s.recycle_after_steps;
+    cfg.recycle_above_rss = s.recycle_above_rss;
     if let Some(n) = s.batch_slots {
         cfg.batch_slots = n;
     }

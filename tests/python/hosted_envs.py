@@ -342,3 +342,29 @@ def slow_in_workers(creator: int, delay: float) -> gym.Env:
     if os.getpid() != creator:
         time.sleep(delay)
     return gym.make("CartPole-v1")
+
+
+class LeakyEnv(gym.Env):
+    """Keeps ``leak_mib`` MiB more at every step (a simulator that leaks); observations count
+    the steps of the episode."""
+
+    observation_space = spaces.Box(0.0, 1e9, (1,), np.float32)
+    action_space = spaces.Discrete(2)
+
+    def __init__(self, leak_mib: float = 1.0, refuse_if: str = "") -> None:
+        if refuse_if and os.path.exists(refuse_if):
+            raise RuntimeError(f"refusing to start: {refuse_if} exists")
+        self.leak = int(leak_mib * (1 << 20))
+        self.hoard: list[np.ndarray] = []
+        self.t = 0
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> Any:
+        super().reset(seed=seed)
+        self.t = 0
+        return np.zeros(1, np.float32), {}
+
+    def step(self, action: Any) -> Any:
+        if self.leak:
+            self.hoard.append(np.ones(self.leak, np.uint8))  # touched: resident
+        self.t += 1
+        return np.full(1, self.t, np.float32), 1.0, False, False, {}

@@ -69,6 +69,10 @@ impl Pool {
             workers.push((k, pos));
             pos += block.len();
         }
+        // Planned replacements happen here, between two commands (see `recycling`).
+        for &(k, _) in &workers {
+            self.core.recycle_if_due(k)?;
+        }
         // Workers replaced while idle may still be coming back.
         self.wait_until(|c| {
             workers

@@ -7,6 +7,7 @@
 
 mod async_api;
 mod calls;
+mod recycling;
 mod stepping;
 mod workers;
 
@@ -53,6 +54,8 @@ struct Core {
     slot_bytes: usize,
     /// Bytes the pool needs in /dev/shm ([`Pool::shm_bytes`]).
     shm_need: u64,
+    /// Envs whose worker was replaced by plan during the last call ([`Pool::recycled_envs`]).
+    recycled_envs: Vec<usize>,
     next_slot: usize,
     ready_order: VecDeque<usize>,
     cur_episode: Vec<Option<u64>>,
@@ -251,6 +254,7 @@ impl Pool {
                 batch: None,
                 slot_bytes: 0,
                 shm_need,
+                recycled_envs: Vec::new(),
                 next_slot: 0,
                 restarts: 0,
                 must_reset: true,
@@ -304,6 +308,13 @@ impl Pool {
                 seq: 0,
                 state: SlotState::Idle,
                 restarted: false,
+                served: 0,
+                successor: None,
+                recycled: false,
+                rss_read: None,
+                rss: 0,
+                rss_growth: 0,
+                recycle_pause: None,
                 cut: false,
                 restart_streak: 0,
                 stderr_path: PathBuf::new(),
@@ -368,6 +379,12 @@ impl Pool {
     /// created: the batch buffer (its pages reserved) and the blocks' records and infos.
     pub fn shm_bytes(&self) -> u64 {
         self.core.shm_need
+    }
+    /// The envs whose worker was replaced by plan (`recycle_after_steps`,
+    /// `recycle_above_rss`) during the last call: they report `restarted`, and their episodes
+    /// were cut there, between two commands.
+    pub fn recycled_envs(&self) -> &[usize] {
+        &self.core.recycled_envs
     }
     /// The envs worker `k` hosts (contiguous; blocks differ by at most one env, the larger
     /// first).
@@ -514,6 +531,7 @@ impl Pool {
         }
         self.core.call_started = Instant::now();
         self.core.call_failed_at = None;
+        self.core.recycled_envs.clear();
         Ok(())
     }
 
@@ -610,6 +628,9 @@ impl Pool {
             return Ok(());
         }
         self.core.closed = true;
+        for k in 0..self.core.slots.len() {
+            self.core.drop_successor(k, None);
+        }
         let c = &mut self.core;
         for s in &c.slots {
             if s.child.is_some() {

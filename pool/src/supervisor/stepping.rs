@@ -333,7 +333,16 @@ impl Pool {
                 "call reset() before step() (after creation or after a worker failure)".into(),
             ));
         }
-        self.all_idle()
+        self.all_idle()?;
+        // Planned replacements happen here, between two commands (see `recycling`).
+        let mut replaced = false;
+        for k in 0..self.core.slots.len() {
+            replaced |= self.core.recycle_if_due(k)?;
+        }
+        if replaced {
+            self.all_idle()?;
+        }
+        Ok(())
     }
 
     fn gather_all(

@@ -12,6 +12,7 @@ use std::time::{Duration, Instant};
 use rogue_gym_ipc::{BlockSample, SupervisorPorts};
 
 use super::Core;
+use super::recycling::Successor;
 use super::stepping::Actions;
 use crate::batch::Block;
 use crate::config::{AutoresetMode, FailurePolicy};
@@ -74,6 +75,19 @@ pub(super) struct WorkerSlot {
     /// Action extras staged for its next step ([`crate::Pool::stage_action_extras`]), encoded
     /// as a call file.
     pub(super) action_extras: Option<Vec<u8>>,
+    /// Env steps served since this incarnation started (for `recycle_after_steps`).
+    pub(super) served: u64,
+    /// Its successor while it builds its envs ([`super::recycling`]).
+    pub(super) successor: Option<Successor>,
+    /// It was replaced by plan: the envs of its next block report `worker_recycled`.
+    pub(super) recycled: bool,
+    /// When its resident memory was last read, and what it was (bytes).
+    pub(super) rss_read: Option<Instant>,
+    pub(super) rss: u64,
+    /// How much it grew between the last two readings.
+    pub(super) rss_growth: u64,
+    /// No successor is started before this (one failed).
+    pub(super) recycle_pause: Option<Instant>,
 }
 
 /// The longest wait before a restart.
@@ -117,18 +131,29 @@ impl Core {
         self.blocks[k].clone()
     }
 
-    pub(super) fn spawn(&mut self, k: usize, then_reset: bool) -> Result<(), PoolError> {
-        let generation = self.slots[k].generation;
+    /// Start the process of worker `k`, generation `generation` (`successor`: a planned
+    /// replacement, see [`super::recycling`]), its stderr going to a private file.
+    pub(super) fn start_process(
+        &self,
+        k: usize,
+        generation: u64,
+        successor: bool,
+    ) -> Result<(Child, PathBuf), PoolError> {
         let log = self.id.aux_dir().join(format!("w{k}.g{generation}.stderr"));
         let file = rogue_gym_ipc::private::create_private_file(&log)?;
         let w = &self.cfg.worker;
-        let child = Command::new(&w.program)
+        let mut command = Command::new(&w.program);
+        command
             .args(&w.args)
             .arg("--config")
             .arg(&self.config_path)
             .args(["--index", &k.to_string()])
             .args(["--generation", &generation.to_string()])
-            .args(["--ppid", &std::process::id().to_string()])
+            .args(["--ppid", &std::process::id().to_string()]);
+        if successor {
+            command.arg("--successor");
+        }
+        let child = command
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(file)
@@ -142,11 +167,20 @@ impl Core {
                 ),
                 stderr_tail: String::new(),
             })?;
+        Ok((child, log))
+    }
+
+    pub(super) fn spawn(&mut self, k: usize, then_reset: bool) -> Result<(), PoolError> {
+        let (child, log) = self.start_process(k, self.slots[k].generation, false)?;
         self.pids[k].store(child.id(), std::sync::atomic::Ordering::Relaxed);
         let s = &mut self.slots[k];
         s.pid = child.id();
         s.child = Some(child);
         s.stderr_path = log;
+        s.served = 0;
+        s.rss_read = None;
+        s.rss = 0;
+        s.rss_growth = 0;
         s.state = SlotState::Starting {
             since: Instant::now(),
             then_reset,
@@ -223,6 +257,7 @@ impl Core {
         let s = &mut self.slots[k];
         s.seq += 1;
         s.target = target;
+        s.served += self.blocks[k].len() as u64;
         let words = self.blocks[k].len() * aw;
         s.ports.send_cmd(s.seq, kind, words, |p| match actions {
             Actions::Indices(a) => {
@@ -250,6 +285,9 @@ impl Core {
         match std::mem::replace(&mut s.state, SlotState::Idle) {
             SlotState::Ready(sample) => {
                 let restarted = std::mem::take(&mut s.restarted);
+                if std::mem::take(&mut s.recycled) && restarted {
+                    self.recycled_envs.extend(self.blocks[k].clone());
+                }
                 let layout = self.layouts[k];
                 let apart =
                     if (0..layout.envs).any(|j| layout.record(sample.payload(), j).extra_apart()) {
@@ -499,6 +537,11 @@ impl Core {
         self.ready_order.retain(|&w| w != k);
         // Its stderr's tail is in the failure report already: a storm must not pile up files.
         let _ = fs::remove_file(&self.slots[k].stderr_path);
+        // A successor being built (recycling) is of no use now: the next generation is after it.
+        if let Some(g) = self.drop_successor(k, None) {
+            self.slots[k].generation = g;
+        }
+        self.slots[k].recycled = false;
         self.slots[k].generation += 1;
         self.spawn(k, then_reset)
     }

@@ -89,6 +89,22 @@ pub(crate) const BLOCK_ERROR: u32 = 3;
 /// Block: the replies of a [`CMD_CALL`] are written (no data).
 pub(crate) const BLOCK_CALL: u32 = 4;
 
+/// The file a successor (a planned replacement of worker `index`, as generation `generation`)
+/// creates once its envs are built: the supervisor then closes the worker it replaces.
+pub(crate) fn successor_marker(
+    id: &rogue_gym_ipc::PoolId,
+    index: usize,
+    generation: u64,
+) -> PathBuf {
+    id.aux_dir().join(format!("w{index}.g{generation}.built"))
+}
+
+/// The file the supervisor creates once the worker a successor replaces is gone: the
+/// successor then opens the worker's ports and says it is ready.
+pub(crate) fn successor_go(id: &rogue_gym_ipc::PoolId, index: usize, generation: u64) -> PathBuf {
+    id.aux_dir().join(format!("w{index}.g{generation}.go"))
+}
+
 /// The file where worker `index` (generation `generation`) reports an env failure.
 pub(crate) fn env_fault_path(id: &rogue_gym_ipc::PoolId, index: usize, generation: u64) -> PathBuf {
     id.aux_dir()

@@ -349,6 +349,22 @@ class Core:
             return rows[0], recs[0], ids[0], blocks
         return np.concatenate(rows), np.concatenate(recs), np.concatenate(ids), blocks
 
+    def mark_recycled(self, infos: dict[str, Any]) -> None:
+        """Flag the restarted envs whose worker was replaced by plan during the last call
+        (``worker_recycled`` and its mask); asked of the pool only when some env restarted."""
+        if "worker_restarted" not in infos:
+            return
+        ids = self.pool.recycled_envs()
+        if ids:
+            mask = np.isin(self._env_ids(infos), ids)
+            infos["worker_recycled"] = mask
+            infos["_worker_recycled"] = mask.copy()
+
+    @staticmethod
+    def _env_ids(infos: dict[str, Any]) -> np.ndarray:
+        """The env of each row of a call's infos: ``env_id`` (recv), else every env."""
+        return np.asarray(infos.get("env_id", np.arange(len(infos["worker_restarted"]))))
+
     # -- the pool --------------------------------------------------------------------------
 
     def stats(self) -> PoolStats:

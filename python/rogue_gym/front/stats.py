@@ -33,6 +33,8 @@ class WorkerStats:
     publish_s: float = 0.0
     #: Times the worker was replaced after dying or hanging.
     restarts: int = 0
+    #: Times it was replaced by plan (``recycle_after_steps``, ``recycle_above_rss``).
+    recycles: int = 0
     #: Times it did not answer within ``step_timeout`` (among ``restarts``).
     timeouts: int = 0
     #: Info bytes that did not fit the block and travelled beside it, in a file.
@@ -50,6 +52,7 @@ class WorkerStats:
             wait_s=d["wait_ns"] / 1e9,
             publish_s=d["publish_ns"] / 1e9,
             restarts=int(d["restarts"]),
+            recycles=int(d["recycles"]),
             timeouts=int(d["timeouts"]),
             spilled_bytes=int(d["spilled_bytes"]),
             last_failure=d["last_failure"],
@@ -92,6 +95,11 @@ class PoolStats:
     def restarts(self) -> int:
         """Worker restarts."""
         return sum(w.restarts for w in self.workers)
+
+    @property
+    def recycles(self) -> int:
+        """Planned worker replacements (recycling), apart from :attr:`restarts`."""
+        return sum(w.recycles for w in self.workers)
 
     @property
     def steps_per_s(self) -> float:

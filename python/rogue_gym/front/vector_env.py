@@ -226,6 +226,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         self._last_slot = slot
         cols = core.cols[slot]
         infos = self._kind.step_infos(core, slot, r, self._same_step)
+        core.mark_recycled(infos)
         terminated, truncated = cols["terminated"].copy(), cols["truncated"].copy()
         if self._disabled:
             self._done = terminated | truncated
@@ -309,6 +310,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
             obs = self._fill(obs, env_id)
         mark_restarted(infos, restarted)
         infos["env_id"] = env_id
+        core.mark_recycled(infos)
         return obs, recs["reward"].astype(np.float64), terminated, truncated, infos
 
     # -- calls -----------------------------------------------------------------------------
