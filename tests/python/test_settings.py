@@ -24,8 +24,12 @@ def test_a_misspelt_option_is_a_type_error_listing_the_valid_ones() -> None:
 def test_the_facades_take_their_defaults_from_pool_settings() -> None:
     from rogue_gym.sb3 import RogueVecEnv
 
-    # make_vec's first argument is the env count for the native game (make_vec(8)), or an id.
-    assert inspect.signature(rogue_gym.make_vec).parameters["env"].default == PoolSettings.num_envs
+    # make_vec's first argument is the env count for the native game (make_vec(8)), or an id;
+    # without it (make_vec() or make_vec(num_envs=...)) the native game, PoolSettings' count.
+    assert inspect.signature(rogue_gym.make_vec).parameters["env"].default is None
+    envs = rogue_gym.make_vec(num_workers=1)
+    assert envs.num_envs == PoolSettings.num_envs
+    envs.close()
     for fn in (rogue_gym.make_vec, rogue_gym.RogueVectorEnv.__init__, RogueVecEnv.__init__):
         params = inspect.signature(fn).parameters
         if fn is not rogue_gym.make_vec:
