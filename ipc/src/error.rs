@@ -44,7 +44,8 @@ pub enum IpcError {
         "{dir} has {} free ({} in all), but this pool needs {}: give the container more shared memory \
          (docker run --shm-size=1g, or --ipc=host; in Kubernetes an emptyDir with medium: Memory \
          mounted at /dev/shm), or use fewer envs or smaller observations (the need is the \
-         batch of observations times its slots, 2 or 4, plus each worker's records); \
+         batch of observations times its slots, batch_slots, 2 by default, plus each worker's \
+         records); \
          python -m rogue_gym.doctor checks a machine",
         crate::room::mib(*free), crate::room::mib(*size), crate::room::mib(*need)
     )]

@@ -52,6 +52,7 @@ class PoolOptions:
     worker_poll_us: Optional[int] = None
     recycle_after_steps: Optional[int] = None
     recycle_above_rss: Optional[int] = None
+    batch_slots: Optional[int] = None
 
     @classmethod
     def from_kwargs(cls, options: Mapping[str, Any]) -> Any:
@@ -103,6 +104,7 @@ class PoolOptions:
             "worker_poll_us": None if self.worker_poll_us is None else int(self.worker_poll_us),
             "recycle_after_steps": _optional_int(self.recycle_after_steps),
             "recycle_above_rss": _optional_int(self.recycle_above_rss),
+            "batch_slots": _optional_int(self.batch_slots),
         }
 
     def pool_json(self, num_envs: int) -> dict[str, Any]:
@@ -119,6 +121,7 @@ class PoolOptions:
             "worker_poll_us": self.worker_poll_us,
             "recycle_after_steps": self.recycle_after_steps,
             "recycle_above_rss": self.recycle_above_rss,
+            "batch_slots": self.batch_slots,
             "runtime_dir": None if self.runtime_dir is None else os.fspath(self.runtime_dir),
         }
 
@@ -166,6 +169,11 @@ class PoolSettings(PoolOptions):
             ``/tmp/rogue-gym-<uid>`` (see docs/security.md).
         poll_us, worker_poll_us: how long the caller and the workers poll (yielding the CPU)
             before they block when waiting for each other, in µs (default: the pool's).
+        batch_slots: slots of the shared batch buffer the workers write observations into,
+            2 to 16 (default 2: the pool's footprint in ``/dev/shm`` is twice the batch). With
+            ``copy=True`` and large batches the pool lends its slots instead of copying: 2 lend
+            every other batch of a loop that holds the previous one, 3 every batch; each slot
+            costs one batch of ``/dev/shm`` (docs/performance.md, "Batch slots").
         recycle_after_steps, recycle_above_rss: replace a worker by plan once it has served
             this many env steps, or once its resident memory is above this many bytes (envs
             that leak; default ``None``: never). The replacement builds its envs while the

@@ -116,14 +116,15 @@ class PoolVectorEnv(FrontVectorEnv):
             hosts a contiguous block of envs, the blocks differing by at most one env.
         copy: return observations that are yours to keep (default, like ``AsyncVectorEnv``):
             views of a shared-memory slot that the workers do not write again while any of
-            them lives (:mod:`rogue_gym.hosted.leases`), or copies when you keep more than a
-            few batches or the batch is small; with ``False`` they are views of shared
+            them lives (:mod:`rogue_gym.hosted.leases`), or copies when no other slot is free
+            (``batch_slots``) or the batch is small; with ``False`` they are views of shared
             memory, valid until the second following ``step``/``reset``.
         autoreset_mode: ``NEXT_STEP`` (default), ``SAME_STEP`` or ``DISABLED``.
         on_worker_failure, step_timeout, start_timeout, max_restarts, batch_size,
-            worker_command, poll_us, runtime_dir, recycle_after_steps, recycle_above_rss: the
-            pool's options (see :class:`rogue_gym.settings.PoolSettings`; the last two replace
-            a worker by plan, for envs that leak).
+            worker_command, poll_us, runtime_dir, recycle_after_steps, recycle_above_rss,
+            batch_slots: the pool's options (see :class:`rogue_gym.settings.PoolSettings`:
+            ``recycle_*`` replace a worker by plan, for envs that leak; ``batch_slots`` trades
+            ``/dev/shm`` for lent instead of copied batches).
         worker_poll_us: how long the workers poll before they block, in µs (default
             :data:`rogue_gym.kinds.hosted.HOSTED_WORKER_POLL_US`).
         info_bytes: room per env and step for the env's info in shared memory (typed rows of
@@ -170,6 +171,7 @@ class PoolVectorEnv(FrontVectorEnv):
         observation_mode: Any = "same",
         recycle_after_steps: Optional[int] = None,
         recycle_above_rss: Optional[int] = None,
+        batch_slots: Optional[int] = None,
     ) -> None:
         del context, daemon  # always spawned workers
         if not (observation_mode in ("same", "different") or _is_space_pair(observation_mode)):
@@ -191,6 +193,7 @@ class PoolVectorEnv(FrontVectorEnv):
             worker_poll_us=worker_poll_us,
             recycle_after_steps=recycle_after_steps,
             recycle_above_rss=recycle_above_rss,
+            batch_slots=batch_slots,
         )
         kind = HostedKind(
             env_fns,

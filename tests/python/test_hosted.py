@@ -22,7 +22,6 @@ from gymnasium.vector import AutoresetMode, SyncVectorEnv
 from gymnasium.vector.utils import concatenate, create_empty_array
 from rogue_gym import PoolVectorEnv, WorkerCrashedError
 from rogue_gym.hosted import leases
-from rogue_gym.hosted.leases import LENDING_SLOTS
 
 from conftest import pid_alive, pool_files, wait_until
 from hosted_envs import (
@@ -141,6 +140,10 @@ def test_nested_spaces_and_infos_match_sync_vector_env(pool, mode) -> None:
     ref.close()
 
 
+#: Batch slots of the pools that test lending beyond the default two.
+LENDING_SLOTS = 4
+
+
 def test_observations_are_lent_kept_intact_or_views(pool, monkeypatch) -> None:
     """copy=True (the default) lends the shared-memory slot the workers wrote instead of
     copying it: no later step writes a slot while any array from it (even a view of a view)
@@ -150,7 +153,7 @@ def test_observations_are_lent_kept_intact_or_views(pool, monkeypatch) -> None:
     obs, _ = small.reset(seed=0)
     assert obs["pos"].flags.owndata, "a batch under LEND_MIN_BYTES is a plain copy"
     monkeypatch.setattr(leases, "LEND_MIN_BYTES", 0)
-    env = pool([NestedEnv] * 3, num_workers=2)
+    env = pool([NestedEnv] * 3, num_workers=2, batch_slots=LENDING_SLOTS)
     obs, _ = env.reset(seed=0)
     acts = env.action_space.sample()
     for _ in range(2 * LENDING_SLOTS):
@@ -173,6 +176,22 @@ def test_observations_are_lent_kept_intact_or_views(pool, monkeypatch) -> None:
     del kept
     obs, *_ = env.step(acts)
     assert not obs["pos"].flags.owndata, "released slots are lent again"
+
+    # The default two slots: a loop that holds the previous batch while it steps gets every
+    # other batch lent (the one free slot is the workers'); a loop that drops it first, all.
+    two = pool([NestedEnv] * 3, num_workers=2)
+    obs, _ = two.reset(seed=0)
+    lent = []
+    for _ in range(6):
+        obs, *_ = two.step(acts)  # the previous obs lives during the call
+        lent.append(not obs["pos"].flags.owndata)
+    assert lent in ([True, False] * 3, [False, True] * 3), lent
+    for _ in range(4):
+        del obs
+        obs, *_ = two.step(acts)
+        assert not obs["pos"].flags.owndata
+    slot = -(-3 * two._core.obs_bytes // 64) * 64  # one batch, 64-byte aligned
+    assert env.stats().shm_bytes - two.stats().shm_bytes == (LENDING_SLOTS - 2) * slot
 
     views = pool([cartpole] * 2, num_workers=1, copy=False)
     obs, _ = views.reset(seed=0)

@@ -184,17 +184,16 @@ class Core:
         lend = self.copy and n * self.obs_bytes >= leases.LEND_MIN_BYTES
         settings = kind.pool_settings()
         settings["autoreset"] = "same_step" if same_step else "next_step"
-        settings["batch_slots"] = leases.LENDING_SLOTS if lend else None
         _sigterm.install()
         try:
             try:
                 self.pool: Any = _native.Pool(json.dumps(settings), list(kind.worker_command))
             except OSError as err:
-                if not (lend and err.errno == errno.ENOSPC):
+                if not (settings.get("batch_slots") and err.errno == errno.ENOSPC):
                     raise
-                # /dev/shm has no room for the lending slots: copy each batch out of two slots
-                # instead (what copy=True meant before lending); still too big: the error.
-                lend, settings["batch_slots"] = False, None
+                # /dev/shm has no room for the slots asked for: the default two (lending every
+                # other batch of a loop); still too big: the error.
+                settings["batch_slots"] = None
                 self.pool = _native.Pool(json.dumps(settings), list(kind.worker_command))
         except EnvFailedError as err:
             reraise(err)

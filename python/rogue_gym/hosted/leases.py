@@ -7,7 +7,9 @@ view of them) lives. The workers' next batches go to slots that are not lent, so
 holds never changes under them: the same guarantee as a copy, without the copy. When every
 other slot is lent (a user keeping many batches), the batch is copied as before, so one slot
 always stays free for the workers. Batches smaller than :data:`LEND_MIN_BYTES` are simply
-copied.
+copied. A pool has two slots by default (``batch_slots``): a loop that holds the previous batch
+while it steps then gets every other batch lent; three slots lend every batch of such a loop
+(docs/performance.md, "Batch slots").
 """
 
 from __future__ import annotations
@@ -17,11 +19,7 @@ from typing import Any, Callable, Optional
 
 import numpy as np
 
-__all__ = ["LENDING_SLOTS", "LEND_MIN_BYTES", "SlotLender"]
-
-#: Batch slots of a pool that lends its observations: the batch the caller holds while it steps
-#: (``obs`` of the previous step), the batch being written, and room for one more.
-LENDING_SLOTS = 4
+__all__ = ["LEND_MIN_BYTES", "SlotLender"]
 #: Smallest batch of observations (bytes, all envs) that is lent rather than copied: below it a
 #: copy costs less than the few microseconds of Python that lending takes per call.
 LEND_MIN_BYTES = 64 * 1024
