@@ -351,9 +351,10 @@ class LeakyEnv(gym.Env):
     observation_space = spaces.Box(0.0, 1e9, (1,), np.float32)
     action_space = spaces.Discrete(2)
 
-    def __init__(self, leak_mib: float = 1.0, refuse_if: str = "") -> None:
+    def __init__(self, leak_mib: float = 1.0, refuse_if: str = "", build_s: float = 0.0) -> None:
         if refuse_if and os.path.exists(refuse_if):
             raise RuntimeError(f"refusing to start: {refuse_if} exists")
+        time.sleep(build_s)  # a slow simulator start-up
         self.leak = int(leak_mib * (1 << 20))
         self.hoard: list[np.ndarray] = []
         self.t = 0

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import functools
 import os
+import signal
 import time
 
 import numpy as np
@@ -14,7 +15,7 @@ import pytest
 import rogue_gym
 from rogue_gym import PoolVectorEnv
 
-from conftest import pid_alive
+from conftest import pid_alive, pool_files, wait_until
 from hosted_envs import LeakyEnv
 
 
@@ -127,3 +128,82 @@ def test_bad_recycling_options_are_refused() -> None:
         PoolVectorEnv([LeakyEnv] * 2, recycle_after_steps=0)
     with pytest.raises(ValueError, match="recycle_above_rss"):
         rogue_gym.make_vec(2, config="paper", recycle_above_rss=-1)
+
+
+def successors(pool_name: str) -> list[int]:
+    """Pids of this pool's successor processes (workers started with ``--successor``)."""
+    found = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/cmdline", "rb") as f:
+                args = f.read().split(b"\0")
+        except OSError:
+            continue
+        ours = b"--successor" in args and any(pool_name.encode() in a for a in args)
+        if ours and pid_alive(int(entry)):
+            found.append(int(entry))
+    return found
+
+
+def _building(envs: PoolVectorEnv, steps: int) -> int:
+    """Step until a successor is building its envs; its pid."""
+    for _ in range(steps):
+        envs.step(np.zeros(envs.num_envs, np.int64))
+        found = successors(envs.pool_name)
+        if found:
+            return found[0]
+    raise AssertionError("no successor was started")
+
+
+SLOW = functools.partial(LeakyEnv, leak_mib=0, build_s=1.0)
+
+
+def test_a_worker_killed_while_its_successor_builds_is_restarted_and_the_successor_dropped() -> (
+    None
+):
+    envs = PoolVectorEnv([SLOW] * 2, num_workers=1, recycle_after_steps=40)
+    try:
+        envs.reset(seed=0)
+        successor = _building(envs, 30)
+        os.kill(envs.worker_pids[0], signal.SIGKILL)
+        _, _, _, truncated, infos = envs.step(np.zeros(2, np.int64))
+        assert truncated.all() and infos["worker_restarted"].all()
+        assert "worker_recycled" not in infos
+        assert wait_until(lambda: not pid_alive(successor))
+        for _ in range(5):
+            envs.step(np.zeros(2, np.int64))
+        stats = envs.stats()
+        assert stats.restarts == 1 and stats.recycles == 0
+    finally:
+        envs.close()
+
+
+def test_a_successor_killed_while_it_builds_is_replaced_later_and_no_call_fails() -> None:
+    """The successor dies (SIGKILL): the worker serves on past its bound; after a pause of half
+    of start_timeout a new successor takes over."""
+    envs = PoolVectorEnv([SLOW] * 2, num_workers=1, recycle_after_steps=40, start_timeout=4.0)
+    try:
+        envs.reset(seed=0)
+        os.kill(_building(envs, 30), signal.SIGKILL)
+        deadline = time.monotonic() + 20
+        while envs.stats().recycles == 0 and time.monotonic() < deadline:
+            envs.step(np.zeros(2, np.int64))
+            time.sleep(0.01)
+        stats = envs.stats()
+        assert stats.recycles == 1 and stats.restarts == 0
+        assert "exited while building" in (stats.workers[0].last_failure or "")
+    finally:
+        envs.close()
+
+
+def test_close_while_a_successor_builds_leaves_nothing() -> None:
+    envs = PoolVectorEnv([SLOW] * 2, num_workers=1, recycle_after_steps=40)
+    name = envs.pool_name
+    envs.reset(seed=0)
+    successor = _building(envs, 30)
+    workers = list(envs.worker_pids)
+    envs.close()
+    assert wait_until(lambda: not pid_alive(successor) and not any(map(pid_alive, workers)))
+    assert wait_until(lambda: not pool_files(name)), pool_files(name)
