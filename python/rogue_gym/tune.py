@@ -12,7 +12,8 @@ callable, or ``"module:callable"``), a list of ``env_fns`` (one per env), or ``"
 it returns a :class:`TuneResult`.
 
 The candidates: ``num_workers`` from 1 to twice the CPU count; observations lent (``copy=True``)
-or as shared-memory views (``copy=False``); the EnvPool-style async loop (``send``/``recv``
+or as shared-memory views (``copy=False``), and where the batch is large enough to be lent, lent
+from three batch slots (``batch_slots=3``: every batch lent, one more batch of ``/dev/shm``); the EnvPool-style async loop (``send``/``recv``
 with ``batch_size`` = one worker's envs) where the workers divide the envs; and for a
 gymnasium id with its own vector entry point, one such vector env per worker
 (:meth:`rogue_gym.PoolVectorEnv.from_vector_env`). ``SyncVectorEnv`` in this process is timed
@@ -49,6 +50,8 @@ from typing import Any, Callable, Optional, Sequence, Union
 import gymnasium as gym
 import numpy as np
 
+from .hosted import leases
+from .hosted.layout import SpaceLayout
 from .registration import ENV_ID
 from .settings import PoolOptions
 
@@ -210,13 +213,19 @@ def _resolve(env: EnvLike) -> tuple[str, Any, Optional[str]]:
     raise TypeError(f"tune needs a gymnasium id, an env factory or {ENV_ID!r}, got {env!r}")
 
 
-def candidates(kind: str, num_envs: int, gym_id: Optional[str], cpus: int) -> list[Candidate]:
-    """Every layout tune times for ``num_envs`` envs on ``cpus`` CPUs."""
+def candidates(
+    kind: str, num_envs: int, gym_id: Optional[str], cpus: int, lends: bool = False
+) -> list[Candidate]:
+    """Every layout tune times for ``num_envs`` envs on ``cpus`` CPUs; ``lends``: the batch is
+    large enough to be lent (``copy=True``), so three batch slots (every batch lent, one more
+    batch of ``/dev/shm``) are a candidate too."""
     out: list[Candidate] = []
     workers = [w for w in range(1, 2 * cpus + 1) if w <= num_envs]
     for w in workers:
         for copy in (True, False):
             out.append(Candidate("pool", {"num_workers": w, "copy": copy}))
+        if lends:
+            out.append(Candidate("pool", {"num_workers": w, "copy": True, "batch_slots": 3}))
         if w > 1 and num_envs % w == 0:
             out.append(Candidate("async", {"num_workers": w, "batch_size": num_envs // w}))
     if kind == "hosted" and gym_id is not None and gym.spec(gym_id).vector_entry_point:
@@ -257,6 +266,21 @@ def _build(target: _Target, c: Candidate) -> Any:
         make = functools.partial(_vector_env, target.gym_id)
         return rogue_gym.PoolVectorEnv.from_vector_env(make, n, **kw)
     return rogue_gym.PoolVectorEnv(fns, **kw)
+
+
+def _obs_bytes(kind: str, env_fn: Any) -> int:
+    """Bytes of one observation in the pool's batch (one env is built here for a hosted env)."""
+    if kind == "native":  # as tune builds it (_build)
+        from .vector import make_vec
+
+        env: Any = make_vec(1, config="paper", num_workers=1)
+    else:
+        env = (env_fn[0] if isinstance(env_fn, list) else env_fn)()
+    space = env.single_observation_space if kind == "native" else env.observation_space
+    try:
+        return SpaceLayout(space).stride
+    finally:
+        env.close()
 
 
 def _vector_env(gym_id: str, n: int) -> Any:
@@ -468,7 +492,8 @@ def tune(
     if isinstance(env_fn, list) and len(env_fn) != num_envs:
         num_envs = len(env_fn)
     ncpu = cpus or os.cpu_count() or 1
-    cands = candidates(kind, int(num_envs), gym_id, ncpu)
+    lends = num_envs * _obs_bytes(kind, env_fn) >= leases.LEND_MIN_BYTES
+    cands = candidates(kind, int(num_envs), gym_id, ncpu, lends)
     say = (lambda m: print(m, file=out, flush=True)) if out is not None else (lambda m: None)
     say(f"tune: timing one start-up of {num_envs} envs")
     target = _Target(kind, env_fn, gym_id, int(num_envs))

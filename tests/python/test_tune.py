@@ -130,5 +130,15 @@ def test_tune_times_again_only_the_layouts_within_half_the_best(
 
 
 def test_a_candidate_is_named_by_its_label() -> None:
-    for c in tune_mod.candidates("hosted", 8, "CartPole-v1", 2):
+    for c in tune_mod.candidates("hosted", 8, "CartPole-v1", 2, lends=True):
         assert tune_mod.Candidate.from_label(c.label) == c
+
+
+def test_three_batch_slots_are_a_candidate_where_batches_are_lent() -> None:
+    """Two slots lend every other batch of a loop that holds the previous one; three lend
+    every batch: tune times them where the batch is large enough to be lent."""
+    slots = [c.kwargs.get("batch_slots") for c in tune_mod.candidates("hosted", 8, None, 2, True)]
+    assert slots.count(3) == 4  # one per worker count, 1 to 4 on 2 CPUs
+    assert 3 not in [c.kwargs.get("batch_slots") for c in tune_mod.candidates("hosted", 8, None, 2)]
+    assert tune_mod._obs_bytes("native", None) == 17 * 16 * 32
+    assert tune_mod._obs_bytes("hosted", lambda: gym.make("CartPole-v1")) == 4 * 4
