@@ -132,11 +132,9 @@ pub fn run_async(pool: &mut Pool, steps: u64) -> Result<Digests, PoolError> {
     let mut out = BatchOutput::default();
     pool.async_reset()?;
     while got.iter().any(|&g| g < steps + 1) {
-        let batch = pool.recv()?;
-        batch.fill(n_info, &mut out);
-        let mut obs = vec![0u8; out.env_ids.len() * ob];
-        batch.copy_obs_into(&mut obs)?;
-        drop(batch);
+        let got_now = pool.recv()?;
+        got_now.fill(n_info, &mut out);
+        let obs = got_now.obs;
         for (row, &e) in out.env_ids.iter().enumerate() {
             if got[e] < steps + 1 {
                 d.add(e, &obs[row * ob..(row + 1) * ob], &out, row);

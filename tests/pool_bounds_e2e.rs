@@ -145,7 +145,7 @@ fn recv_and_calls_keep_their_bound_when_a_worker_dies_at_every_start() {
     let mut guard = PidGuard(p.worker_pids());
     p.async_reset().unwrap();
     let (b0, b1) = (p.recv().unwrap(), p.recv().unwrap());
-    let (ids0, ids1) = (b0.env_ids(), b1.env_ids());
+    let (ids0, ids1) = (b0.env_ids.clone(), b1.env_ids.clone());
     drop((b0, b1));
     die_at_start(&p, true);
     signal(p.worker_pids()[1], Signal::SIGKILL);

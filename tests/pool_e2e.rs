@@ -2,8 +2,10 @@
 //! the deterministic test env: determinism, seeds, zero-copy blocks, partial resets, cleanup and
 //! errors. Worker faults (kills, hangs, budgets) are in `pool_faults_e2e.rs`.
 
+use std::time::Duration;
+
 use rogue_gym_e2e::*;
-use rogue_gym_pool::{BatchOutput, EnvRegistry, Pool, PoolError, SeedPolicy, SeedSet};
+use rogue_gym_pool::{BatchOutput, EnvRegistry, Pool, PoolError, RecvWant, SeedPolicy, SeedSet};
 use serde_json::json;
 
 const EXE: &str = env!("CARGO_BIN_EXE_e2e_worker");
@@ -109,8 +111,10 @@ fn bad_input_is_an_error_value() {
     let e = p.step(&[0; 4], &mut obs[1..], &mut out).unwrap_err();
     assert!(matches!(e, PoolError::BadBuffer { .. }));
     // Async misuse.
-    let e = p.send(&[0, 0], &[1, 2]).unwrap_err();
-    assert!(e.to_string().contains("worker block"), "{e}");
+    let e = p.send(&[0, 0], &[1, 1]).unwrap_err();
+    assert!(e.to_string().contains("env 1 appears twice"), "{e}");
+    let e = p.send(&[0], &[9]).unwrap_err();
+    assert!(e.to_string().contains("envs 0 to 3"), "{e}");
     let e = p.recv().unwrap_err();
     assert!(e.to_string().contains("send()"), "{e}");
     // The pool still works.
@@ -121,9 +125,9 @@ fn bad_input_is_an_error_value() {
     let e = Pool::new(config(EXE, test_env(), 2, 3), &reg).unwrap_err();
     assert!(e.to_string().contains("must not exceed num_envs"), "{e}");
     let mut c = config(EXE, test_env(), 5, 2);
-    c.batch_size = Some(2);
+    c.batch_size = Some(6);
     let e = Pool::new(c, &reg).unwrap_err();
-    assert!(e.to_string().contains("must equal num_envs (5)"), "{e}");
+    assert!(e.to_string().contains("between 1 and num_envs (5)"), "{e}");
     let e = Pool::new(config(EXE, json!({"kind": "nope"}), 2, 1), &reg).unwrap_err();
     assert!(e.to_string().contains("unknown env kind"), "{e}");
     // A worker that cannot start: its stderr is in the error.
@@ -142,29 +146,47 @@ fn bad_input_is_an_error_value() {
 }
 
 #[test]
-fn async_blocks_are_zero_copy_and_outlive_the_pool() {
-    let mut c = config(EXE, test_env(), 4, 2);
-    c.batch_size = Some(2);
+fn async_serves_envs_one_by_one_any_batch_size_any_subset() {
+    // 5 envs on 2 workers (blocks of 3 and 2), batches of 3: not a whole number of blocks.
+    let mut c = config(EXE, test_env(), 5, 2);
+    c.batch_size = Some(3);
     let mut p = pool(c);
     p.async_reset().unwrap();
-    let b1 = p.recv().unwrap();
-    let b2 = p.recv().unwrap();
-    let mut ids = [b1.env_ids(), b2.env_ids()].concat();
+    let r1 = p.recv().unwrap();
+    assert_eq!(r1.env_ids.len(), 3);
+    assert_eq!(r1.obs.len(), 3 * p.obs_bytes());
+    let r2 = p.recv_want(RecvWant::exactly(2)).unwrap();
+    let mut ids = [r1.env_ids.clone(), r2.env_ids.clone()].concat();
     ids.sort();
-    assert_eq!(ids, vec![0, 1, 2, 3]);
-    let snapshot: Vec<u8> = b1.blocks[0].obs().to_vec();
-    assert_eq!(snapshot.len(), 2 * p.obs_bytes());
-    // Step the other block while holding b1.
-    let other = b2.env_ids();
-    p.send(&[1, 1], &other).unwrap();
-    let b3 = p.recv().unwrap();
-    assert_eq!(b3.env_ids(), other);
+    assert_eq!(ids, vec![0, 1, 2, 3, 4]);
+    // One env of the first worker, alone; another one while it is in flight.
+    p.send(&[1], &[0]).unwrap();
+    let e = p.send(&[1], &[0]).unwrap_err();
+    assert!(e.to_string().contains("env 0 is in flight"), "{e}");
+    p.send(&[2], &[2]).unwrap();
+    let mut got = Vec::new();
+    while got.len() < 2 {
+        got.extend(p.recv_want(RecvWant::exactly(1)).unwrap().env_ids);
+    }
+    got.sort();
+    assert_eq!(got, vec![0, 2]);
+    // Nothing outstanding: recv says what to do; a deadline with nothing ready times out.
+    let e = p.recv_want(RecvWant::exactly(1)).unwrap_err();
+    assert!(e.to_string().contains("send()"), "{e}");
+    p.send(&[0], &[4]).unwrap();
+    let r = p
+        .recv_want(RecvWant {
+            min_batch: 1,
+            max_batch: 5,
+            timeout: Some(Duration::from_secs(5)),
+        })
+        .unwrap();
+    assert_eq!(r.env_ids, vec![4], "returns once every env sent is ready");
     let id = p.id().clone();
     p.close().unwrap();
     assert!(pool_files_gone(&id));
-    // Held samples stay mapped and unchanged after close.
-    assert_eq!(b1.blocks[0].obs(), &snapshot[..]);
-    drop((b1, b2, b3));
+    // What recv handed over is the caller's own.
+    assert_eq!(r1.obs.len(), 3 * 3 * 5 * 7);
 }
 
 #[test]

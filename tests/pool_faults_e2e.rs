@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use nix::sys::signal::Signal;
 use rogue_gym_e2e::*;
-use rogue_gym_pool::{BatchOutput, EnvRegistry, FailurePolicy, Pool, PoolError};
+use rogue_gym_pool::{BatchOutput, EnvRegistry, FailurePolicy, Pool, PoolError, RecvWant};
 use serde_json::json;
 
 const EXE: &str = env!("CARGO_BIN_EXE_e2e_worker");
@@ -260,35 +260,58 @@ fn killed_supervisor_leaves_no_worker_and_its_files_are_swept() {
 }
 
 #[test]
-fn async_mode_reports_a_restarted_block() {
+fn async_mode_reports_restarted_envs() {
     let mut c = config(EXE, test_env(), 4, 2);
     c.batch_size = Some(2);
     let mut p = pool(c);
     let _guard = PidGuard(p.worker_pids());
+    let restarted = |r: &rogue_gym_pool::Received| -> Vec<usize> {
+        let mut v: Vec<usize> = r
+            .env_ids
+            .iter()
+            .zip(&r.records)
+            .filter(|(_, rec)| rec.restarted())
+            .inspect(|(_, rec)| assert!(rec.truncated() && !rec.terminated()))
+            .map(|(e, _)| *e)
+            .collect();
+        v.sort();
+        v
+    };
     p.async_reset().unwrap();
-    let b0 = p.recv().unwrap();
-    let b1 = p.recv().unwrap();
-    let ids0 = b0.env_ids();
-    let ids1 = b1.env_ids();
-    drop((b0, b1));
-    let victim_worker = ids0[0] / 2;
-    signal(p.worker_pids()[victim_worker], Signal::SIGKILL);
-    p.send(&[1, 1], &ids0).unwrap();
-    p.send(&[1, 1], &ids1).unwrap();
-    let mut restarted = Vec::new();
+    p.recv_want(RecvWant::exactly(4)).unwrap();
+    // Worker 0 (envs 0 and 1) dies while the caller holds all envs: its two envs restart.
+    let old = p.worker_pids()[0];
+    signal(old, Signal::SIGKILL);
+    p.send(&[1; 4], &[0, 1, 2, 3]).unwrap();
+    let mut got = Vec::new();
     for _ in 0..2 {
-        let b = p.recv().unwrap();
-        let blk = &b.blocks[0];
-        for j in 0..2 {
-            let r = blk.record(j);
-            if r.restarted() {
-                assert!(r.truncated() && !r.terminated());
-                restarted.push(blk.env_ids().start + j);
-            }
-        }
+        got.extend(restarted(&p.recv().unwrap()));
     }
-    assert_eq!(restarted, ids0);
+    got.sort();
+    assert_eq!(got, vec![0, 1]);
     assert_eq!(p.restarts(), 1);
+    // It dies again while env 0 was stepped alone and env 1 is with the caller: env 0's next
+    // step restarts both, and env 1's next send hands over its restart at once.
+    let pid = replacement(&p, 0, old);
+    p.send(&[1], &[0]).unwrap();
+    assert_eq!(p.recv_want(RecvWant::exactly(1)).unwrap().env_ids, vec![0]);
+    signal(pid, Signal::SIGKILL);
+    p.send(&[1], &[0]).unwrap();
+    assert_eq!(
+        restarted(&p.recv_want(RecvWant::exactly(1)).unwrap()),
+        vec![0]
+    );
+    p.send(&[1], &[1]).unwrap();
+    assert_eq!(
+        restarted(&p.recv_want(RecvWant::exactly(1)).unwrap()),
+        vec![1]
+    );
+    // From then on env 1 steps its new episode.
+    p.send(&[1], &[1]).unwrap();
+    let r = p.recv_want(RecvWant::exactly(1)).unwrap();
+    assert!(!r.records[0].restarted());
+    assert_eq!(r.records[0].episode_length, 1);
+    assert_eq!(p.restarts(), 2);
 }
 
 /// Wait until worker `k` has a pid other than `old` (its replacement was spawned).

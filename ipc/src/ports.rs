@@ -188,8 +188,9 @@ impl WorkerPorts {
         Ok(unsafe { s.assume_init() })
     }
 
-    /// Publish a block and wake the supervisor.
-    pub fn send_block(&self, s: BlockSampleMut) -> Result<(), IpcError> {
+    /// Publish a block (stamped with its [`BlockHeader::ready_ns`]) and wake the supervisor.
+    pub fn send_block(&self, mut s: BlockSampleMut) -> Result<(), IpcError> {
+        s.user_header_mut().ready_ns = crate::services::monotonic_ns();
         s.send().map_err(ice("send block"))?;
         self.block_notifier
             .notify()

@@ -32,6 +32,16 @@ pub struct BlockHeader {
     pub worker: u32,
     /// Block kind (defined by the pool).
     pub kind: u32,
+    /// When the block was published ([`monotonic_ns`], stamped by `send_block`): blocks that
+    /// arrive together are served in the order they became ready.
+    pub ready_ns: u64,
+}
+
+/// The machine's monotonic clock (`CLOCK_MONOTONIC`, the same in every process), in ns.
+pub fn monotonic_ns() -> u64 {
+    nix::time::clock_gettime(nix::time::ClockId::CLOCK_MONOTONIC)
+        .map(|t| t.tv_sec() as u64 * 1_000_000_000 + t.tv_nsec() as u64)
+        .unwrap_or(0)
 }
 
 /// Settings that both sides of a pool must agree on (pass them to the worker unchanged).

@@ -70,6 +70,7 @@ fn pubsub_round_trip_and_cleanup() {
             generation: 0,
             worker: 0,
             kind: 2,
+            ready_ns: 0,
         };
         w.send_block(b).unwrap();
         let mut blk = None;

@@ -281,6 +281,19 @@ pub enum PoolError {
     /// an [`PoolError::EnvFailed`] or [`PoolError::WorkerFailed`]). One reset clears them all.
     #[error("{}{}", .0.first().map(ToString::to_string).unwrap_or_default(), several_tail(.0))]
     Several(Vec<PoolError>),
+    /// An async `recv` with a deadline found fewer than `min_batch` envs ready at it; nothing
+    /// is lost (the envs stay in flight or ready for the next `recv`).
+    #[error(
+        "recv() timed out: {ready} of the at least {min_batch} envs asked for were ready within {timeout:?}; nothing is lost, call recv() again"
+    )]
+    RecvTimeout {
+        /// Envs ready at the deadline.
+        ready: usize,
+        /// Envs asked for at least.
+        min_batch: usize,
+        /// The deadline, from the call's start.
+        timeout: std::time::Duration,
+    },
     /// The pool is closed.
     #[error("the pool is closed")]
     Closed,

@@ -53,7 +53,7 @@ pub use registry::{BlockCtor, Built, EnvCtor, EnvRegistry};
 pub use rogue_gym_ipc::WaitPolicy;
 pub use seeds::{SeedPolicy, SeedSchedule, SeedSet, Shard};
 pub use stats::WorkerStats;
-pub use supervisor::{Actions, InterruptCheck, Pool, validate_actions};
+pub use supervisor::{Actions, InterruptCheck, Pool, Received, RecvWant, validate_actions};
 pub use wire::layout::{
     EnvRecord, FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED,
 };

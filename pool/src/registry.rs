@@ -91,6 +91,11 @@ impl EnvRegistry {
             ))),
         }
     }
+    /// Whether the spec's kind builds whole blocks of envs (a vector env per worker) rather
+    /// than single envs (false for a spec of no known kind: building it will say why).
+    pub fn builds_blocks(&self, spec: &Value) -> bool {
+        matches!(self.ctor(spec), Ok((_, Ctor::Block(_))))
+    }
     /// Build the envs `envs` (global indices) of a worker's block from their JSON spec.
     /// `on_env` is told each env's index before it is built, so that a failure can be blamed on
     /// it (a block's failure is blamed on its first env).

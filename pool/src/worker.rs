@@ -19,8 +19,8 @@ use crate::stats::{Counter, StatsBuffer, ns_since, stamp};
 use crate::wire::layout::BlockLayout;
 use crate::wire::{
     ACTION_EXTRAS, BATCH_BUFFER, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_CALL,
-    CMD_CLOSE, CMD_STEP, EnvFault, RELOAD_SEEDS, TARGET_BITS, TARGET_SHIFT, WorkerConfig, calls,
-    env_fault_path, extra_apart_path, slot_bytes, successor_go, successor_marker,
+    CMD_CLOSE, CMD_STEP, EnvFault, RELOAD_SEEDS, SUBSET, TARGET_BITS, TARGET_SHIFT, WorkerConfig,
+    calls, env_fault_path, extra_apart_path, slot_bytes, successor_go, successor_marker,
 };
 
 mod block;
@@ -225,6 +225,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         generation: a.generation,
         worker: a.index as u32,
         kind,
+        ready_ns: 0,
     };
     let ob = layout.obs_bytes;
     let sb = slot_bytes(cfg.num_envs, ob);
@@ -237,7 +238,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
     ports.send_block(ready)?;
 
     let mut seeds = cfg.seeds.clone();
-    let mut payload: Vec<u64> = vec![0; epw * aw];
+    let mut payload: Vec<u64> = vec![0; epw * aw + epw];
     // One env's extra info, and the block's infos that did not fit its room.
     let mut info: Vec<u8> = Vec::new();
     let mut apart: Vec<(u32, Vec<u8>)> = Vec::new();
@@ -274,16 +275,21 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
             ports.send_block(reply)?;
             continue;
         }
-        // Words per env: one episode index per env for a reset, one action for a step.
+        // Words per env: one episode index per env for a reset, one action for a step; a
+        // SUBSET step adds one word per env (whether it steps).
         let per_env = if kind == CMD_STEP { aw } else { 1 };
-        if n != epw * per_env {
+        let subset = kind == CMD_STEP && h.kind & SUBSET != 0;
+        let want = epw * per_env + if subset { epw } else { 0 };
+        if n != want {
             return Err(WorkerError::Msg(format!(
-                "command {} carries {n} words for {epw} envs of {per_env} words",
+                "command {} carries {n} words for {epw} envs of {per_env} words (subset: {subset})",
                 h.seq
             )));
         }
         payload[..n].copy_from_slice(&cmd.payload()[..n]);
         drop(cmd);
+        let (acts, only) = payload[..n].split_at(epw * per_env);
+        let only = subset.then_some(only);
 
         let target = ((h.kind & TARGET_BITS) >> TARGET_SHIFT) as usize;
         if h.kind & RELOAD_SEEDS != 0 {
@@ -335,14 +341,13 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         } else {
             Ok(())
         };
-        let mut failed = match extras {
-            Ok(()) => hosted
-                .serve(kind, &payload[..n], per_env, &mut out, &ctx)
-                .err(),
-            Err(f) => Some(f),
-        };
+        let (mut failed, served) =
+            match extras.and_then(|()| hosted.serve(kind, acts, per_env, only, &mut out, &ctx)) {
+                Ok(served) => (None, served),
+                Err(f) => (Some(f), 0),
+            };
         stats.add(me, Counter::EnvNs, ns_since(serving));
-        stats.add(me, Counter::EnvSteps, epw as u64);
+        stats.add(me, Counter::EnvSteps, served as u64);
         stats.add(me, Counter::Commands, 1);
         let publishing = stamp();
         if failed.is_none() && !apart.is_empty() {

@@ -18,7 +18,6 @@ __all__ = [
     "RECORD_BYTES",
     "SUMMARY_FINAL",
     "SUMMARY_RESTARTED",
-    "BlockHolder",
     "Game",
     "Pool",
     "SharedBatchHolder",
@@ -72,12 +71,6 @@ class Game:
     def player_position(self) -> tuple[int, int]: ...
 
 @final
-class BlockHolder:
-    """Owner of one worker block behind zero-copy views."""
-
-    worker: int
-
-@final
 class SharedBatchHolder:
     """Owner of the pool's shared batch buffer behind zero-copy views."""
 
@@ -125,7 +118,12 @@ class Pool:
     def set_seeds(self, seeds_json: str) -> None: ...
     def async_reset(self) -> None: ...
     def send(self, actions: np.ndarray, env_ids: Sequence[int]) -> None: ...
-    def recv(self) -> list[tuple[int, np.ndarray, bytes, list[tuple[int, bytes]]]]: ...
+    def recv(
+        self,
+        min_batch: int | None = None,
+        max_batch: int | None = None,
+        timeout: float | None = None,
+    ) -> tuple[np.ndarray, np.ndarray, bytes, list[tuple[int, bytes]]]: ...
     def call_envs(self, requests: Sequence[tuple[int, bytes]]) -> list[tuple[int, bytes]]: ...
     def stage_action_extras(self, extras: Sequence[tuple[int, bytes]]) -> None: ...
     def worker_envs(self, k: int) -> tuple[int, int]: ...

@@ -19,7 +19,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 
 from ._config import ConfigLike
 from .front.vector_env import FrontVectorEnv
-from .kinds.hosted import DEFAULT_INFO_BYTES, HOSTED_WORKER_POLL_US, HostedKind, VectorEnvFn
+from .kinds.hosted import DEFAULT_INFO_BYTES, HostedKind, VectorEnvFn
 from .kinds.native import NativeKind
 from .registration import ENV_ID
 from .settings import PoolOptions, PoolSettings, parse_autoreset_mode
@@ -126,7 +126,8 @@ class PoolVectorEnv(FrontVectorEnv):
             ``recycle_*`` replace a worker by plan, for envs that leak; ``batch_slots`` trades
             ``/dev/shm`` for lent instead of copied batches).
         worker_poll_us: how long the workers poll before they block, in µs (default
-            :data:`rogue_gym.kinds.hosted.HOSTED_WORKER_POLL_US`).
+            :data:`rogue_gym.kinds.hosted.HOSTED_WORKER_POLL_US`, or 0 in the async regime on
+            a machine with no core to spare: :func:`rogue_gym.settings.default_worker_poll`).
         info_bytes: room per env and step for the env's info in shared memory (typed rows of
             numbers and arrays, or pickles); a longer info travels beside it, more slowly.
         shared_memory: the pool always carries fixed-size leaves (Box, Discrete,
@@ -163,7 +164,7 @@ class PoolVectorEnv(FrontVectorEnv):
         worker_command: Optional[Sequence[str]] = None,
         batch_size: Optional[int] = None,
         poll_us: Optional[int] = None,
-        worker_poll_us: Optional[int] = HOSTED_WORKER_POLL_US,
+        worker_poll_us: Optional[int] = None,
         runtime_dir: Optional[str] = None,
         shared_memory: Optional[bool] = None,
         context: Optional[str] = None,

@@ -48,6 +48,9 @@ pub(crate) fn pool_error(py: Python<'_>, e: PoolError) -> PyErr {
             .and_then(|m| Ok((m.getattr("PoolClosedError")?, m.getattr("CLOSED_MESSAGE")?)))
             .and_then(|(cls, msg)| Ok(PyErr::from_value(cls.call1((msg,))?)))
             .unwrap_or_else(|e| e),
+        e @ PoolError::RecvTimeout { .. } => {
+            pyo3::exceptions::PyTimeoutError::new_err(e.to_string())
+        }
         e @ PoolError::Ipc(rogue_gym_ipc::IpcError::Insecure { .. }) => {
             PyPermissionError::new_err(e.to_string())
         }

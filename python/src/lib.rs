@@ -65,7 +65,6 @@ pub(crate) fn registry() -> rogue_gym_pool::EnvRegistry {
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<game::PyGame>()?;
     m.add_class::<pool::PyPool>()?;
-    m.add_class::<holders::BlockHolder>()?;
     m.add_class::<holders::SharedBatchHolder>()?;
     m.add("RECORD_BYTES", columns::RECORD_BYTES)?;
     m.add_function(wrap_pyfunction!(game::action_from_key, m)?)?;

@@ -5,11 +5,13 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 
 use numpy::ndarray::ArrayView1;
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyUntypedArray};
+use numpy::{PyArray1, PyReadonlyArray1, PyUntypedArray};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict, PyList};
-use rogue_gym_pool::{Actions, Batch, BatchOutput, EnvRecord, Pool, PoolError, SeedSchedule};
+use pyo3::types::{PyBytes, PyDict, PyList, PyTuple};
+use rogue_gym_pool::{
+    Actions, BatchOutput, EnvRecord, Pool, PoolError, Received, RecvWant, SeedSchedule,
+};
 
 use crate::clock::CallClock;
 use crate::columns::{
@@ -17,7 +19,7 @@ use crate::columns::{
 };
 use crate::errors::pool_error;
 use crate::gil::{interrupt_check, lock_gil_free};
-use crate::holders::{BlockHolder, SharedBatchHolder};
+use crate::holders::SharedBatchHolder;
 use crate::settings;
 
 /// What `take_extras` returns: `(rows, data, size, ends)` (see there).
@@ -488,56 +490,55 @@ impl PyPool {
         self.with_pool(py, move |p, _| p.send_actions(acts.as_actions(), &env_ids))
     }
 
-    /// Async: wait for the next batch; returns a list of `(env_start, obs_bytes_view, records,
-    /// extras)` per worker block, in arrival order. `obs_bytes_view` is a read-only zero-copy
-    /// uint8 view of the block's observations in shared memory (its base owns the sample);
-    /// `records` are the block's records as bytes; `extras` the `(env id, bytes)` of the envs
-    /// that wrote extra info (see `take_extras`).
-    fn recv<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-        let batch: Batch = self.with_pool(py, |p, _| p.recv())?;
-        let list = PyList::empty(py);
-        for block in batch.blocks {
-            let start = block.env_ids().start;
-            let n = block.env_ids().len();
-            let mut recs = vec![0u8; n * RECORD_BYTES];
-            for j in 0..n {
-                let rec = block.record(j);
-                // SAFETY: EnvRecord is #[repr(C)] plain data.
-                let src = unsafe {
-                    std::slice::from_raw_parts(
-                        (&rec as *const EnvRecord).cast::<u8>(),
-                        RECORD_BYTES,
-                    )
-                };
-                recs[j * RECORD_BYTES..(j + 1) * RECORD_BYTES].copy_from_slice(src);
-            }
-            let extras = PyList::empty(py);
-            if !block.restarted() {
-                for j in 0..n {
-                    let e = block.extra(j);
-                    if !e.is_empty() {
-                        extras.append((start + j, PyBytes::new(py, e)))?;
-                    }
-                }
-            }
-            let (ptr, len) = {
-                let o = block.obs();
-                (o.as_ptr(), o.len())
+    /// Async: the first envs ready, `(env_ids, obs, records, extras)`: int64 env ids, their
+    /// observations as one uint8 array (`rows x obs_bytes`, a fresh copy), their records as
+    /// bytes, and the `(env id, bytes)` of the envs that wrote extra info. `min_batch`,
+    /// `max_batch` (default both `batch_size`) and `timeout` (seconds) as `RecvWant`: return
+    /// once `max_batch` are ready, or at the deadline with at least `min_batch` (else
+    /// `TimeoutError`, nothing lost).
+    #[pyo3(signature = (min_batch=None, max_batch=None, timeout=None))]
+    fn recv<'py>(
+        &self,
+        py: Python<'py>,
+        min_batch: Option<usize>,
+        max_batch: Option<usize>,
+        timeout: Option<f64>,
+    ) -> PyResult<Bound<'py, PyTuple>> {
+        let timeout = timeout
+            .map(|t| settings::duration("timeout", t))
+            .transpose()?;
+        let got: Received = self.with_pool(py, move |p, _| {
+            let b = p.batch_size();
+            let max = max_batch.unwrap_or(b).max(min_batch.unwrap_or(1));
+            let min = min_batch.unwrap_or(max.min(b));
+            p.recv_want(RecvWant {
+                min_batch: min,
+                max_batch: max,
+                timeout,
+            })
+        })?;
+        let mut recs = vec![0u8; got.records.len() * RECORD_BYTES];
+        for (j, rec) in got.records.iter().enumerate() {
+            // SAFETY: EnvRecord is #[repr(C)] plain data.
+            let src = unsafe {
+                std::slice::from_raw_parts((rec as *const EnvRecord).cast::<u8>(), RECORD_BYTES)
             };
-            let holder = Bound::new(
-                py,
-                BlockHolder {
-                    block: Mutex::new(block),
-                },
-            )?;
-            // SAFETY: the bytes live in the sample owned by `holder`, which becomes the array's
-            // base, so they outlive the view; the sample is never written while held.
-            let view = unsafe { ArrayView1::from_shape_ptr(len, ptr) };
-            let arr = unsafe { PyArray1::<u8>::borrow_from_array(&view, holder.into_any()) };
-            drop(arr.try_readwrite()?.make_nonwriteable());
-            list.append((start, arr, PyBytes::new(py, &recs), extras))?;
+            recs[j * RECORD_BYTES..(j + 1) * RECORD_BYTES].copy_from_slice(src);
         }
-        Ok(list)
+        let extras = PyList::empty(py);
+        for (row, bytes) in &got.extras {
+            extras.append((got.env_ids[*row], PyBytes::new(py, bytes)))?;
+        }
+        let ids: Vec<i64> = got.env_ids.iter().map(|&e| e as i64).collect();
+        PyTuple::new(
+            py,
+            [
+                PyArray1::from_vec(py, ids).into_any(),
+                PyArray1::from_vec(py, got.obs).into_any(),
+                PyBytes::new(py, &recs).into_any(),
+                extras.into_any(),
+            ],
+        )
     }
 
     /// Call into envs off the hot path: `requests` are `(env id, request bytes)`; returns

@@ -183,7 +183,6 @@ struct PoolRun {
     actions: Vec<i64>,
     rng: Rng,
     lat: Vec<Duration>,
-    n_info: usize,
     na: u64,
 }
 
@@ -221,7 +220,6 @@ impl PoolRun {
             Mode::Async => pool.async_reset(),
         }
         .map_err(|e| e.to_string())?;
-        let n_info = pool.spec().info_names.len();
         let na = pool.spec().num_actions as u64;
         Ok(PoolRun {
             pool,
@@ -231,7 +229,6 @@ impl PoolRun {
             actions: vec![0; n],
             rng: Rng(0x2545_F491_4F6C_DD1D ^ a.seed),
             lat: Vec::new(),
-            n_info,
             na,
         })
     }
@@ -259,12 +256,9 @@ impl PoolRun {
                     self.lat.push(t.elapsed());
                 }
                 Mode::Async => {
-                    let batch = self.pool.recv().map_err(|e| e.to_string())?;
+                    let got = self.pool.recv().map_err(|e| e.to_string())?;
                     self.lat.push(t.elapsed());
-                    // Zero-copy: read the records; observations stay in shared memory.
-                    batch.fill(self.n_info, &mut self.out);
-                    let ids = batch.env_ids();
-                    drop(batch);
+                    let ids = got.env_ids;
                     env_steps += ids.len() as u64;
                     self.actions.clear();
                     for _ in &ids {

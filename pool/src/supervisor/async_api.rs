@@ -1,10 +1,41 @@
-//! EnvPool-style async stepping: `async_reset`, `send` and `recv` of whole worker blocks.
+//! EnvPool-style async stepping, env by env: `async_reset`, `send` to any envs, and `recv` of
+//! the first envs ready, with a deadline if asked ([`RecvWant`]). The per-env bookkeeping is
+//! [`super::async_envs`].
 
-use super::Pool;
+use std::time::{Duration, Instant};
+
+use super::async_envs::{Received, Turn};
 use super::stepping::Actions;
 use super::workers::SlotState;
-use crate::batch::Batch;
+use super::{Core, Pool};
 use crate::error::PoolError;
+
+/// How many envs an async [`Pool::recv_want`] hands over, and how long it may wait for them:
+/// it returns as soon as `max_batch` envs are ready, or at the deadline with every ready env
+/// (up to `max_batch`) if at least `min_batch` are; with fewer it fails with
+/// [`PoolError::RecvTimeout`] and nothing is lost. With no timeout it waits for `min_batch`
+/// and hands over every env ready then (up to `max_batch`). TorchRL's `AsyncEnvPool` names
+/// these `min_get`, `max_get` and `timeout`, with the same meaning.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RecvWant {
+    /// Envs to return at least (1 or more).
+    pub min_batch: usize,
+    /// Envs to return at most (`min_batch` or more).
+    pub max_batch: usize,
+    /// The deadline, from the call's start.
+    pub timeout: Option<Duration>,
+}
+
+impl RecvWant {
+    /// Exactly `n` envs, however long they take (EnvPool's `recv` with `batch_size = n`).
+    pub fn exactly(n: usize) -> Self {
+        RecvWant {
+            min_batch: n,
+            max_batch: n,
+            timeout: None,
+        }
+    }
+}
 
 impl Pool {
     /// Async: reset every env (as [`Pool::reset`]; outstanding results are discarded); collect
@@ -14,14 +45,17 @@ impl Pool {
         self.drain()?;
         for k in 0..self.core.slots.len() {
             self.core.send_reset(k, 0)?;
+            let envs = self.core.blocks[k].clone();
+            self.core.envs.all_in_flight(k, envs);
         }
         self.core.must_reset = false;
         Ok(())
     }
 
-    /// Async: send actions to envs. `env_ids` must consist of whole worker blocks
-    /// ([`Pool::worker_envs`]), each in order, whose previous result has been received;
-    /// `actions[r]` is for `env_ids[r]`.
+    /// Async: send actions to envs, any of them, each at most once until it is received;
+    /// `actions[r]` is for `env_ids[r]`. An env whose worker is busy with others of its envs
+    /// waits for it (it goes with the worker's next command). Envs of a vector env per worker
+    /// ([`crate::EnvRegistry::builds_blocks`]) go by whole worker blocks.
     pub fn send(&mut self, actions: &[i64], env_ids: &[usize]) -> Result<(), PoolError> {
         self.send_actions(Actions::Indices(actions), env_ids)
     }
@@ -40,78 +74,156 @@ impl Pool {
             ));
         }
         self.check_actions(actions, env_ids)?;
-        // Split env_ids into whole worker blocks, each in order.
-        let mut workers: Vec<(usize, usize)> = Vec::new();
-        let mut pos = 0;
-        while pos < env_ids.len() {
-            let first = env_ids[pos];
-            let Some(k) = self.core.blocks.iter().position(|b| b.start == first) else {
-                return Err(PoolError::State(format!(
-                    "send() env ids must form whole worker blocks, each in order; env {first} does not start a block (blocks: {:?})",
-                    self.core.blocks
-                )));
-            };
-            let block = self.core.blocks[k].clone();
-            let got = &env_ids[pos..(pos + block.len()).min(env_ids.len())];
-            if !got.iter().copied().eq(block.clone()) {
-                return Err(PoolError::State(format!(
-                    "send() env ids {got:?} do not form worker block {block:?}: give each block's ids in order"
-                )));
+        self.core.check_sendable(env_ids)?;
+        let (ab, aw) = (self.core.spec.action_bytes, self.core.spec.action_words());
+        let mut words = vec![0u64; aw];
+        for (r, &e) in env_ids.iter().enumerate() {
+            match actions {
+                Actions::Indices(a) => words[0] = a[r] as u64,
+                Actions::Bytes(b) => {
+                    words.fill(0);
+                    rogue_gym_ipc::words_as_bytes_mut(&mut words)[..ab]
+                        .copy_from_slice(&b[r * ab..(r + 1) * ab]);
+                }
             }
-            let state = &self.core.slots[k].state;
-            if !(matches!(state, SlotState::Idle) || state.coming_back_idle())
-                || workers.iter().any(|&(w, _)| w == k)
-            {
-                return Err(PoolError::State(format!(
-                    "send() to envs {block:?} whose previous request has not been received yet: recv() first"
-                )));
-            }
-            workers.push((k, pos));
-            pos += block.len();
+            self.core.envs.stage(e, &words);
         }
         // Planned replacements happen here, between two commands (see `recycling`).
-        for &(k, _) in &workers {
-            self.core.recycle_if_due(k)?;
+        for k in 0..self.core.slots.len() {
+            let envs = self.core.blocks[k].clone();
+            if envs.clone().any(|e| self.core.envs.turn[e] == Turn::Staged) {
+                self.core.recycle_if_due(k)?;
+            }
         }
-        // Workers replaced while idle may still be coming back.
-        self.wait_until(|c| {
-            workers
-                .iter()
-                .all(|&(k, _)| !c.slots[k].state.coming_back_idle())
-        })?;
-        let ab = self.core.spec.action_bytes;
-        for &(k, pos) in &workers {
-            let rows = pos..pos + self.core.blocks[k].len();
-            self.core.send_step(k, actions.rows(rows, ab), 0)?;
+        self.core.dispatch_staged()
+    }
+
+    /// Async: wait for the next `batch_size` envs and hand them over, first ready first.
+    pub fn recv(&mut self) -> Result<Received, PoolError> {
+        self.recv_want(RecvWant::exactly(self.batch_size()))
+    }
+
+    /// Async: hand over the first envs ready, as many and within the time `want` says.
+    pub fn recv_want(&mut self, want: RecvWant) -> Result<Received, PoolError> {
+        self.begin_call()?;
+        if want.min_batch == 0 || want.max_batch < want.min_batch {
+            return Err(PoolError::Config(format!(
+                "recv() needs 1 <= min_batch <= max_batch, got min_batch={} and max_batch={}",
+                want.min_batch, want.max_batch
+            )));
+        }
+        let outstanding = self.core.envs.outstanding();
+        if outstanding < want.min_batch {
+            return Err(PoolError::State(format!(
+                "recv() needs {} envs sent and not yet received but only {outstanding} are: send() actions (or async_reset()) first",
+                want.min_batch
+            )));
+        }
+        let max = want.max_batch.min(outstanding);
+        let enough = if want.timeout.is_some() {
+            max
+        } else {
+            want.min_batch
+        };
+        let until = want.timeout.map(|t| Instant::now() + t);
+        let done = self.wait_for(
+            |c| {
+                c.absorb()?;
+                Ok(c.envs.num_ready() >= enough)
+            },
+            until,
+        )?;
+        let ready = self.core.envs.num_ready();
+        if !done && ready < want.min_batch {
+            return Err(PoolError::RecvTimeout {
+                ready,
+                min_batch: want.min_batch,
+                timeout: want.timeout.unwrap_or_default(),
+            });
+        }
+        Ok(self.core.envs.take(max, self.core.spec.obs_bytes()))
+    }
+}
+
+impl Core {
+    /// Refuse to send to an env twice before it is received, to an env out of range, or (a
+    /// vector env per worker) to part of a worker block.
+    fn check_sendable(&self, env_ids: &[usize]) -> Result<(), PoolError> {
+        let n = self.cfg.num_envs;
+        let mut seen = vec![false; n];
+        for &e in env_ids {
+            if e >= n {
+                return Err(PoolError::State(format!(
+                    "send() to env {e}, but the pool has envs 0 to {}",
+                    n - 1
+                )));
+            }
+            let why = match self.envs.turn[e] {
+                _ if seen[e] => "appears twice in env_ids",
+                Turn::Caller => "",
+                Turn::Staged | Turn::InFlight => {
+                    "is in flight (sent and not yet received): recv() it before sending to it again"
+                }
+                Turn::Ready => "has a result waiting: recv() it before sending to it again",
+            };
+            if !why.is_empty() {
+                return Err(PoolError::State(format!("send(): env {e} {why}")));
+            }
+            seen[e] = true;
+        }
+        if self.whole_blocks
+            && let Some(b) = self.blocks.iter().find(|b| {
+                let mut r = (*b).clone();
+                let some = r.clone().any(|e| seen[e]);
+                some && !r.all(|e| seen[e])
+            })
+        {
+            return Err(PoolError::State(format!(
+                "send(): each worker steps its vector env as a whole, so send to all envs of a worker block at once ({b:?}), or to none"
+            )));
         }
         Ok(())
     }
 
-    /// Async: wait for the next `batch_size` envs (whole blocks, in arrival order) and hand
-    /// their blocks over (zero-copy; see [`Block`] for lifetimes).
-    pub fn recv(&mut self) -> Result<Batch, PoolError> {
-        self.begin_call()?;
-        // Blocks per batch: batch_size is num_envs, or a multiple of the (even) block size.
-        let want = self.batch_size() * self.core.blocks.len() / self.core.cfg.num_envs;
-        let outstanding = self
-            .core
-            .slots
-            .iter()
-            .filter(|s| !matches!(s.state, SlotState::Idle) && !s.state.coming_back_idle())
-            .count();
-        if outstanding < want {
-            return Err(PoolError::State(format!(
-                "recv() needs {want} outstanding worker blocks but only {outstanding} are: send() actions (or async_reset()) first"
-            )));
+    /// Turn the workers' answers into ready envs, in the order they became ready, and send
+    /// what is staged to the workers that are free.
+    pub(super) fn absorb(&mut self) -> Result<(), PoolError> {
+        if !self.ready_order.is_empty() {
+            let mut arrived: Vec<(u64, usize)> = self
+                .ready_order
+                .drain(..)
+                .map(|k| match &self.slots[k].state {
+                    SlotState::Ready(s) => (s.user_header().ready_ns, k),
+                    _ => (u64::MAX, k),
+                })
+                .collect();
+            arrived.sort_unstable();
+            // Keep one sample of each worker for the next answer and one for the caller's.
+            let keep = self.cfg.max_borrowed.saturating_sub(2);
+            for (_, k) in arrived {
+                let block = self.take_block(k)?;
+                self.envs.arrive(k, block, keep);
+            }
         }
-        self.wait_until(|c| c.ready_order.len() >= want)?;
-        let mut blocks = Vec::with_capacity(want);
-        for _ in 0..want {
-            let Some(k) = self.core.ready_order.pop_front() else {
-                break;
+        self.dispatch_staged()
+    }
+
+    /// Send each free worker the envs staged for it.
+    pub(super) fn dispatch_staged(&mut self) -> Result<(), PoolError> {
+        if self.envs.num_staged == 0 {
+            return Ok(());
+        }
+        for k in 0..self.slots.len() {
+            if !matches!(self.slots[k].state, SlotState::Idle) {
+                continue;
+            }
+            let envs = self.blocks[k].clone();
+            let Some((words, only)) = self.envs.dispatch(k, envs) else {
+                continue;
             };
-            blocks.push(self.core.take_block(k)?);
+            let whole = only.iter().all(|&w| w != 0);
+            self.send_words(k, &words, (!whole).then_some(&only[..]))?;
         }
-        Ok(Batch { blocks })
+        Ok(())
     }
 }

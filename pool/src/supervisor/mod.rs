@@ -6,6 +6,7 @@
 //! processes).
 
 mod async_api;
+mod async_envs;
 mod calls;
 mod recycling;
 mod stepping;
@@ -32,6 +33,8 @@ use crate::wire::{
     BATCH_BUFFER, CMD_CLOSE, MAX_BATCH_SLOTS, WorkerConfig, block_range, shm_need, slot_bytes,
 };
 
+pub use async_api::RecvWant;
+pub use async_envs::Received;
 pub use stepping::{Actions, validate_actions};
 use workers::{SlotState, WorkerSlot};
 
@@ -57,7 +60,13 @@ struct Core {
     /// Envs whose worker was replaced by plan during the last call ([`Pool::recycled_envs`]).
     recycled_envs: Vec<usize>,
     next_slot: usize,
+    /// Workers whose answer has arrived, in the order polled.
     ready_order: VecDeque<usize>,
+    /// The async API's envs ([`async_envs`]).
+    envs: async_envs::AsyncEnvs,
+    /// Workers host a vector env each ([`EnvRegistry::builds_blocks`]): the async API sends
+    /// whole worker blocks only.
+    whole_blocks: bool,
     cur_episode: Vec<Option<u64>>,
     cur_seed: Vec<u64>,
     restarts: u32,
@@ -155,23 +164,13 @@ impl Pool {
         let blocks: Vec<Range<usize>> = (0..cfg.num_workers)
             .map(|k| block_range(cfg.num_envs, cfg.num_workers, k))
             .collect();
-        let even = cfg.num_envs.is_multiple_of(cfg.num_workers);
-        let epw = cfg.num_envs / cfg.num_workers;
         if let Some(b) = cfg.batch_size
-            && b != cfg.num_envs
-            && (b == 0 || !even || !b.is_multiple_of(epw) || b > cfg.num_envs)
+            && !(1..=cfg.num_envs).contains(&b)
         {
-            return Err(PoolError::Config(if even {
-                format!(
-                    "batch_size ({b}) must be a positive multiple of the envs per worker ({epw}) and at most num_envs ({}): async batches are made of whole worker blocks",
-                    cfg.num_envs
-                )
-            } else {
-                format!(
-                    "batch_size ({b}) must equal num_envs ({}) when num_workers ({}) does not divide it: async batches are made of whole worker blocks, and these differ in size",
-                    cfg.num_envs, cfg.num_workers
-                )
-            }));
+            return Err(PoolError::Config(format!(
+                "batch_size ({b}) must be between 1 and num_envs ({})",
+                cfg.num_envs
+            )));
         }
         if cfg.max_borrowed < 2 {
             return Err(PoolError::Config(
@@ -192,6 +191,8 @@ impl Pool {
             None => registry.make(&cfg.env, 0)?.spec(),
         };
         spec.validate()?;
+        let aw = spec.action_words();
+        let whole_blocks = registry.builds_blocks(&cfg.env);
         let layouts: Vec<BlockLayout> = blocks
             .iter()
             .map(|b| BlockLayout {
@@ -249,6 +250,8 @@ impl Pool {
                 pids: (0..num_workers).map(|_| Default::default()).collect(),
                 node: None,
                 ready_order: VecDeque::new(),
+                envs: async_envs::AsyncEnvs::new(num_envs, num_workers, aw),
+                whole_blocks,
                 cur_episode: vec![None; num_envs],
                 cur_seed: vec![0; num_envs],
                 batch: None,
@@ -298,7 +301,8 @@ impl Pool {
         let node = c.id.node("sup")?;
         self.listener = Some(BlockListener::new(&node, &c.settings)?);
         for k in 0..c.cfg.num_workers {
-            let words = c.blocks[k].len() * c.spec.action_words();
+            // An action per env, and for a SUBSET step one word per env more.
+            let words = c.blocks[k].len() * (c.spec.action_words() + 1);
             let ports = SupervisorPorts::new(&node, k, words, &c.settings)?;
             c.slots.push(WorkerSlot {
                 ports,
@@ -468,6 +472,16 @@ impl Pool {
         done: impl Fn(&Core) -> bool,
         until: Option<Instant>,
     ) -> Result<bool, PoolError> {
+        self.wait_for(|c| Ok(done(c)), until)
+    }
+
+    /// [`Pool::wait_until_or`] with a test that may act on what arrived (the async API turns
+    /// blocks into ready envs and sends staged envs to workers that became free).
+    fn wait_for(
+        &mut self,
+        mut done: impl FnMut(&mut Core) -> Result<bool, PoolError>,
+        until: Option<Instant>,
+    ) -> Result<bool, PoolError> {
         let listener = self.listener.as_ref().ok_or(PoolError::Closed)?;
         let core = &mut self.core;
         let interrupt = &mut self.interrupt;
@@ -515,7 +529,7 @@ impl Pool {
                     return Ok(false);
                 }
             }
-            Ok(done(core))
+            done(core)
         })?;
         match out {
             WaitOutcome::Done => Ok(true),
@@ -618,6 +632,7 @@ impl Pool {
             s.restarted = false;
         }
         self.core.ready_order.clear();
+        self.core.envs.clear();
         Ok(())
     }
 
@@ -656,6 +671,7 @@ impl Pool {
             }
         }
         c.ready_order.clear();
+        c.envs.clear();
         c.slots.clear();
         c.pids
             .iter()

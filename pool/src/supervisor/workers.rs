@@ -19,7 +19,7 @@ use crate::config::{AutoresetMode, FailurePolicy};
 use crate::error::{FailureCause, PoolError, WorkerFailure};
 use crate::wire::{
     ACTION_EXTRAS, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_RESET, CMD_STEP, EnvFault,
-    KEEP_EPISODE, RELOAD_SEEDS, TARGET_SHIFT, calls, env_fault_path, extra_apart_path,
+    KEEP_EPISODE, RELOAD_SEEDS, SUBSET, TARGET_SHIFT, calls, env_fault_path, extra_apart_path,
 };
 
 pub(super) enum SlotState {
@@ -39,19 +39,6 @@ impl SlotState {
     /// Lost and not back yet: waiting out its backoff, or starting.
     pub(super) fn coming_back(&self) -> bool {
         matches!(self, SlotState::Down { .. } | SlotState::Starting { .. })
-    }
-    /// Coming back with no command to answer (it died while idle).
-    pub(super) fn coming_back_idle(&self) -> bool {
-        matches!(
-            self,
-            SlotState::Down {
-                then_reset: false,
-                ..
-            } | SlotState::Starting {
-                then_reset: false,
-                ..
-            }
-        )
     }
 }
 
@@ -274,6 +261,48 @@ impl Core {
                 }
             }
         })?;
+        s.state = SlotState::Pending {
+            since: Instant::now(),
+        };
+        Ok(())
+    }
+
+    /// Step command to worker `k` from action words (`aw` per env of its block); with `only`
+    /// (one word per env, 0 = left alone), a [`SUBSET`] step of the envs it names. A replaced
+    /// worker ([`WorkerSlot::cut`]) resets all its envs instead, which report `restarted`.
+    pub(super) fn send_words(
+        &mut self,
+        k: usize,
+        words: &[u64],
+        only: Option<&[u64]>,
+    ) -> Result<(), PoolError> {
+        if self.slots[k].cut {
+            self.slots[k].restarted = true;
+            return self.send_reset(k, 0);
+        }
+        let mut kind = CMD_STEP;
+        if let Some(extras) = self.slots[k].action_extras.take() {
+            let path = calls::action_extras_path(&self.id, k, self.slots[k].generation);
+            calls::write(&path, &extras).map_err(PoolError::Io)?;
+            kind |= ACTION_EXTRAS;
+        }
+        let served = only.map_or(self.blocks[k].len(), |o| {
+            o.iter().filter(|&&w| w != 0).count()
+        });
+        let only = only.unwrap_or(&[]);
+        if !only.is_empty() {
+            kind |= SUBSET;
+        }
+        let s = &mut self.slots[k];
+        s.seq += 1;
+        s.target = 0;
+        s.served += served as u64;
+        s.ports
+            .send_cmd(s.seq, kind, words.len() + only.len(), |p| {
+                let (a, o) = p.split_at_mut(words.len());
+                a.copy_from_slice(words);
+                o.copy_from_slice(only);
+            })?;
         s.state = SlotState::Pending {
             since: Instant::now(),
         };

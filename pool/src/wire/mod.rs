@@ -35,6 +35,10 @@ pub(crate) const RELOAD_SEEDS: u32 = 1 << 16;
 /// Flag of a step command: hand the envs the parts of their actions of no fixed size, in the
 /// worker's action-extras file ([`calls::action_extras_path`]), before they step.
 pub(crate) const ACTION_EXTRAS: u32 = 1 << 17;
+/// Flag of a step command: only some envs of the block step (the async API serves envs, not
+/// blocks). The payload carries, after the action words, one word per env of the block: 1 for
+/// an env that steps, 0 for one left as it is (its row of the answer is not to be read).
+pub(crate) const SUBSET: u32 = 1 << 18;
 /// The bits of a command kind that name its observation target (below the flags).
 pub(crate) const TARGET_BITS: u32 = RELOAD_SEEDS - 1;
 /// Name of the shared batch buffer (`/dev/shm/<prefix>batch`).

@@ -56,6 +56,15 @@ impl BlockHost {
         self.block.call(j, request)
     }
 
+    /// The fault of a command for some of the block's envs only: a vector env steps all its
+    /// envs at once (the supervisor refuses such commands before they are sent).
+    pub(crate) fn whole_block_only(&self) -> EnvFault {
+        self.block_fault(
+            "a step",
+            "a vector env per worker steps all its envs at once: send() must cover whole worker blocks",
+        )
+    }
+
     /// A failure of the block as a whole, blamed on its first env.
     fn block_fault(&self, context: &str, e: impl std::fmt::Display) -> EnvFault {
         fault(

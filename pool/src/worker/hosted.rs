@@ -21,20 +21,34 @@ impl Hosted {
         }
     }
 
-    /// Answer one command (`kind`, with `per_env` payload words per env) into `out`.
+    /// Answer one command (`kind`, with `per_env` payload words per env) into `out`; with
+    /// `only` (a [`crate::wire::SUBSET`] command: one word per env, 0 = left alone), only the
+    /// envs it names. Returns how many envs were served.
     pub(super) fn serve(
         &mut self,
         kind: u32,
         payload: &[u64],
         per_env: usize,
+        only: Option<&[u64]>,
         out: &mut BlockOut<'_>,
         ctx: &SlotCtx,
-    ) -> Result<(), EnvFault> {
-        let slots = match self {
-            Hosted::Block(host) => return host.serve(kind, payload, out, ctx),
-            Hosted::Each(slots) => slots,
+    ) -> Result<usize, EnvFault> {
+        let slots = match (self, only) {
+            (Hosted::Block(host), None) => {
+                host.serve(kind, payload, out, ctx)?;
+                return Ok(host.len());
+            }
+            (Hosted::Block(host), Some(_)) => {
+                return Err(host.whole_block_only());
+            }
+            (Hosted::Each(slots), _) => slots,
         };
+        let mut served = 0;
         for (j, s) in slots.iter_mut().enumerate() {
+            if only.is_some_and(|o| o[j] == 0) {
+                continue;
+            }
+            served += 1;
             let rec = apply(
                 s,
                 kind,
@@ -44,7 +58,7 @@ impl Hosted {
             )?;
             out.finish(j, &rec);
         }
-        Ok(())
+        Ok(served)
     }
 }
 

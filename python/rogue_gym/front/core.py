@@ -138,9 +138,14 @@ class Kind(Protocol):
         ...
 
     def recv_infos(
-        self, core: Core, recs: np.ndarray, blocks: list[Any], env_id: np.ndarray
+        self,
+        core: Core,
+        recs: np.ndarray,
+        env_extras: list[tuple[int, bytes]],
+        env_id: np.ndarray,
     ) -> dict[str, Any]:
-        """The infos of an async ``recv`` batch (rows in ``env_id`` order)."""
+        """The infos of an async ``recv`` batch (rows in ``env_id`` order; ``env_extras``:
+        the ``(env id, bytes)`` of envs that wrote extra info)."""
         ...
 
     def call(
@@ -334,19 +339,20 @@ class Core:
         self.call(self.pool.async_reset)
 
     def send(self, actions: np.ndarray, env_ids: Sequence[int]) -> None:
-        """Send actions to whole worker blocks of envs."""
+        """Send actions to any envs (each at most once until received)."""
         self.call(self.pool.send, actions, list(env_ids))
 
-    def recv(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[Any]]:
-        """The next batch: ``(obs rows, records, env ids, blocks)``; one block's rows are a
-        read-only view of the worker's shared-memory sample (zero-copy)."""
-        blocks = self.call(self.pool.recv)
-        rows = [np.asarray(raw).reshape(-1, self.obs_bytes) for _, raw, _, _ in blocks]
-        recs = [np.frombuffer(r, RECORD_DTYPE) for _, _, r, _ in blocks]
-        ids = [np.arange(start, start + len(r)) for (start, *_), r in zip(blocks, rows)]
-        if len(rows) == 1:
-            return rows[0], recs[0], ids[0], blocks
-        return np.concatenate(rows), np.concatenate(recs), np.concatenate(ids), blocks
+    def recv(
+        self,
+        min_batch: Optional[int] = None,
+        max_batch: Optional[int] = None,
+        timeout: Optional[float] = None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[tuple[int, bytes]]]:
+        """The first envs ready: ``(obs rows, records, env ids, extras)``, the rows a fresh
+        copy; ``extras`` are the ``(env id, bytes)`` of envs that wrote extra info."""
+        ids, raw, recs, extras = self.call(self.pool.recv, min_batch, max_batch, timeout)
+        rows = raw.reshape(-1, self.obs_bytes)
+        return rows, np.frombuffer(recs, RECORD_DTYPE), ids, extras
 
     def mark_recycled(self, infos: dict[str, Any]) -> None:
         """Flag the restarted envs whose worker was replaced by plan during the last call

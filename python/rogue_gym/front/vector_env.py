@@ -279,7 +279,8 @@ class FrontVectorEnv(gym.vector.VectorEnv):
 
     def send(self, actions: Any, env_id: Optional[Any] = None) -> None:
         """Send ``actions`` (one row per env id) to the envs ``env_id`` (default: those of the
-        last :meth:`recv`); they must form whole worker blocks, as :meth:`recv` returns them."""
+        last :meth:`recv`): any envs, each at most once until it is received. An env whose
+        worker is busy with others of its envs goes with the worker's next command."""
         self._core.check_open()
         ids = self._async_ids if env_id is None else np.asarray(env_id, np.int64)
         if ids is None:
@@ -287,25 +288,30 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         env_ids = [int(i) for i in np.atleast_1d(ids)]
         self._core.send(self._kind.actions(actions, env_ids), env_ids)
 
-    def recv(self) -> StepResult:
-        """Wait for the next ``batch_size`` envs: ``(obs, rewards, terminations, truncations,
-        infos)`` with ``infos["env_id"]`` naming the envs of the rows.
+    def recv(
+        self,
+        min_batch: Optional[int] = None,
+        max_batch: Optional[int] = None,
+        timeout: Optional[float] = None,
+    ) -> StepResult:
+        """The first envs ready, first ready first: ``(obs, rewards, terminations,
+        truncations, infos)`` with ``infos["env_id"]`` naming the envs of the rows.
 
-        With ``copy=False``, a batch of one worker block is a read-only view of the worker's
-        shared-memory sample: its ``base`` owns the sample, which stays valid and unchanged
-        while the array (or a view of it) lives, even after ``close()``; keep at most 3 such
-        batches per worker alive. Larger batches are gathered into new arrays; ``copy=True``
-        copies every batch.
+        By default exactly ``batch_size`` envs. ``max_batch``: return as soon as that many
+        are ready (default ``batch_size``); ``timeout`` (seconds from the call): return then
+        with every env ready (up to ``max_batch``) if at least ``min_batch`` are (default
+        ``max_batch``; 1 or more), else raise ``TimeoutError`` with nothing lost. With no
+        ``timeout`` it waits for ``min_batch`` and returns every env ready then (up to
+        ``max_batch``). These are TorchRL ``AsyncEnvPool``'s ``min_get``, ``max_get`` and
+        ``timeout``. The observations are a fresh copy.
         """
         core = self._core
         core.check_open()
-        rows, recs, env_id, blocks = core.recv()
+        rows, recs, env_id, extras = core.recv(min_batch, max_batch, timeout)
         obs = self._kind.batch_views(rows)
-        if self.copy:
-            obs = copy_tree(obs)
         self._async_ids = env_id
         terminated, truncated, restarted, _ = flags(recs)
-        infos = self._kind.recv_infos(core, recs, blocks, env_id)
+        infos = self._kind.recv_infos(core, recs, extras, env_id)
         if self._fill is not None:
             obs = self._fill(obs, env_id)
         mark_restarted(infos, restarted)

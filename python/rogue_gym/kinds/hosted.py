@@ -246,7 +246,7 @@ class HostedKind:
     def pool_settings(self) -> dict[str, Any]:
         """The native pool's settings: the envs' pickles and spaces, no seeds yet."""
         return {
-            **self.options.pool_json(self.num_envs),
+            **self.options.pool_json(self.num_envs, HOSTED_WORKER_POLL_US),
             "env": self._env,
             "spec": self._spec,
             "seeds": self._seeds(None),
@@ -420,11 +420,15 @@ class HostedKind:
         return self._infos(core, restarted, final)
 
     def recv_infos(
-        self, core: Core, recs: np.ndarray, blocks: list[Any], env_id: np.ndarray
+        self,
+        core: Core,
+        recs: np.ndarray,
+        env_extras: list[tuple[int, bytes]],
+        env_id: np.ndarray,
     ) -> dict[str, Any]:
-        """The infos of the batch's envs, one row each."""
+        """The infos of the batch's envs, one row each (``env_extras``: ``(env id, bytes)``)."""
         row_of = {int(e): r for r, e in enumerate(env_id)}
-        extras = [(row_of[env], data) for *_, block_extras in blocks for env, data in block_extras]
+        extras = [(row_of[env], data) for env, data in env_extras]
         return vector_infos(
             {},
             self._decoder,

@@ -285,7 +285,11 @@ class NativeKind:
         return infos
 
     def recv_infos(
-        self, core: Core, recs: np.ndarray, blocks: list[Any], env_id: np.ndarray
+        self,
+        core: Core,
+        recs: np.ndarray,
+        env_extras: list[tuple[int, bytes]],
+        env_id: np.ndarray,
     ) -> dict[str, Any]:
         """The info values of the batch's envs (one row each, all set)."""
         infos: dict[str, Any] = {}

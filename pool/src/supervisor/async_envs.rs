@@ -1,0 +1,358 @@
+//! The async API's envs, one by one: where each env stands ([`Turn`]), the queue of ready envs
+//! in the order they became ready, and the worker blocks that hold their results.
+//!
+//! Workers still answer one command at a time; this layer turns their answers into envs. An
+//! env sent while its worker is busy is *staged* and goes with the worker's next command, with
+//! any other envs of that worker staged meanwhile ([`crate::wire::SUBSET`] steps only those).
+//! A block that arrives is held until the caller has received each of its ready envs; a worker
+//! with many blocks held has the oldest copied out, so that its shared-memory samples never
+//! run out.
+
+use std::collections::VecDeque;
+
+use crate::batch::Block;
+use crate::wire::layout::EnvRecord;
+
+/// Where an env stands in the async API.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Turn {
+    /// With the caller (received, or never sent): it may be sent.
+    Caller,
+    /// Sent while its worker was busy: its action waits for the worker's next command.
+    Staged,
+    /// Its worker is stepping (or resetting) it.
+    InFlight,
+    /// Its result waits in the ready queue.
+    Ready,
+}
+
+/// One env's result, copied out of its block.
+pub(super) struct Copied {
+    rec: EnvRecord,
+    obs: Vec<u8>,
+    extra: Vec<u8>,
+}
+
+/// Where a ready env's result is.
+enum Row {
+    /// Row `j` of held block `b`.
+    Held { b: usize, j: usize },
+    /// A copy (its block was let go, or it answers a restart of an env the caller held).
+    Copied(Box<Copied>),
+}
+
+struct HeldBlock {
+    block: Block,
+    /// Ready envs whose rows are in it.
+    users: usize,
+}
+
+/// What one `recv` hands over: ready envs, first ready first.
+#[derive(Debug, Default)]
+pub struct Received {
+    /// The envs of the rows.
+    pub env_ids: Vec<usize>,
+    /// Their records (restart flags applied).
+    pub records: Vec<EnvRecord>,
+    /// Their observations, `rows x obs_bytes` bytes.
+    pub obs: Vec<u8>,
+    /// `(row, bytes)` of the rows whose env wrote extra info.
+    pub extras: Vec<(usize, Vec<u8>)>,
+}
+
+impl Received {
+    /// Fill the per-env arrays (rows in [`Received::env_ids`] order; no final observations:
+    /// the async API does not return them).
+    pub fn fill(&self, n_info: usize, out: &mut crate::BatchOutput) {
+        out.clear();
+        for (e, r) in self.env_ids.iter().zip(&self.records) {
+            out.push(*e, r, n_info, None);
+        }
+        for (row, bytes) in &self.extras {
+            out.extras.push((self.env_ids[*row], bytes.clone()));
+        }
+    }
+}
+
+/// The async API's per-env state (see the module docs).
+pub(super) struct AsyncEnvs {
+    pub(super) turn: Vec<Turn>,
+    /// Action words of staged envs, `aw` per env.
+    staged: Vec<u64>,
+    aw: usize,
+    /// Staged envs, all workers together (nothing to dispatch when 0).
+    pub(super) num_staged: usize,
+    /// The envs of each worker's outstanding command.
+    pub(super) sent: Vec<Vec<usize>>,
+    ready: VecDeque<usize>,
+    rows: Vec<Option<Row>>,
+    /// The first observation of an env the caller held when its worker was replaced: handed
+    /// out at its next send (whose action is dropped).
+    restarted: Vec<Option<Box<Copied>>>,
+    blocks: Vec<Option<HeldBlock>>,
+    free: Vec<usize>,
+    /// Each worker's held blocks, oldest first.
+    held_of: Vec<VecDeque<usize>>,
+}
+
+impl AsyncEnvs {
+    pub(super) fn new(num_envs: usize, num_workers: usize, aw: usize) -> Self {
+        AsyncEnvs {
+            turn: vec![Turn::Caller; num_envs],
+            staged: vec![0; num_envs * aw],
+            aw,
+            num_staged: 0,
+            sent: vec![Vec::new(); num_workers],
+            ready: VecDeque::new(),
+            rows: (0..num_envs).map(|_| None).collect(),
+            restarted: (0..num_envs).map(|_| None).collect(),
+            blocks: Vec::new(),
+            free: Vec::new(),
+            held_of: vec![VecDeque::new(); num_workers],
+        }
+    }
+
+    /// Forget everything (a reset starts every env afresh); held blocks are let go.
+    pub(super) fn clear(&mut self) {
+        self.turn.fill(Turn::Caller);
+        self.num_staged = 0;
+        self.sent.iter_mut().for_each(Vec::clear);
+        self.ready.clear();
+        self.rows.iter_mut().for_each(|r| *r = None);
+        self.restarted.iter_mut().for_each(|r| *r = None);
+        self.blocks.clear();
+        self.free.clear();
+        self.held_of.iter_mut().for_each(VecDeque::clear);
+    }
+
+    /// Envs whose result is ready.
+    pub(super) fn num_ready(&self) -> usize {
+        self.ready.len()
+    }
+
+    /// Envs sent and not yet received (staged, in flight or ready).
+    pub(super) fn outstanding(&self) -> usize {
+        self.turn.iter().filter(|t| **t != Turn::Caller).count()
+    }
+
+    /// Every env of `envs` is in flight (a reset was sent to all of them).
+    pub(super) fn all_in_flight(&mut self, k: usize, envs: std::ops::Range<usize>) {
+        for e in envs.clone() {
+            self.turn[e] = Turn::InFlight;
+        }
+        self.sent[k] = envs.collect();
+    }
+
+    /// Stage env `e`'s action words; or, if its worker was replaced while the caller held it,
+    /// make its restart's first observation ready at once (the action is dropped, as a
+    /// restarted env drops it in a sync step). Returns whether it was staged.
+    pub(super) fn stage(&mut self, e: usize, words: &[u64]) -> bool {
+        if let Some(c) = self.restarted[e].take() {
+            self.rows[e] = Some(Row::Copied(c));
+            self.turn[e] = Turn::Ready;
+            self.ready.push_back(e);
+            return false;
+        }
+        self.staged[e * self.aw..(e + 1) * self.aw].copy_from_slice(words);
+        self.turn[e] = Turn::Staged;
+        self.num_staged += 1;
+        true
+    }
+
+    /// Take the staged envs of `envs` (worker `k`'s) for its next command: they are in flight
+    /// from now. Returns their action words (`aw` per env of `envs`, zero for the others) and
+    /// whether each steps; `None` if none is staged.
+    pub(super) fn dispatch(
+        &mut self,
+        k: usize,
+        envs: std::ops::Range<usize>,
+    ) -> Option<(Vec<u64>, Vec<u64>)> {
+        let aw = self.aw;
+        if !envs.clone().any(|e| self.turn[e] == Turn::Staged) {
+            return None;
+        }
+        let mut words = vec![0u64; envs.len() * aw];
+        let mut only = vec![0u64; envs.len()];
+        for (j, e) in envs.clone().enumerate() {
+            if self.turn[e] == Turn::Staged {
+                words[j * aw..(j + 1) * aw].copy_from_slice(&self.staged[e * aw..(e + 1) * aw]);
+                only[j] = 1;
+                self.turn[e] = Turn::InFlight;
+                self.sent[k].push(e);
+                self.num_staged -= 1;
+            }
+        }
+        Some((words, only))
+    }
+
+    /// Worker `k`'s answer to its outstanding command, for `envs` (its block): the envs it
+    /// stepped become ready, in row order. A restart's answer (it reset every env of the
+    /// block) also replaces the results of its envs that wait in the queue, drops the actions
+    /// staged for the others, and keeps the first observation of each env the caller holds
+    /// for its next send. Blocks beyond `keep` held for this worker are copied out.
+    pub(super) fn arrive(&mut self, k: usize, block: Block, keep: usize) {
+        let start = block.env_ids().start;
+        let n = block.env_ids().len();
+        let b = self.hold(block);
+        let sent = std::mem::take(&mut self.sent[k]);
+        if !self.block(b).restarted() {
+            for e in sent {
+                self.make_ready(e, b, e - start);
+            }
+        } else {
+            for j in 0..n {
+                let e = start + j;
+                match self.turn[e] {
+                    Turn::InFlight => self.make_ready(e, b, j),
+                    Turn::Staged => {
+                        self.num_staged -= 1;
+                        self.make_ready(e, b, j);
+                    }
+                    Turn::Ready => {
+                        let old = self.rows[e].replace(Row::Held { b, j });
+                        self.release(old);
+                        self.use_block(b);
+                    }
+                    Turn::Caller => {
+                        self.restarted[e] = Some(Box::new(self.copy_row(b, j)));
+                    }
+                }
+            }
+        }
+        if self.blocks[b].as_ref().is_some_and(|h| h.users == 0) {
+            self.blocks[b] = None;
+            self.free.push(b);
+            return;
+        }
+        self.held_of[k].push_back(b);
+        while self.held_of[k].len() > keep.max(1) {
+            let Some(old) = self.held_of[k].pop_front() else {
+                break;
+            };
+            self.copy_out(old, start..start + n);
+        }
+    }
+
+    /// Hand over up to `n` ready envs, first ready first.
+    pub(super) fn take(&mut self, n: usize, obs_bytes: usize) -> Received {
+        let n = n.min(self.ready.len());
+        let mut out = Received {
+            env_ids: Vec::with_capacity(n),
+            records: Vec::with_capacity(n),
+            obs: Vec::with_capacity(n * obs_bytes),
+            extras: Vec::new(),
+        };
+        for r in 0..n {
+            let Some(e) = self.ready.pop_front() else {
+                break;
+            };
+            self.turn[e] = Turn::Caller;
+            let row = self.rows[e].take();
+            match &row {
+                Some(Row::Held { b, j }) => {
+                    let block = self.block(*b);
+                    let rec = block.record(*j);
+                    out.obs
+                        .extend_from_slice(&block.obs()[j * obs_bytes..(j + 1) * obs_bytes]);
+                    if rec.extra_len > 0 && !block.restarted() {
+                        out.extras.push((r, block.extra(*j).to_vec()));
+                    }
+                    out.records.push(rec);
+                }
+                Some(Row::Copied(c)) => {
+                    out.obs.extend_from_slice(&c.obs);
+                    if !c.extra.is_empty() {
+                        out.extras.push((r, c.extra.clone()));
+                    }
+                    out.records.push(c.rec);
+                }
+                None => {
+                    out.obs.resize(out.obs.len() + obs_bytes, 0);
+                    out.records.push(EnvRecord::default());
+                }
+            }
+            out.env_ids.push(e);
+            self.release(row);
+        }
+        out
+    }
+
+    fn block(&self, b: usize) -> &Block {
+        &self.blocks[b].as_ref().expect("a held block").block
+    }
+
+    fn hold(&mut self, block: Block) -> usize {
+        let h = Some(HeldBlock { block, users: 0 });
+        match self.free.pop() {
+            Some(b) => {
+                self.blocks[b] = h;
+                b
+            }
+            None => {
+                self.blocks.push(h);
+                self.blocks.len() - 1
+            }
+        }
+    }
+
+    fn use_block(&mut self, b: usize) {
+        if let Some(h) = self.blocks[b].as_mut() {
+            h.users += 1;
+        }
+    }
+
+    fn make_ready(&mut self, e: usize, b: usize, j: usize) {
+        self.rows[e] = Some(Row::Held { b, j });
+        self.use_block(b);
+        self.turn[e] = Turn::Ready;
+        self.ready.push_back(e);
+    }
+
+    /// A row is no longer needed: its block goes once no ready env needs it.
+    fn release(&mut self, row: Option<Row>) {
+        let Some(Row::Held { b, .. }) = row else {
+            return;
+        };
+        let Some(h) = self.blocks[b].as_mut() else {
+            return;
+        };
+        h.users -= 1;
+        if h.users == 0 {
+            let k = h.block.worker();
+            self.blocks[b] = None;
+            self.free.push(b);
+            self.held_of[k].retain(|&x| x != b);
+        }
+    }
+
+    fn copy_row(&self, b: usize, j: usize) -> Copied {
+        let block = self.block(b);
+        let rec = block.record(j);
+        let ob = block.obs().len() / block.env_ids().len().max(1);
+        Copied {
+            rec,
+            obs: block.obs()[j * ob..(j + 1) * ob].to_vec(),
+            extra: if rec.extra_len > 0 && !block.restarted() {
+                block.extra(j).to_vec()
+            } else {
+                Vec::new()
+            },
+        }
+    }
+
+    /// Copy the rows of block `b` that ready envs of `envs` still need, and let it go.
+    fn copy_out(&mut self, b: usize, envs: std::ops::Range<usize>) {
+        if self.blocks[b].is_none() {
+            return;
+        }
+        for e in envs {
+            if let Some(Row::Held { b: bb, j }) = self.rows[e]
+                && bb == b
+            {
+                self.rows[e] = Some(Row::Copied(Box::new(self.copy_row(b, j))));
+            }
+        }
+        self.blocks[b] = None;
+        self.free.push(b);
+    }
+}
