@@ -80,6 +80,7 @@ class Pool:
 
     closed: bool
     num_envs: int
+    batch_size: int
     num_workers: int
     obs_shape: list[int]
     obs_dtype: str

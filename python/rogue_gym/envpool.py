@@ -146,10 +146,13 @@ def _atari_vector_env(n: int, game: str, options: dict[str, Any]) -> gym.vector.
     )
 
 
-def _layout(num_envs: int, batch_size: int, num_threads: int) -> int:
-    """Workers for ``num_envs`` envs served in batches of ``batch_size``: blocks of equal size
-    that divide the batch (the pool's async batches are whole worker blocks), as many workers
-    as ``num_threads`` asks where the sizes allow, else the closest number above it."""
+def _layout(num_envs: int, batch_size: int, num_threads: int, whole_blocks: bool) -> int:
+    """Workers for ``num_envs`` envs served in batches of ``batch_size``: ``num_threads`` (at
+    most one per env). A vector env per worker (``whole_blocks``, Atari) is sent whole, so there
+    the blocks are of equal size and divide the batch, as many workers as ``num_threads`` asks
+    where the sizes allow, else the closest number above it."""
+    if not whole_blocks:
+        return max(1, min(num_threads, num_envs))
     common = math.gcd(num_envs, batch_size)
     fits = [b for b in range(common, 0, -1) if common % b == 0 and num_envs // b >= num_threads]
     return num_envs // (fits[0] if fits else 1)
@@ -217,7 +220,8 @@ def _resolve(task_id: str, kwargs: dict[str, Any]) -> tuple[EnvSpec, Any, int, i
         gym_id, threshold = task_id, gspec.reward_threshold
     Config = namedtuple("Config", list(config))  # type: ignore[misc]  # EnvPool's spec.config
     spec = EnvSpec(Config(**config), obs_space, act_space, gym_id, threshold, dict(kwargs))
-    return spec, source, _layout(num_envs, batch_size, num_threads), batch_size
+    workers = _layout(num_envs, batch_size, num_threads, whole_blocks=not isinstance(source, list))
+    return spec, source, workers, batch_size
 
 
 class EnvPoolEnv(gym.Env):
@@ -443,8 +447,8 @@ def make(task_id: str, env_type: str = "gymnasium", **kwargs: Any) -> EnvPoolEnv
         env_type: ``"gymnasium"`` (five-tuple steps) or ``"gym"`` (EnvPool's gym API before
             gym 0.26: ``reset()`` gives ``obs``, ``step()`` ``(obs, reward, done, info)``).
         num_envs: envs (default 1); batch_size: envs per ``recv`` (default ``num_envs``: sync).
-        num_threads: worker processes (default: the CPUs); the pool may take a few more so
-            that worker blocks divide ``batch_size``.
+        num_threads: worker processes (default: the CPUs); for Atari the pool may take a few
+            more so that worker blocks (one ``AtariVectorEnv`` each) divide ``batch_size``.
         seed: env ``i`` is seeded with ``seed + i`` at the first reset (default 42, EnvPool's).
         max_episode_steps: the episode limit. Other keywords go to ``gymnasium.make``, or for
             Atari are EnvPool's preprocessing options (:data:`ATARI_DEFAULTS`).

@@ -122,7 +122,9 @@ class PoolOptions:
             "worker_poll_us": (
                 self.worker_poll_us
                 if self.worker_poll_us is not None
-                else default_worker_poll(num_envs, self.num_workers or 1, self.batch_size, worker_poll_us)
+                else default_worker_poll(
+                    num_envs, self.num_workers or 1, self.batch_size, worker_poll_us
+                )
             ),
             "recycle_after_steps": self.recycle_after_steps,
             "recycle_above_rss": self.recycle_above_rss,
@@ -166,8 +168,7 @@ class PoolSettings(PoolOptions):
             first_env + num_envs - 1`` of a larger set of ``total_envs`` (one pool per machine,
             as :mod:`rogue_gym.ray` runs them), and their episode seeds are those envs' seeds in
             one pool of ``total_envs``. Default: the pool is the whole set.
-        batch_size: envs per async ``recv`` (default all; otherwise a multiple of the envs per
-            worker, which needs ``num_workers`` to divide ``num_envs``).
+        batch_size: envs per async ``recv`` by default (1 to ``num_envs``; default all).
         runtime_dir: the directory that holds the pool's files; it must be a directory of
             yours that no one else can enter (created 0700 if missing; refused otherwise).
             Default: ``$ROGUE_GYM_RUNTIME_DIR``, else ``$XDG_RUNTIME_DIR/rogue-gym``, else
@@ -278,4 +279,3 @@ def default_worker_poll(
         return kind_default
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     return 0 if num_workers >= (cores or 1) else kind_default
-

@@ -39,6 +39,7 @@ pub struct PyPool {
     pids: Arc<[AtomicU32]>,
     num_envs: usize,
     num_workers: usize,
+    batch_size: usize,
     obs_bytes: usize,
     /// Bytes of one raw action (hosted envs; 0: action indices).
     action_bytes: usize,
@@ -212,6 +213,7 @@ impl PyPool {
             pids,
             num_envs: pool.num_envs(),
             num_workers: pool.num_workers(),
+            batch_size: pool.batch_size(),
             obs_bytes: pool.obs_bytes(),
             action_bytes: spec.action_bytes,
             n_info: spec.info_names.len(),
@@ -665,6 +667,12 @@ impl PyPool {
     #[getter]
     fn num_workers(&self) -> usize {
         self.num_workers
+    }
+
+    /// Envs an async `recv` returns by default.
+    #[getter]
+    fn batch_size(&self) -> usize {
+        self.batch_size
     }
 
     /// Observation shape of one env.

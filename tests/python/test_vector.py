@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import gc
 import os
 import re
 import signal
@@ -257,30 +256,6 @@ def _shm_ranges() -> list[tuple[int, int, str]]:
     return out
 
 
-def test_async_recv_is_a_zero_copy_read_only_view(make_vec) -> None:
-    env = make_vec(4, num_workers=2, batch_size=2, max_steps=50)
-    env.async_reset()
-    seen = set()
-    for _ in range(6):
-        obs, rew, term, trunc, infos = env.recv()
-        assert obs.shape == (2, 17, 16, 32) and not obs.flags.writeable
-        with pytest.raises(ValueError, match="read-only"):
-            obs[0, 0, 0, 0] = 1
-        ptr = obs.__array_interface__["data"][0]
-        assert any(
-            lo <= ptr < hi and name.split("/")[-1].startswith(env.pool_name)
-            for lo, hi, name in _shm_ranges()
-        )
-        ids = infos["env_id"]
-        seen.update(ids.tolist())
-        env.send(np.zeros(2, np.int64), ids)
-    assert seen == {0, 1, 2, 3}
-    snapshot = obs.copy()
-    env.close()
-    gc.collect()
-    assert np.array_equal(obs, snapshot)  # the view's base still owns the sample after close
-
-
 def test_make_vec_through_gymnasium() -> None:
     env = gym.make_vec("RogueGym-v0", num_envs=2, num_workers=1, seed=0, max_steps=10)
     try:
@@ -363,13 +338,13 @@ def test_async_matches_sync_trajectories(make_vec) -> None:
     env.async_reset()
     got: dict[int, list[np.ndarray]] = {i: [] for i in range(4)}
     while min(len(v) for v in got.values()) <= len(acts):
-        obs, _, _, _, infos = env.recv()  # one worker block, in arrival order
+        obs, _, _, _, infos = env.recv()  # the first two envs ready, of any workers
         ids = infos["env_id"]
         for r, i in enumerate(ids):
             got[int(i)].append(obs[r].copy())
-        t = len(got[int(ids[0])]) - 1  # index of the next action for these envs
-        if t < len(acts):
-            env.send(acts[t][ids], ids)
+        # Each env's next action by its own count (envs of one batch may differ).
+        t = [min(len(got[int(i)]) - 1, len(acts) - 1) for i in ids]
+        env.send(np.array([acts[ti][i] for ti, i in zip(t, ids)]), ids)
     for i in range(4):
         for t in range(len(acts) + 1):
             assert np.array_equal(got[i][t], want[t][i]), (i, t)

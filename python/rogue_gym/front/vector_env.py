@@ -12,7 +12,7 @@ from gymnasium.vector.utils import batch_space
 from ..async_calls import already_pending, no_async_call, timed_out, warn_close_pending
 from ..reset_mask import partial_mask, refuse_finished
 from ..settings import parse_autoreset_mode
-from .core import Core, Kind, copy_tree, flags, mark_restarted
+from .core import Core, Kind, flags, mark_restarted
 from .stats import PoolStats
 
 __all__ = ["FrontVectorEnv"]
@@ -83,6 +83,11 @@ class FrontVectorEnv(gym.vector.VectorEnv):
     def num_workers(self) -> int:
         """Number of worker processes."""
         return self._core.num_workers
+
+    @property
+    def batch_size(self) -> int:
+        """Envs an async :meth:`recv` returns by default (``num_envs`` unless set)."""
+        return int(self._core.pool.batch_size)
 
     @property
     def worker_pids(self) -> list[int]:

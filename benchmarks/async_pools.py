@@ -1,0 +1,292 @@
+"""The async head-to-head: this pool against TorchRL's ``AsyncEnvPool`` and gymnasium's
+``AsyncVectorEnv`` on TorchRL's own two workloads (pytorch/rl PR #4182).
+
+- ``dispatch``: 8 zero-latency envs; the figure is the consumer's cost per transition
+  (recv, write the actions, send), harvesting ``--transitions`` (1,024) per round.
+- ``slow_reset``: 32 envs with 1 ms steps and a 200 ms reset every 200 steps; the env supply caps
+  it near 16k transitions/s (each env gives 200 steps per 0.4 s).
+
+Both drive each async pool as PR #4182 does: ``min_get=1, max_get=num_envs, timeout=1e-3``
+(here ``recv(min_batch=1, max_batch=num_envs, timeout=1e-3)``), answering every env received at
+once. ``AsyncVectorEnv`` and this pool's ``step()`` run lockstep steps of all envs. Systems
+run in turn (interleaved), ``--reps`` times each; the table shows medians and ratios.
+
+    python benchmarks/async_pools.py --reps 3
+    python benchmarks/async_pools.py --quick         # a smoke run (CI)
+
+Writes ``async_pools.json`` and ``async_pools.md`` under ``--out``
+(default ``benchmarks/results/async_pools``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import time
+from pathlib import Path
+from typing import Any, Callable, Optional
+
+import gymnasium as gym
+import numpy as np
+
+WORKLOADS = {
+    # envs, step seconds, reset seconds, steps between resets
+    "dispatch": (8, 0.0, 0.0, 200),
+    "slow_reset": (32, 1e-3, 0.2, 200),
+}
+
+
+class Workload(gym.Env):
+    """An env that sleeps ``step_s`` a step and ``reset_s`` a reset, ending every ``every``
+    steps; observations are 4 float32."""
+
+    observation_space = gym.spaces.Box(-1.0, 1.0, (4,), np.float32)
+    action_space = gym.spaces.Discrete(2)
+
+    def __init__(self, step_s: float, reset_s: float, every: int) -> None:
+        self.step_s, self.reset_s, self.every, self.t = step_s, reset_s, every, 0
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> Any:
+        super().reset(seed=seed)
+        if self.reset_s:
+            time.sleep(self.reset_s)
+        self.t = 0
+        return np.zeros(4, np.float32), {}
+
+    def step(self, action: Any) -> Any:
+        if self.step_s:
+            time.sleep(self.step_s)
+        self.t += 1
+        return np.full(4, self.t / self.every, np.float32), 1.0, self.t >= self.every, False, {}
+
+
+def maker(name: str) -> Callable[[], Workload]:
+    _, step_s, reset_s, every = WORKLOADS[name]
+    return lambda: Workload(step_s, reset_s, every)
+
+
+def torchrl_env(name: str) -> Any:
+    """The same workload as a TorchRL ``EnvBase`` (TorchRL's own env type)."""
+    import torch
+    from tensordict import TensorDict
+    from torchrl.data import Categorical, Composite, Unbounded
+    from torchrl.envs import EnvBase
+
+    _, step_s, reset_s, every = WORKLOADS[name]
+
+    class TorchWorkload(EnvBase):
+        def __init__(self) -> None:
+            super().__init__(batch_size=())
+            self.observation_spec = Composite(observation=Unbounded(shape=(4,)))
+            self.action_spec = Categorical(2)
+            self.reward_spec = Unbounded(shape=(1,))
+            self.t = 0
+
+        def _reset(self, td: Any) -> Any:
+            if reset_s:
+                time.sleep(reset_s)
+            self.t = 0
+            done = torch.zeros(1, dtype=torch.bool)
+            return TensorDict(
+                observation=torch.zeros(4), done=done, terminated=done.clone(), batch_size=()
+            )
+
+        def _step(self, td: Any) -> Any:
+            if step_s:
+                time.sleep(step_s)
+            self.t += 1
+            done = torch.tensor([self.t >= every])
+            return TensorDict(
+                observation=torch.full((4,), self.t / every),
+                reward=torch.ones(1),
+                done=done,
+                terminated=done.clone(),
+                batch_size=(),
+            )
+
+        def _set_seed(self, seed: Optional[int]) -> None:
+            pass
+
+    return TorchWorkload()
+
+
+def run_pool(name: str, seconds: float, workers: int, batch: Optional[int]) -> float:
+    """This pool, async (``batch`` None: PR #4182's harvest loop) or lockstep ``step()``."""
+    import rogue_gym
+
+    n = WORKLOADS[name][0]
+    env = rogue_gym.PoolVectorEnv([maker(name)] * n, num_workers=workers, batch_size=n)
+    try:
+        if batch == 0:  # lockstep
+            env.reset(seed=0)
+            acts = np.zeros(n, np.int64)
+            done, t0 = 0, time.perf_counter()
+            while time.perf_counter() - t0 < seconds:
+                env.step(acts)
+                done += n
+            return done / (time.perf_counter() - t0)
+        env.async_reset(seed=0)
+        max_batch = n if batch is None else batch
+        done, t0 = 0, time.perf_counter()
+        while time.perf_counter() - t0 < seconds:
+            try:
+                _, _, _, _, info = env.recv(min_batch=1, max_batch=max_batch, timeout=1e-3)
+            except TimeoutError:
+                continue
+            ids = info["env_id"]
+            env.send(np.zeros(len(ids), np.int64), ids)
+            done += len(ids)
+        return done / (time.perf_counter() - t0)
+    finally:
+        env.close()
+
+
+def run_torchrl(name: str, seconds: float, exchange: str, per_worker: int) -> float:
+    import torch
+    from torchrl.envs import AsyncEnvPool
+
+    n = WORKLOADS[name][0]
+    pool = AsyncEnvPool(
+        [lambda: torchrl_env(name)] * n,
+        backend="multiprocessing",
+        exchange=exchange,
+        envs_per_worker=per_worker,
+    )
+    try:
+        pool.async_reset_send()
+        td = pool.async_reset_recv(min_get=n)
+        td["action"] = torch.zeros(n, dtype=torch.long)
+        pool.async_step_and_maybe_reset_send(td)
+        done, t0 = 0, time.perf_counter()
+        while time.perf_counter() - t0 < seconds:
+            try:
+                _, nxt = pool.async_step_and_maybe_reset_recv(min_get=1, max_get=n, timeout=1e-3)
+            except TimeoutError:
+                continue
+            k = nxt.batch_size[0]
+            nxt["action"] = torch.zeros(k, dtype=torch.long)
+            pool.async_step_and_maybe_reset_send(nxt)
+            done += k
+        return done / (time.perf_counter() - t0)
+    finally:
+        pool.shutdown() if hasattr(pool, "shutdown") else pool.close()
+
+
+def run_gym_async(name: str, seconds: float) -> float:
+    n = WORKLOADS[name][0]
+    env = gym.vector.AsyncVectorEnv([maker(name)] * n)
+    try:
+        env.reset(seed=0)
+        acts = np.zeros(n, np.int64)
+        done, t0 = 0, time.perf_counter()
+        while time.perf_counter() - t0 < seconds:
+            env.step(acts)
+            done += n
+        return done / (time.perf_counter() - t0)
+    finally:
+        env.close()
+
+
+def systems(name: str, cores: int, quick: bool) -> dict[str, Callable[[float], float]]:
+    """Every system to run on workload ``name``: this pool with the layouts tune tries (one
+    worker per core, one per env), TorchRL with each exchange and 1 or several envs per worker,
+    and AsyncVectorEnv."""
+    n = WORKLOADS[name][0]
+    out: dict[str, Callable[[float], float]] = {}
+    layouts = sorted({min(cores, n), n}) if not quick else [min(cores, n)]
+    for w in layouts:
+        out[f"rogue_gym async, {w} workers"] = lambda s, w=w: run_pool(name, s, w, None)
+    out[f"rogue_gym step(), {min(cores, n)} workers"] = lambda s: run_pool(
+        name, s, min(cores, n), 0
+    )
+    try:
+        import torchrl  # noqa: F401
+
+        for exchange in ("shm", "queue") if not quick else ("shm",):
+            for per in sorted({1, max(1, n // cores)}) if not quick else [1]:
+                out[f"torchrl AsyncEnvPool {exchange}, {per} env/worker"] = (
+                    lambda s, e=exchange, p=per: run_torchrl(name, s, e, p)
+                )
+    except ImportError:
+        print("torchrl is not installed: its rows are left out")
+    if not quick:
+        out["gymnasium AsyncVectorEnv"] = lambda s: run_gym_async(name, s)
+    return out
+
+
+def main(argv: Optional[list[str]] = None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--seconds", type=float, default=5.0, help="per run")
+    p.add_argument("--reps", type=int, default=3, help="runs per system (interleaved)")
+    p.add_argument("--workloads", nargs="+", default=list(WORKLOADS), choices=list(WORKLOADS))
+    p.add_argument("--quick", action="store_true", help="one short run of a few systems (CI)")
+    p.add_argument("--out", default=str(Path(__file__).parent / "results" / "async_pools"))
+    args = p.parse_args(argv)
+    if args.quick:
+        args.seconds, args.reps = min(args.seconds, 1.0), 1
+    cores = len(os.sched_getaffinity(0))
+    runs: dict[str, dict[str, list[float]]] = {}
+    for name in args.workloads:
+        table = systems(name, cores, args.quick)
+        runs[name] = {k: [] for k in table}
+        for rep in range(args.reps):
+            for label, run in table.items():
+                try:
+                    value = run(args.seconds)
+                except Exception as exc:  # a system that cannot run here: say so, go on
+                    print(f"{name}: {label}: failed: {exc!r}")
+                    continue
+                runs[name][label].append(value)
+                print(f"{name} rep {rep + 1}/{args.reps}: {label}: {value:,.0f} transitions/s")
+    write(args, runs, cores)
+
+
+def write(args: argparse.Namespace, runs: dict[str, dict[str, list[float]]], cores: int) -> None:
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    lines = [
+        f"# Async head-to-head ({platform.node()}, {cores} cores, {args.seconds:g} s x "
+        f"{args.reps} runs, interleaved)",
+        "",
+    ]
+    for name, table in runs.items():
+        n, step_s, reset_s, every = WORKLOADS[name]
+        ceiling = n * every / (every * step_s + reset_s) if step_s or reset_s else None
+        med = {k: statistics.median(v) for k, v in table.items() if v}
+        trl = [v for k, v in med.items() if k.startswith("torchrl")]
+        best_trl = max(trl) if trl else None
+        lines += [
+            f"## {name}: {n} envs, {step_s * 1e3:g} ms step, {reset_s * 1e3:g} ms reset "
+            f"every {every} steps",
+            "",
+        ]
+        lines += [
+            "| system | transitions/s (median) | µs per transition | vs TorchRL best |"
+            + (" of ceiling |" if ceiling else ""),
+            "|---|---|---|---|" + ("---|" if ceiling else ""),
+        ]
+        for k, v in sorted(med.items(), key=lambda kv: -kv[1]):
+            ratio = f"{v / best_trl:.2f}x" if best_trl else "-"
+            row = f"| {k} | {v:,.0f} | {1e6 / v:.1f} | {ratio} |"
+            if ceiling:
+                row += f" {v / ceiling:.0%} |"
+            lines.append(row)
+        if ceiling:
+            lines += ["", f"Env-supply ceiling: {ceiling:,.0f} transitions/s."]
+        lines.append("")
+    text = "\n".join(lines)
+    print(text)
+    (out / "async_pools.md").write_text(text + "\n")
+    (out / "async_pools.json").write_text(
+        json.dumps(
+            {"cores": cores, "seconds": args.seconds, "reps": args.reps, "runs": runs},
+            indent=1,
+        )
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,158 @@
+"""The async API env by env: any batch size, any envs sent, first ready first served, deadlines,
+fair service (also beside a CPU hog), and trajectories that depend only on seeds and actions."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from collections import Counter
+
+import numpy as np
+import pytest
+import rogue_gym
+
+
+def _pool(num_envs: int, num_workers: int, batch_size: int, **kw):
+    return rogue_gym.make_vec(
+        "RogueGym-v0",
+        num_envs=num_envs,
+        num_workers=num_workers,
+        batch_size=batch_size,
+        max_steps=kw.pop("max_steps", 40),
+        **kw,
+    )
+
+
+def test_any_batch_size_any_envs_and_clear_errors() -> None:
+    env = _pool(5, 2, 3)  # blocks of 3 and 2: a batch is not a whole number of blocks
+    try:
+        env.async_reset(seed=1)
+        obs, _, _, _, info = env.recv()
+        assert obs.shape[0] == 3 and len(set(info["env_id"].tolist())) == 3
+        first = info["env_id"]
+        env.send(np.zeros(1, np.int64), first[:1])  # one env of a worker block
+        with pytest.raises(RuntimeError, match=f"env {first[0]} is in flight"):
+            env.send(np.zeros(1, np.int64), first[:1])
+        with pytest.raises(RuntimeError, match="appears twice"):
+            env.send(np.zeros(2, np.int64), [first[1], first[1]])
+        rest = [e for e in range(5) if e not in first.tolist()]
+        # Not received yet (still stepping, or ready and waiting): refused, with the fix.
+        with pytest.raises(RuntimeError, match=f"env {rest[0]} .*recv\\(\\) it before sending"):
+            env.send(np.zeros(1, np.int64), rest[:1])
+        with pytest.raises(ValueError, match="action 99 is out of range"):
+            env.send(np.array([99]), first[1:2])
+        # max_batch: no more than asked; min_batch with no timeout: what is ready then.
+        obs, _, _, _, info = env.recv(min_batch=1, max_batch=2, timeout=5.0)
+        assert 1 <= obs.shape[0] <= 2
+    finally:
+        env.close()
+
+
+def test_a_deadline_returns_what_is_ready_or_times_out_losing_nothing() -> None:
+    def slow_reset_env():
+        import gymnasium as gym
+
+        class SlowReset(gym.Env):
+            observation_space = gym.spaces.Box(0, 1, (2,), np.float32)
+            action_space = gym.spaces.Discrete(2)
+
+            def reset(self, *, seed=None, options=None):
+                super().reset(seed=seed)
+                time.sleep(0.3 if self.np_random.random() < 2 else 0)
+                return np.zeros(2, np.float32), {}
+
+            def step(self, action):
+                return np.ones(2, np.float32), 1.0, False, False, {}
+
+        return SlowReset()
+
+    env = rogue_gym.PoolVectorEnv([slow_reset_env] * 2, num_workers=2, batch_size=2)
+    try:
+        env.async_reset(seed=0)
+        t0 = time.monotonic()
+        with pytest.raises(TimeoutError, match="nothing is lost"):
+            env.recv(min_batch=1, timeout=0.05)
+        assert time.monotonic() - t0 < 0.25
+        obs, *_, info = env.recv(min_batch=2, timeout=5.0)  # the results were kept
+        assert sorted(info["env_id"].tolist()) == [0, 1]
+        env.send(np.zeros(2, np.int64), [0, 1])
+        obs, r, *_ = env.recv(min_batch=2, max_batch=2, timeout=5.0)
+        assert r.tolist() == [1.0, 1.0]
+    finally:
+        env.close()
+
+
+def _served(env, recvs: int) -> Counter:
+    count: Counter = Counter()
+    env.async_reset(seed=0)
+    for _ in range(recvs):
+        _, _, _, _, info = env.recv()
+        ids = info["env_id"]
+        count.update(ids.tolist())
+        env.send(np.zeros(len(ids), np.int64), ids)
+    return count
+
+
+def _assert_fair(count: Counter, n: int) -> None:
+    mean = sum(count.values()) / n
+    worst = max(abs(count[e] - mean) / mean for e in range(n))
+    assert worst <= 0.10, f"per-env recvs {sorted(count.items())}: {worst:.1%} off the mean"
+
+
+def test_every_env_is_served_evenly() -> None:
+    env = _pool(8, 4, 2, max_steps=10_000)
+    try:
+        _assert_fair(_served(env, 10_000), 8)
+    finally:
+        env.close()
+
+
+def test_every_env_is_served_evenly_beside_a_cpu_hog() -> None:
+    hog = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        env = _pool(8, 4, 2, max_steps=10_000)
+        try:
+            _assert_fair(_served(env, 10_000), 8)
+        finally:
+            env.close()
+    finally:
+        hog.kill()
+        hog.wait(timeout=10)
+
+
+def _trajectories(env, steps: int, order_seed: int) -> dict[int, list[bytes]]:
+    """Every env's observations, each env stepping with its own actions (a function of env
+    and step), whatever batches and order the pool serves them in; sends random subsets."""
+    rng = np.random.default_rng(order_seed)
+    n = env.num_envs
+    seen: dict[int, list[bytes]] = {e: [] for e in range(n)}
+    held: list[int] = []
+    env.async_reset(seed=5)
+    while min(len(v) for v in seen.values()) <= steps:
+        obs, _, _, _, info = env.recv()
+        for r, e in enumerate(info["env_id"].tolist()):
+            seen[e].append(obs[r].tobytes())
+            held.append(e)
+        # Send a random part of what is held (keeping enough in flight for the next recv).
+        rng.shuffle(held)
+        k = max(len(held) - (n - env.batch_size), int(rng.integers(1, len(held) + 1)))
+        go, held = held[:k], held[k:]
+        acts = np.array([(e * 7 + len(seen[e])) % 11 for e in go], np.int64)
+        env.send(acts, go)
+    return {e: v[: steps + 1] for e, v in seen.items()}
+
+
+@pytest.mark.parametrize(("workers", "batch"), [(1, 6), (3, 1), (2, 4)])
+def test_each_envs_trajectory_is_its_own_whatever_the_layout(workers: int, batch: int) -> None:
+    ref_env = _pool(6, 1, 6)
+    try:
+        want = _trajectories(ref_env, 25, order_seed=0)
+    finally:
+        ref_env.close()
+    env = _pool(6, workers, batch)
+    try:
+        got = _trajectories(env, 25, order_seed=workers)
+    finally:
+        env.close()
+    assert got == want
