@@ -18,9 +18,10 @@ use crate::registry::{Built, EnvRegistry};
 use crate::stats::{Counter, StatsBuffer, ns_since, stamp};
 use crate::wire::layout::BlockLayout;
 use crate::wire::{
-    ACTION_EXTRAS, BATCH_BUFFER, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_CALL,
-    CMD_CLOSE, CMD_STEP, EnvFault, RELOAD_SEEDS, SUBSET, TARGET_BITS, TARGET_SHIFT, WorkerConfig,
-    calls, env_fault_path, extra_apart_path, slot_bytes, successor_go, successor_marker,
+    ACTION_EXTRAS, BATCH_BUFFER, BLOCK_AT_ONCE, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY,
+    CMD_CALL, CMD_CLOSE, CMD_STEP, EnvFault, RELOAD_SEEDS, SUBSET, TARGET_BITS, TARGET_SHIFT,
+    WorkerConfig, calls, env_fault_path, extra_apart_path, slot_bytes, successor_go,
+    successor_marker,
 };
 
 mod block;
@@ -242,10 +243,17 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
     // One env's extra info, and the block's infos that did not fit its room.
     let mut info: Vec<u8> = Vec::new();
     let mut apart: Vec<(u32, Vec<u8>)> = Vec::new();
+    // The last command asked to wait for the next one without polling (BLOCK_AT_ONCE).
+    let blocking = WaitPolicy {
+        poll_budget: Duration::ZERO,
+        ..policy
+    };
+    let mut block_at_once = false;
     loop {
         let mut cmd = None;
         let waiting = stamp();
-        hybrid_wait::<WorkerError>(ports.cmd_listener(), &policy, None, |call| {
+        let now = if block_at_once { &blocking } else { &policy };
+        hybrid_wait::<WorkerError>(ports.cmd_listener(), now, None, |call| {
             if call == WaitCall::Idle && nix::unistd::getppid().as_raw() != a.ppid {
                 return Err(WorkerError::ParentGone(a.ppid));
             }
@@ -260,6 +268,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
             return Ok(());
         }
         let kind = h.kind & ((1 << TARGET_SHIFT) - 1);
+        block_at_once = h.kind & BLOCK_AT_ONCE != 0;
         if kind == CMD_CALL {
             drop(cmd);
             let kind =

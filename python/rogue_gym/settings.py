@@ -120,11 +120,7 @@ class PoolOptions:
             "max_restarts": self.max_restarts,
             "poll_us": self.poll_us,
             "worker_poll_us": (
-                self.worker_poll_us
-                if self.worker_poll_us is not None
-                else default_worker_poll(
-                    num_envs, self.num_workers or 1, self.batch_size, worker_poll_us
-                )
+                self.worker_poll_us if self.worker_poll_us is not None else worker_poll_us
             ),
             "recycle_after_steps": self.recycle_after_steps,
             "recycle_above_rss": self.recycle_above_rss,
@@ -264,18 +260,3 @@ def parse_autoreset_mode(
         names = ", ".join(m.name for m in allowed)
         raise ValueError(f"autoreset_mode must be one of {names}, got {mode!r}")
     return found
-
-
-def default_worker_poll(
-    num_envs: int, num_workers: int, batch_size: Optional[int], kind_default: Optional[int]
-) -> Optional[int]:
-    """How long workers poll for their next command, in µs, unless set: the kind's default,
-    except in the async regime (``batch_size < num_envs``) on a machine with no core to spare
-    (as many workers as usable cores, or more), where they block at once. There, polling
-    workers take the CPU from the workers that have work, and first-ready-first-served then
-    serves the pollers' envs over and over while the others wait (measured on 2 cores: 8 envs,
-    4 workers, batch 2 gave one block 3% of the recvs; blocking at once gave each 24-26%)."""
-    if batch_size is None or batch_size >= num_envs:
-        return kind_default
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    return 0 if num_workers >= (cores or 1) else kind_default

@@ -13,8 +13,11 @@ it returns a :class:`TuneResult`.
 
 The candidates: ``num_workers`` from 1 to twice the CPU count; observations lent (``copy=True``)
 or as shared-memory views (``copy=False``), and where the batch is large enough to be lent, lent
-from three batch slots (``batch_slots=3``: every batch lent, one more batch of ``/dev/shm``); the EnvPool-style async loop (``send``/``recv``
-with ``batch_size`` = one worker's envs) where the workers divide the envs; and for a
+from three batch slots (``batch_slots=3``: every batch lent, one more batch of ``/dev/shm``); the EnvPool-style async loop (``send``/``recv``)
+with ``batch_size`` = one worker's envs and half the envs, and with one worker per env (up
+to :data:`MAX_ONE_PER_ENV` envs); TorchRL's deadline harvest (``harvest``: ``recv(min_batch=1,
+max_batch=num_envs, timeout=1e-3)``, every env received sent at once), which serves envs of
+uneven speed (slow resets) best; and for a
 gymnasium id with its own vector entry point, one such vector env per worker
 (:meth:`rogue_gym.PoolVectorEnv.from_vector_env`). ``SyncVectorEnv`` in this process is timed
 too: where it is faster, tune says so and recommends it. Each candidate runs in a fresh pool
@@ -84,8 +87,9 @@ EnvLike = Union[str, Callable[[], gym.Env], Sequence[Callable[[], gym.Env]]]
 class Candidate:
     """One layout: the keyword arguments of the vector env, and how it is stepped."""
 
-    #: ``"pool"`` (``step``), ``"async"`` (``send``/``recv``), ``"vector"`` (one vector env per
-    #: worker) or ``"sync"`` (gymnasium's ``SyncVectorEnv`` in this process).
+    #: ``"pool"`` (``step``), ``"async"`` (``send``/``recv`` of ``batch_size`` envs),
+    #: ``"harvest"`` (``recv`` with a deadline, :data:`HARVEST`), ``"vector"`` (one vector env
+    #: per worker) or ``"sync"`` (gymnasium's ``SyncVectorEnv`` in this process).
     mode: str
     kwargs: dict[str, Any] = field(default_factory=dict)
 
@@ -187,8 +191,21 @@ class TuneResult:
         kwargs = ", ".join(f"{k}={v!r}" for k, v in c.kwargs.items())
         if c.mode == "vector":
             return f"best: PoolVectorEnv.from_vector_env(vector_env_fn, {self.num_envs}, {kwargs})"
-        how = " (then step with send/recv)" if c.mode == "async" else ""
+        how = {
+            "async": " (then step with send/recv)",
+            "harvest": (
+                f" (then recv(min_batch=1, max_batch={self.num_envs}, timeout=1e-3) and send "
+                "actions to the envs received)"
+            ),
+        }.get(c.mode, "")
         return f"best: make_vec(env, {self.num_envs}, {kwargs}){how}"
+
+
+#: Most envs for which tune tries one worker per env.
+MAX_ONE_PER_ENV = 64
+#: The deadline harvest's ``recv`` arguments besides ``max_batch`` (TorchRL's, pytorch/rl PR
+#: #4182).
+HARVEST = {"min_batch": 1, "timeout": 1e-3}
 
 
 def _resolve(env: EnvLike) -> tuple[str, Any, Optional[str]]:
@@ -226,8 +243,16 @@ def candidates(
             out.append(Candidate("pool", {"num_workers": w, "copy": copy}))
         if lends:
             out.append(Candidate("pool", {"num_workers": w, "copy": True, "batch_slots": 3}))
-        if w > 1 and num_envs % w == 0:
-            out.append(Candidate("async", {"num_workers": w, "batch_size": num_envs // w}))
+        if w > 1:
+            for b in sorted({num_envs // w, num_envs // 2} - {0}):
+                out.append(Candidate("async", {"num_workers": w, "batch_size": b}))
+    # One worker per env: envs that sleep (slow resets, I/O) cost no CPU while they wait, and
+    # no env waits behind another.
+    spread = [num_envs] if workers[-1] < num_envs <= MAX_ONE_PER_ENV else []
+    for w in spread:
+        out.append(Candidate("async", {"num_workers": w, "batch_size": max(1, num_envs // 2)}))
+    for w in sorted({min(cpus, num_envs), *spread}):
+        out.append(Candidate("harvest", {"num_workers": w, "batch_size": 1}))
     if kind == "hosted" and gym_id is not None and gym.spec(gym_id).vector_entry_point:
         for w in workers:
             out.append(Candidate("vector", {"num_workers": w}))
@@ -299,19 +324,19 @@ class _Live:
     def __init__(self, target: _Target, c: Candidate) -> None:
         self.candidate = c
         self.env = _build(target, c)
-        self._held: list[Any] = []  # async: env ids of the batches received, not yet answered
+        self.n = target.num_envs
+        self.async_ = c.mode in ("async", "harvest")
+        # async: envs received and not yet answered, and envs sent and not yet received.
+        self._held: list[int] = []
+        self.outstanding = 0
         try:
             self.env.action_space.seed(0)
             acts = [self.env.action_space.sample() for _ in range(16)]
-            if c.mode == "async":
-                self.rows = int(c.kwargs["batch_size"])
-                self.in_flight = target.num_envs // self.rows
-                self.acts = [np.asarray(a)[: self.rows] for a in acts]
+            self.acts = acts
+            if self.async_:
                 self.env.async_reset()
+                self.outstanding = self.n
             else:
-                self.rows = target.num_envs
-                self.in_flight = 0
-                self.acts = acts
                 self.env.reset(seed=0)
             self._steps(_WARMUP_STEPS)
             self._drain()
@@ -319,35 +344,64 @@ class _Live:
             self.env.close()
             raise
 
-    def _steps(self, n: int) -> None:
-        env, acts = self.env, self.acts
-        if self.candidate.mode == "async":
-            for i in range(n):
-                env.recv()
-                env.send(acts[i % 16])
+    def _recv(self) -> np.ndarray:
+        """Async: one recv as the candidate makes it; the env ids received."""
+        if self.candidate.mode == "harvest":
+            while True:
+                try:
+                    ids = self.env.recv(max_batch=self.outstanding, **HARVEST)[4]["env_id"]
+                    break
+                except TimeoutError:
+                    continue
         else:
+            ids = self.env.recv()[4]["env_id"]
+        self.outstanding -= len(ids)
+        return ids
+
+    def _send(self, ids: Any, i: int) -> None:
+        self.env.send(np.asarray(self.acts[i % 16])[: len(ids)], env_id=ids)
+        self.outstanding += len(ids)
+
+    def _steps(self, n: int) -> int:
+        """``n`` steps (lockstep) or recvs (async); the env steps they made."""
+        env, acts = self.env, self.acts
+        if self.async_:
+            done = 0
             for i in range(n):
-                env.step(acts[i % 16])
+                ids = self._recv()
+                self._send(ids, i)
+                done += len(ids)
+            return done
+        for i in range(n):
+            env.step(acts[i % 16])
+        return n * self.n
 
     def _resume(self) -> None:
-        """Async: answer the batches held since the last burst."""
-        for ids in self._held:
-            self.env.send(self.acts[0], env_id=ids)
+        """Async: answer the envs held since the last burst."""
+        if self._held:
+            self._send(np.asarray(self._held), 0)
         self._held = []
 
     def _drain(self) -> int:
-        """Async: receive every batch in flight and hold it; the rows received."""
-        for _ in range(self.in_flight):
-            self._held.append(self.env.recv()[4]["env_id"])
-        return self.in_flight * self.rows
+        """Async: receive every env in flight and hold it; the envs received."""
+        got = 0
+        while self.outstanding > 0:
+            ids = self._recv() if self.candidate.mode == "harvest" else self._recv_rest()
+            self._held.extend(int(i) for i in ids)
+            got += len(ids)
+        return got
+
+    def _recv_rest(self) -> np.ndarray:
+        ids = self.env.recv(min_batch=min(self.outstanding, self.env.batch_size))[4]["env_id"]
+        self.outstanding -= len(ids)
+        return ids
 
     def burst(self, seconds: float) -> float:
         """Steps/s over about ``seconds`` of stepping, with nothing left running after it."""
         steps, t0 = 0, time.perf_counter()
         self._resume()
         while time.perf_counter() - t0 < seconds:
-            self._steps(10)
-            steps += 10 * self.rows
+            steps += self._steps(10)
         steps += self._drain()
         return steps / (time.perf_counter() - t0)
 

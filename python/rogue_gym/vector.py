@@ -126,8 +126,8 @@ class PoolVectorEnv(FrontVectorEnv):
             ``recycle_*`` replace a worker by plan, for envs that leak; ``batch_slots`` trades
             ``/dev/shm`` for lent instead of copied batches).
         worker_poll_us: how long the workers poll before they block, in µs (default
-            :data:`rogue_gym.kinds.hosted.HOSTED_WORKER_POLL_US`, or 0 in the async regime on
-            a machine with no core to spare: :func:`rogue_gym.settings.default_worker_poll`).
+            :data:`rogue_gym.kinds.hosted.HOSTED_WORKER_POLL_US`; in the async API on a
+            machine with no core to spare, workers block at once whatever it says).
         info_bytes: room per env and step for the env's info in shared memory (typed rows of
             numbers and arrays, or pickles); a longer info travels beside it, more slowly.
         shared_memory: the pool always carries fixed-size leaves (Box, Discrete,

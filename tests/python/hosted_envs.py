@@ -336,6 +336,28 @@ class SleepEnv(gym.Env):
         return np.zeros(1, np.float32), 0.0, False, False, {}
 
 
+class SlowResetEnv(gym.Env):
+    """TorchRL's "fast step, slow reset" env: ``step_s`` a step, ``reset_s`` a reset, an
+    episode end every ``every`` steps; its waits use no CPU."""
+
+    observation_space = spaces.Box(0.0, 1.0, (1,), np.float32)
+    action_space = spaces.Discrete(2)
+
+    def __init__(self, step_s: float = 0.001, reset_s: float = 0.05, every: int = 20) -> None:
+        self.step_s, self.reset_s, self.every, self.t = step_s, reset_s, every, 0
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> Any:
+        super().reset(seed=seed)
+        time.sleep(self.reset_s)
+        self.t = 0
+        return np.zeros(1, np.float32), {}
+
+    def step(self, action: Any) -> Any:
+        time.sleep(self.step_s)
+        self.t += 1
+        return np.zeros(1, np.float32), 1.0, self.t >= self.every, False, {}
+
+
 def slow_in_workers(creator: int, delay: float) -> gym.Env:
     """CartPole, built at once in the creating process and after ``delay`` seconds in any other
     (a worker): a pool of it takes that long to start."""

@@ -78,3 +78,26 @@ def test_a_cell_past_its_time_limit_is_skipped_not_hung(tmp_path: Path) -> None:
     runs = json.loads((tmp_path / "throughput.json").read_text())["runs"]
     assert [r["status"] for r in runs] == ["skipped", "skipped"]  # not retried in rep 2
     assert "**skipped**" in (tmp_path / "throughput.md").read_text()
+
+
+def test_the_device_script_runs_every_part_in_its_quick_mode(tmp_path: Path) -> None:
+    """``benchmarks/device.sh --quick``: scaling, the async head-to-head (this pool beside
+    TorchRL where installed) and the trainer, each writing its results."""
+    env = {**__import__("os").environ, "PYTHON": sys.executable, "DEVICE_OUT": str(tmp_path)}
+    proc = subprocess.run(
+        ["bash", str(ROOT / "benchmarks" / "device.sh"), "--quick"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=env,
+    )
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    scaling = json.loads((tmp_path / "scaling.json").read_text())
+    assert all(v[0] > 0 for t in scaling["runs"].values() for v in t.values())
+    pools = json.loads((tmp_path / "async_pools.json").read_text())
+    rows = pools["runs"]["dispatch"]
+    assert any(k.startswith("rogue_gym async") and v and v[0] > 0 for k, v in rows.items())
+    if __import__("importlib").util.find_spec("torchrl") is not None:
+        assert any(k.startswith("torchrl") and v and v[0] > 0 for k, v in rows.items()), rows
+    train = json.loads((tmp_path / "train.json").read_text())
+    assert train["fps_last"] > 0 and train["updates"] >= 1

@@ -15,7 +15,7 @@ import pytest
 import rogue_gym
 import rogue_gym.tune as tune_mod
 
-from hosted_envs import SleepEnv
+from hosted_envs import SleepEnv, SlowResetEnv
 
 
 def cartpole() -> gym.Env:
@@ -33,8 +33,9 @@ def test_tune_finishes_within_its_stated_time_and_names_a_layout() -> None:
     stated = float(found.group(1)) * (60 if found.group(2) == "min" else 1)
     assert took <= stated + 5, (took, stated)
     labels = [t.candidate.label for t in result.timings]
-    # 1 CPU: 1 and 2 workers, lent or not, async with 2 workers, and SyncVectorEnv.
-    assert len(labels) == 6 and "SyncVectorEnv" in labels
+    # 1 CPU: 1 and 2 workers, lent or not; async with 2 workers and with one per env; the
+    # deadline harvest with 1 worker and one per env; and SyncVectorEnv.
+    assert len(labels) == 9 and "SyncVectorEnv" in labels, labels
     assert all(t.error is None and t.median > 0 for t in result.timings)
     # Best first: by median, but for the winner of the side-by-side duels, which it names.
     ranked = result.timings
@@ -142,3 +143,12 @@ def test_three_batch_slots_are_a_candidate_where_batches_are_lent() -> None:
     assert 3 not in [c.kwargs.get("batch_slots") for c in tune_mod.candidates("hosted", 8, None, 2)]
     assert tune_mod._obs_bytes("native", None) == 17 * 16 * 32
     assert tune_mod._obs_bytes("hosted", lambda: gym.make("CartPole-v1")) == 4 * 4
+
+
+def test_tune_recommends_async_one_env_per_worker_for_slow_resets() -> None:
+    """Envs that spend most of their time in slow resets are best served one per worker, each
+    received as soon as it is ready (the async API or the deadline harvest), not in lockstep."""
+    result = rogue_gym.tune([SlowResetEnv] * 8, 8, seconds=0.6, rounds=1, cpus=1, out=io.StringIO())
+    best = result.best_pool.candidate
+    assert best.mode in ("async", "harvest") and best.kwargs["num_workers"] == 8, result.table()
+    assert "recv" in result.advice()

@@ -43,6 +43,7 @@ impl Pool {
     pub fn async_reset(&mut self) -> Result<(), PoolError> {
         self.begin_call()?;
         self.drain()?;
+        self.core.async_mode = true;
         for k in 0..self.core.slots.len() {
             self.core.send_reset(k, 0)?;
             let envs = self.core.blocks[k].clone();
@@ -75,6 +76,8 @@ impl Pool {
         }
         self.check_actions(actions, env_ids)?;
         self.core.check_sendable(env_ids)?;
+        // A sync reset may start the async API too (as TorchRL's loop does).
+        self.core.async_mode = true;
         let (ab, aw) = (self.core.spec.action_bytes, self.core.spec.action_words());
         let mut words = vec![0u64; aw];
         for (r, &e) in env_ids.iter().enumerate() {
@@ -88,6 +91,9 @@ impl Pool {
             }
             self.core.envs.stage(e, &words);
         }
+        // Answers that came meanwhile free their workers for what was just staged.
+        self.core.poll_all()?;
+        self.core.absorb()?;
         // Planned replacements happen here, between two commands (see `recycling`).
         for k in 0..self.core.slots.len() {
             let envs = self.core.blocks[k].clone();
@@ -111,6 +117,11 @@ impl Pool {
                 "recv() needs 1 <= min_batch <= max_batch, got min_batch={} and max_batch={}",
                 want.min_batch, want.max_batch
             )));
+        }
+        if self.core.must_reset {
+            return Err(PoolError::State(
+                "call async_reset() before recv() (after creation or after a failure)".into(),
+            ));
         }
         let outstanding = self.core.envs.outstanding();
         if outstanding < want.min_batch {

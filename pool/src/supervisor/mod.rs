@@ -64,6 +64,11 @@ struct Core {
     ready_order: VecDeque<usize>,
     /// The async API's envs ([`async_envs`]).
     envs: async_envs::AsyncEnvs,
+    /// The async API is in use (from `async_reset` or a `send` to the next reset).
+    async_mode: bool,
+    /// As many workers as usable cores, or more: in the async API, workers are told to wait
+    /// for their next command without polling ([`crate::wire::BLOCK_AT_ONCE`]).
+    oversubscribed: bool,
     /// Workers host a vector env each ([`EnvRegistry::builds_blocks`]): the async API sends
     /// whole worker blocks only.
     whole_blocks: bool,
@@ -251,6 +256,9 @@ impl Pool {
                 node: None,
                 ready_order: VecDeque::new(),
                 envs: async_envs::AsyncEnvs::new(num_envs, num_workers, aw),
+                async_mode: false,
+                oversubscribed: std::thread::available_parallelism()
+                    .is_ok_and(|c| num_workers >= c.get()),
                 whole_blocks,
                 cur_episode: vec![None; num_envs],
                 cur_seed: vec![0; num_envs],
@@ -633,6 +641,7 @@ impl Pool {
         }
         self.core.ready_order.clear();
         self.core.envs.clear();
+        self.core.async_mode = false;
         Ok(())
     }
 

@@ -18,8 +18,9 @@ use crate::batch::Block;
 use crate::config::{AutoresetMode, FailurePolicy};
 use crate::error::{FailureCause, PoolError, WorkerFailure};
 use crate::wire::{
-    ACTION_EXTRAS, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_RESET, CMD_STEP, EnvFault,
-    KEEP_EPISODE, RELOAD_SEEDS, SUBSET, TARGET_SHIFT, calls, env_fault_path, extra_apart_path,
+    ACTION_EXTRAS, BLOCK_AT_ONCE, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_RESET,
+    CMD_STEP, EnvFault, KEEP_EPISODE, RELOAD_SEEDS, SUBSET, TARGET_SHIFT, calls, env_fault_path,
+    extra_apart_path,
 };
 
 pub(super) enum SlotState {
@@ -118,6 +119,16 @@ impl Core {
         self.blocks[k].clone()
     }
 
+    /// The flags that pace a worker's wait after a command: [`BLOCK_AT_ONCE`] in the async API
+    /// on a machine with no core to spare.
+    fn pace(&self) -> u32 {
+        if self.async_mode && self.oversubscribed {
+            BLOCK_AT_ONCE
+        } else {
+            0
+        }
+    }
+
     /// Start the process of worker `k`, generation `generation` (`successor`: a planned
     /// replacement, see [`super::recycling`]), its stderr going to a private file.
     pub(super) fn start_process(
@@ -207,12 +218,13 @@ impl Core {
         } else {
             0
         };
+        let pace = self.pace();
         let s = &mut self.slots[k];
         s.seq += 1;
         s.target = target;
         s.ports.send_cmd(
             s.seq,
-            CMD_RESET | (target << TARGET_SHIFT) | reload,
+            CMD_RESET | (target << TARGET_SHIFT) | reload | pace,
             eps.len(),
             |p| p.copy_from_slice(&eps),
         )?;
@@ -280,7 +292,7 @@ impl Core {
             self.slots[k].restarted = true;
             return self.send_reset(k, 0);
         }
-        let mut kind = CMD_STEP;
+        let mut kind = CMD_STEP | self.pace();
         if let Some(extras) = self.slots[k].action_extras.take() {
             let path = calls::action_extras_path(&self.id, k, self.slots[k].generation);
             calls::write(&path, &extras).map_err(PoolError::Io)?;

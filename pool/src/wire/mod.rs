@@ -39,6 +39,11 @@ pub(crate) const ACTION_EXTRAS: u32 = 1 << 17;
 /// blocks). The payload carries, after the action words, one word per env of the block: 1 for
 /// an env that steps, 0 for one left as it is (its row of the answer is not to be read).
 pub(crate) const SUBSET: u32 = 1 << 18;
+/// Flag of a reset or step command: after answering it, wait for the next command without
+/// polling. The async API sets it on a machine with no core to spare: workers that poll take
+/// the CPU from the workers with work, and first-ready-first-served then serves the pollers'
+/// envs again and again.
+pub(crate) const BLOCK_AT_ONCE: u32 = 1 << 19;
 /// The bits of a command kind that name its observation target (below the flags).
 pub(crate) const TARGET_BITS: u32 = RELOAD_SEEDS - 1;
 /// Name of the shared batch buffer (`/dev/shm/<prefix>batch`).

@@ -1,0 +1,133 @@
+"""Multicore scaling: the pool's sync ``step()`` throughput from 1 to N workers, each worker with
+the same envs (weak scaling), as efficiency against linear (``rate(k) / (k * rate(1))``).
+
+Envs: the native game (``--rogue-envs`` a worker, 256 by default, as the design's target
+says), gymnasium's CartPole-v1 and HalfCheetah-v5 (``--hosted-envs`` a worker; HalfCheetah
+needs mujoco, and is left out without it). Random actions, precomputed; each cell runs
+``--seconds`` after a warm-up, ``--reps`` times, cells interleaved.
+
+    python benchmarks/scaling.py --workers 1 2 4 8 16
+    python benchmarks/scaling.py --quick               # a smoke run (CI)
+
+Writes ``scaling.json`` and ``scaling.md`` under ``--out``
+(default ``benchmarks/results/scaling``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import time
+from pathlib import Path
+from typing import Any, Optional
+
+import gymnasium as gym
+import numpy as np
+import rogue_gym
+
+
+def make(env: str, num_envs: int, workers: int) -> Any:
+    if env == "rogue":
+        return rogue_gym.make_vec("RogueGym-v0", num_envs=num_envs, num_workers=workers)
+    return rogue_gym.PoolVectorEnv([lambda: gym.make(env)] * num_envs, num_workers=workers)
+
+
+def rate(env: str, per_worker: int, workers: int, seconds: float) -> float:
+    """Env steps/s of ``workers`` workers with ``per_worker`` envs each, sync ``step()``."""
+    n = per_worker * workers
+    vec = make(env, n, workers)
+    try:
+        vec.reset(seed=0)
+        rng = np.random.default_rng(0)
+        acts = [np.stack([vec.single_action_space.sample() for _ in range(n)]) for _ in range(8)]
+        if env == "rogue":
+            acts = [rng.integers(0, vec.single_action_space.n, n) for _ in range(8)]
+        for a in acts:  # warm-up
+            vec.step(a)
+        steps, t0 = 0, time.perf_counter()
+        while time.perf_counter() - t0 < seconds:
+            vec.step(acts[steps % 8])
+            steps += 1
+        return steps * n / (time.perf_counter() - t0)
+    finally:
+        vec.close()
+
+
+def available(env: str) -> bool:
+    if env == "rogue":
+        return True
+    try:
+        gym.make(env).close()
+        return True
+    except Exception as exc:  # e.g. mujoco missing
+        print(f"{env} is left out: {exc}")
+        return False
+
+
+def main(argv: Optional[list[str]] = None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--workers", type=int, nargs="+", default=[1, 2, 4, 8, 16])
+    p.add_argument("--envs", nargs="+", default=["rogue", "CartPole-v1", "HalfCheetah-v5"])
+    p.add_argument("--rogue-envs", type=int, default=256, help="native envs per worker")
+    p.add_argument("--hosted-envs", type=int, default=8, help="hosted envs per worker")
+    p.add_argument("--seconds", type=float, default=3.0)
+    p.add_argument("--reps", type=int, default=1)
+    p.add_argument("--quick", action="store_true", help="1 and 2 workers, 1 s, few envs (CI)")
+    p.add_argument("--out", default=str(Path(__file__).parent / "results" / "scaling"))
+    args = p.parse_args(argv)
+    if args.quick:
+        args.workers, args.seconds, args.reps = [1, 2], 1.0, 1
+        args.rogue_envs, args.hosted_envs = 16, 2
+        args.envs = [e for e in args.envs if e != "HalfCheetah-v5"]
+    envs = [e for e in args.envs if available(e)]
+    runs: dict[str, dict[int, list[float]]] = {e: {k: [] for k in args.workers} for e in envs}
+    for rep in range(args.reps):
+        for k in args.workers:
+            for e in envs:
+                per = args.rogue_envs if e == "rogue" else args.hosted_envs
+                value = rate(e, per, k, args.seconds)
+                runs[e][k].append(value)
+                print(f"rep {rep + 1}: {e}, {k} workers x {per} envs: {value:,.0f} steps/s")
+    write(args, runs)
+
+
+def write(args: argparse.Namespace, runs: dict[str, dict[int, list[float]]]) -> None:
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    cores = len(os.sched_getaffinity(0))
+    lines = [
+        f"# Scaling of sync step() ({platform.node()}, {cores} cores, {args.seconds:g} s x "
+        f"{args.reps} runs; envs per worker: native {args.rogue_envs}, hosted {args.hosted_envs})",
+        "",
+        "| env | workers | steps/s (median) | x 1 worker | efficiency vs linear |",
+        "|---|---|---|---|---|",
+    ]
+    for e, table in runs.items():
+        med = {k: statistics.median(v) for k, v in table.items() if v}
+        base = med.get(min(med)) if med else None
+        for k, v in sorted(med.items()):
+            speedup = v / base if base else float("nan")
+            lines.append(f"| {e} | {k} | {v:,.0f} | {speedup:.2f}x | {speedup / k:.0%} |")
+    text = "\n".join(lines)
+    print(text)
+    (out / "scaling.md").write_text(text + "\n")
+    (out / "scaling.json").write_text(
+        json.dumps(
+            {
+                "cores": cores,
+                "seconds": args.seconds,
+                "reps": args.reps,
+                "rogue_envs": args.rogue_envs,
+                "hosted_envs": args.hosted_envs,
+                "runs": {e: {str(k): v for k, v in t.items()} for e, t in runs.items()},
+            },
+            indent=1,
+        )
+    )
+
+
+if __name__ == "__main__":
+    main()
