@@ -117,6 +117,17 @@ def torchrl_env(name: str) -> Any:
     return TorchWorkload()
 
 
+def lockstep_rate(env: Any, n: int, seconds: float) -> float:
+    """Transitions/s of ``step()`` of all ``n`` envs of a vector env, after a reset."""
+    env.reset(seed=0)
+    acts = np.zeros(n, np.int64)
+    done, t0 = 0, time.perf_counter()
+    while time.perf_counter() - t0 < seconds:
+        env.step(acts)
+        done += n
+    return done / (time.perf_counter() - t0)
+
+
 def run_pool(
     name: str, seconds: float, workers: int, lockstep: bool, timeout: Optional[float]
 ) -> float:
@@ -129,13 +140,7 @@ def run_pool(
     env = rogue_gym.PoolVectorEnv([maker(name)] * n, num_workers=workers, batch_size=n)
     try:
         if lockstep:
-            env.reset(seed=0)
-            acts = np.zeros(n, np.int64)
-            done, t0 = 0, time.perf_counter()
-            while time.perf_counter() - t0 < seconds:
-                env.step(acts)
-                done += n
-            return done / (time.perf_counter() - t0)
+            return lockstep_rate(env, n, seconds)
         # As TorchRL's loop starts: every env reset, then every env sent an action.
         env.reset(seed=0)
         env.send(np.zeros(n, np.int64), np.arange(n))
@@ -204,13 +209,7 @@ def run_gym_async(name: str, seconds: float) -> float:
     n = WORKLOADS[name][0]
     env = gym.vector.AsyncVectorEnv([maker(name)] * n)
     try:
-        env.reset(seed=0)
-        acts = np.zeros(n, np.int64)
-        done, t0 = 0, time.perf_counter()
-        while time.perf_counter() - t0 < seconds:
-            env.step(acts)
-            done += n
-        return done / (time.perf_counter() - t0)
+        return lockstep_rate(env, n, seconds)
     finally:
         env.close()
 

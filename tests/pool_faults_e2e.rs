@@ -559,3 +559,40 @@ fn a_worker_killed_just_before_close_is_no_error_and_nothing_leaks() {
     assert!(pids.iter().all(|&w| !alive(w)));
     assert!(pool_files_gone(&id));
 }
+
+#[test]
+fn an_env_failing_in_an_async_step_of_part_of_a_block_is_raised_and_an_async_reset_recovers() {
+    let env = json!({"kind": "test", "obs_shape": [4], "fail_on_action": 3});
+    let mut c = config(EXE, env, 4, 2);
+    c.batch_size = Some(1);
+    let mut p = pool(c);
+    p.async_reset().unwrap();
+    p.recv_want(RecvWant::exactly(4)).unwrap();
+    // Env 1 alone (its worker also hosts env 0) fails; env 2 steps fine.
+    p.send(&[3, 0], &[1, 2]).unwrap();
+    let mut outcome = Ok(());
+    for _ in 0..2 {
+        // The failure surfaces at the first call that sees it, a recv (or a later send).
+        match p.recv_want(RecvWant::exactly(1)) {
+            Ok(r) => assert_eq!(r.env_ids, vec![2]),
+            Err(e) => {
+                outcome = Err(e);
+                break;
+            }
+        }
+    }
+    let e = outcome.unwrap_err();
+    assert!(
+        matches!(&e, PoolError::EnvFailed { fault, .. } if fault.env == 1 && fault.message.contains("injected failure")),
+        "{e}"
+    );
+    let e = p.send(&[0], &[0]).unwrap_err();
+    assert!(e.to_string().contains("async_reset()"), "{e}");
+    p.async_reset().unwrap();
+    let r = p.recv_want(RecvWant::exactly(4)).unwrap();
+    let mut ids = r.env_ids.clone();
+    ids.sort();
+    assert_eq!(ids, vec![0, 1, 2, 3]);
+    p.send(&[0], &[1]).unwrap();
+    assert_eq!(p.recv_want(RecvWant::exactly(1)).unwrap().env_ids, vec![1]);
+}

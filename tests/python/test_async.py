@@ -156,3 +156,39 @@ def test_each_envs_trajectory_is_its_own_whatever_the_layout(workers: int, batch
     finally:
         env.close()
     assert got == want
+
+
+@pytest.mark.parametrize("mode", ["next_step", "same_step"])
+def test_render_after_send_and_recv_shows_the_envs_as_they_are(mode: str) -> None:
+    """The native game's screens are rebuilt by replay: after async steps (episodes ending on
+    the way) ``render()`` equals that of a sync twin stepped with the same actions."""
+    from gymnasium.vector import AutoresetMode
+
+    am = AutoresetMode.SAME_STEP if mode == "same_step" else AutoresetMode.NEXT_STEP
+    kw = dict(max_steps=7, render_mode="ansi", autoreset_mode=am)
+    steps = 17  # crosses two episode ends
+
+    def action(e: int, t: int) -> int:
+        return (3 * e + t) % 11
+
+    twin = rogue_gym.make_vec("RogueGym-v0", num_envs=4, num_workers=1, **kw)
+    env = rogue_gym.make_vec("RogueGym-v0", num_envs=4, num_workers=2, batch_size=2, **kw)
+    try:
+        twin.reset(seed=9)
+        for t in range(steps):
+            twin.step(np.array([action(e, t) for e in range(4)]))
+        env.async_reset(seed=9)
+        done = np.zeros(4, int)  # steps sent to each env
+        outstanding = 4
+        while outstanding:
+            _, _, _, _, info = env.recv(min_batch=1, max_batch=outstanding)
+            outstanding -= len(info["env_id"])
+            go = [int(e) for e in info["env_id"] if done[e] < steps]
+            if go:
+                env.send(np.array([action(e, done[e]) for e in go]), go)
+                done[go] += 1
+                outstanding += len(go)
+        assert env.render() == twin.render()
+    finally:
+        env.close()
+        twin.close()

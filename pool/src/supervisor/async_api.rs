@@ -68,12 +68,7 @@ impl Pool {
         env_ids: &[usize],
     ) -> Result<(), PoolError> {
         self.begin_call()?;
-        if self.core.must_reset {
-            return Err(PoolError::State(
-                "call async_reset() before send() (after creation or after a worker failure)"
-                    .into(),
-            ));
-        }
+        self.core.check_started("send")?;
         self.check_actions(actions, env_ids)?;
         self.core.check_sendable(env_ids)?;
         // A sync reset may start the async API too (as TorchRL's loop does).
@@ -118,11 +113,7 @@ impl Pool {
                 want.min_batch, want.max_batch
             )));
         }
-        if self.core.must_reset {
-            return Err(PoolError::State(
-                "call async_reset() before recv() (after creation or after a failure)".into(),
-            ));
-        }
+        self.core.check_started("recv")?;
         let outstanding = self.core.envs.outstanding();
         if outstanding < want.min_batch {
             return Err(PoolError::State(format!(
@@ -157,6 +148,21 @@ impl Pool {
 }
 
 impl Core {
+    /// Fail a `send` or `recv` that needs an `async_reset` first: with the failures that made
+    /// it so, if they were seen outside a wait (by a `send`) and not raised yet.
+    fn check_started(&mut self, call: &str) -> Result<(), PoolError> {
+        if !self.must_reset {
+            return Ok(());
+        }
+        if !self.faults.is_empty() {
+            let all = std::mem::take(&mut self.faults);
+            return Err(PoolError::collected(all).unwrap_or(PoolError::Interrupted));
+        }
+        Err(PoolError::State(format!(
+            "call async_reset() before {call}() (after creation or after a failure)"
+        )))
+    }
+
     /// Refuse to send to an env twice before it is received, to an env out of range, or (a
     /// vector env per worker) to part of a worker block.
     fn check_sendable(&self, env_ids: &[usize]) -> Result<(), PoolError> {

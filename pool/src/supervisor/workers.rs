@@ -394,7 +394,16 @@ impl Core {
                         s.restart_streak = 0;
                         let same_step = self.cfg.autoreset == AutoresetMode::SameStep;
                         let first = self.blocks[k].start;
-                        for j in 0..self.blocks[k].len() {
+                        // A SUBSET step answers for its envs only: the other rows are stale
+                        // (a reset, as after a restart, answers for all).
+                        let sent = &self.envs.sent[k];
+                        let all = sent.is_empty() || self.slots[k].restarted;
+                        let rows = if all {
+                            self.blocks[k].len()
+                        } else {
+                            sent.len()
+                        };
+                        for j in (0..rows).map(|i| if all { i } else { sent[i] - first }) {
                             let r = self.layouts[k].record(sample.payload(), j);
                             let done = r.terminated() || r.truncated();
                             // In SAME_STEP mode a finished env already started the next

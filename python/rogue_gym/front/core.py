@@ -186,6 +186,8 @@ class Core:
         self.num_envs = n = kind.num_envs
         self.obs_bytes = kind.obs_bytes
         self.copy = bool(copy)
+        #: SAME_STEP autoreset (else NEXT_STEP).
+        self.same_step = bool(same_step)
         lend = self.copy and n * self.obs_bytes >= leases.LEND_MIN_BYTES
         settings = kind.pool_settings()
         settings["autoreset"] = "same_step" if same_step else "next_step"

@@ -90,6 +90,8 @@ class NativeKind:
         # step starts a new episode; and those a partial reset left to be autoreset.
         self._ended = np.zeros(self.num_envs, bool)
         self._started = False
+        #: The action last sent to each env through the async API (for the replay history).
+        self._sent = np.zeros(self.num_envs, np.int64)
 
     # -- the pool --------------------------------------------------------------------------
 
@@ -150,6 +152,8 @@ class NativeKind:
         if type(a) is np.ndarray and a.dtype == np.int64 and a.shape == (n,):
             if env_ids is None:
                 self.last_actions = a
+            elif self._history is not None:
+                self._sent[np.asarray(env_ids, np.int64)] = a
             return a
         if isinstance(a, str):
             if len(a) != n:
@@ -186,6 +190,8 @@ class NativeKind:
         np.copyto(out, a, casting="unsafe")
         if env_ids is None:
             self.last_actions = out
+        elif self._history is not None:
+            self._sent[np.asarray(env_ids, np.int64)] = out
         return out
 
     def seed_schedule(self, seed: Any, core: Core) -> Optional[dict[str, Any]]:
@@ -291,7 +297,15 @@ class NativeKind:
         env_extras: list[tuple[int, bytes]],
         env_id: np.ndarray,
     ) -> dict[str, Any]:
-        """The info values of the batch's envs (one row each, all set)."""
+        """The info values of the batch's envs (one row each, all set); the replay history
+        follows the rows, so that ``render()`` shows the envs as they are now."""
+        if self._history is not None:
+            ids = np.asarray(env_id, np.int64)
+            same_step = core.same_step
+            self._history.on_rows(ids, recs, self._sent, same_step)
+            if not same_step:
+                self._ended[ids] = (recs["flags"] & 3) != 0
+            self._started = True
         infos: dict[str, Any] = {}
         ones = np.ones(len(recs), bool)
         for key, arr in self.info_arrays(recs).items():

@@ -50,6 +50,30 @@ class ActionHistory:
         self.actions[pos, idx] = actions[idx]
         self.length[idx] += 1
 
+    def on_rows(
+        self, env_ids: np.ndarray, recs: np.ndarray, sent: np.ndarray, same_step: bool
+    ) -> None:
+        """An async ``recv``: env ``env_ids[r]`` answered with ``recs[r]``; ``sent[e]`` is the
+        action last sent to env ``e``. A row of episode length 0 is a reset (``async_reset``,
+        an autoreset, a restart); any other is a step with the action sent."""
+        fresh = recs["episode_length"] == 0
+        ids = env_ids[fresh]
+        self.length[ids] = 0
+        self.seeds[ids] = recs["seed"][fresh]
+        self.stale[ids] = False
+        ids, rows = env_ids[~fresh], recs[~fresh]
+        going = (rows["flags"] & 3) == 0
+        fix = self.stale[ids] & going
+        self.seeds[ids[fix]] = rows["seed"][fix]
+        self.stale[ids[fix]] = False
+        pos = np.minimum(self.length[ids], self.actions.shape[0] - 1)
+        self.actions[pos, ids] = sent[ids]
+        self.length[ids] += 1
+        if same_step:  # an ended row's env began its next episode already (seed unknown yet)
+            done = ids[~going]
+            self.length[done] = 0
+            self.stale[done] = True
+
     def screen(self, i: int) -> str:
         """The current screen of env ``i``: map rows and status line."""
         game = _native.Game(to_json(self.config), self.max_steps, self.stair_reward)
