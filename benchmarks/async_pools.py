@@ -33,6 +33,7 @@ from typing import Any, Callable, Optional
 
 import gymnasium as gym
 import numpy as np
+import rogue_gym
 
 #: PR #4182's recv deadline, seconds (with ``min_get=1, max_get=num_envs``).
 HARVEST = 1e-3
@@ -65,6 +66,56 @@ class Workload(gym.Env):
             time.sleep(self.step_s)
         self.t += 1
         return np.full(4, self.t / self.every, np.float32), 1.0, self.t >= self.every, False, {}
+
+
+#: Real envs recorded beside the workloads: gymnasium id and number of envs; async with
+#: ``batch_size = num_envs / 2`` against lockstep ``step()`` (HalfCheetah needs mujoco).
+REAL = {"native game": ("RogueGym-v0", 64), "HalfCheetah": ("HalfCheetah-v5", 16)}
+
+
+def run_real(name: str, seconds: float, workers: int, batch: Optional[int]) -> float:
+    """Env steps/s of a real env: ``recv()``/``send()`` of ``batch`` envs, or ``step()``."""
+    gym_id, n = REAL[name]
+    if gym_id == "RogueGym-v0":
+        env = rogue_gym.make_vec(gym_id, num_envs=n, num_workers=workers, batch_size=batch)
+    else:
+        env = rogue_gym.make_vec(gym_id, n, num_workers=workers, batch_size=batch)
+    try:
+        if batch is None:
+            space = env.single_action_space
+            return lockstep_rate(env, n, seconds, np.zeros((n, *space.shape), space.dtype))
+        env.async_reset(seed=0)
+        acts = np.zeros((batch, *env.single_action_space.shape), env.single_action_space.dtype)
+        done, t0 = 0, time.perf_counter()
+        while time.perf_counter() - t0 < seconds:
+            _, _, _, _, info = env.recv()
+            env.send(acts, info["env_id"])
+            done += batch
+        return done / (time.perf_counter() - t0)
+    finally:
+        env.close()
+
+
+def real_systems(name: str, cores: int) -> dict[str, Callable[[float], float]]:
+    gym_id, n = REAL[name]
+    w = min(cores, n)
+    out: dict[str, Callable[[float], float]] = {
+        f"rogue_gym async, {w} workers, batch_size {n // 2}": lambda s: run_real(
+            name, s, w, n // 2
+        ),
+        f"rogue_gym step(), {w} workers": lambda s: run_real(name, s, w, None),
+    }
+    if gym_id != "RogueGym-v0":
+
+        def gym_async(s: float) -> float:
+            env = gym.vector.AsyncVectorEnv([lambda: gym.make(gym_id)] * n)
+            try:
+                return lockstep_rate(env, n, s, np.zeros((n, *env.single_action_space.shape)))
+            finally:
+                env.close()
+
+        out["gymnasium AsyncVectorEnv"] = gym_async
+    return out
 
 
 def maker(name: str) -> Callable[[], Workload]:
@@ -117,10 +168,11 @@ def torchrl_env(name: str) -> Any:
     return TorchWorkload()
 
 
-def lockstep_rate(env: Any, n: int, seconds: float) -> float:
-    """Transitions/s of ``step()`` of all ``n`` envs of a vector env, after a reset."""
+def lockstep_rate(env: Any, n: int, seconds: float, acts: Any = None) -> float:
+    """Transitions/s of ``step()`` of all ``n`` envs of a vector env, after a reset (actions
+    ``acts``, default zeros)."""
     env.reset(seed=0)
-    acts = np.zeros(n, np.int64)
+    acts = np.zeros(n, np.int64) if acts is None else acts
     done, t0 = 0, time.perf_counter()
     while time.perf_counter() - t0 < seconds:
         env.step(acts)
@@ -134,8 +186,6 @@ def run_pool(
     """This pool: async with ``recv(min_batch=1, max_batch=num_envs, timeout=timeout)`` (PR
     #4182's harvest loop with ``timeout=1e-3``; with None, every env ready at once), or
     lockstep ``step()``."""
-    import rogue_gym
-
     n = WORKLOADS[name][0]
     env = rogue_gym.PoolVectorEnv([maker(name)] * n, num_workers=workers, batch_size=n)
     try:
@@ -256,20 +306,30 @@ def main(argv: Optional[list[str]] = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--seconds", type=float, default=5.0, help="per run")
     p.add_argument("--reps", type=int, default=3, help="runs per system (interleaved)")
-    p.add_argument("--workloads", nargs="+", default=list(WORKLOADS), choices=list(WORKLOADS))
+    p.add_argument("--workloads", nargs="*", default=list(WORKLOADS), choices=list(WORKLOADS))
+    p.add_argument("--real", nargs="*", default=list(REAL), choices=list(REAL), help="real envs")
     p.add_argument("--quick", action="store_true", help="one short run of a few systems (CI)")
     p.add_argument("--out", default=str(Path(__file__).parent / "results" / "async_pools"))
     args = p.parse_args(argv)
     if args.quick:
-        args.seconds, args.reps = min(args.seconds, 1.0), 1
+        args.seconds, args.reps, args.real = min(args.seconds, 1.0), 1, []
     cores = len(os.sched_getaffinity(0))
     runs: dict[str, dict[str, list[float]]] = {}
     supplies: dict[str, float] = {}
+    tables: dict[str, dict[str, Callable[[float], float]]] = {}
     for name in args.workloads:
         if WORKLOADS[name][1] or WORKLOADS[name][2]:
             supplies[name] = supply(name, max(args.seconds, 2.5))
             print(f"{name}: env supply here {supplies[name]:,.0f} transitions/s")
-        table = systems(name, cores, args.quick)
+        tables[name] = systems(name, cores, args.quick)
+    for name in args.real:
+        try:
+            gym.make(REAL[name][0]).close()
+        except Exception as exc:  # mujoco missing, say
+            print(f"{name} is left out: {exc}")
+            continue
+        tables[name] = real_systems(name, cores)
+    for name, table in tables.items():
         runs[name] = {k: [] for k in table}
         for rep in range(args.reps):
             for label, run in table.items():
@@ -297,6 +357,17 @@ def write(
         "",
     ]
     for name, table in runs.items():
+        if name in REAL:
+            lines += [f"## {name}: {REAL[name][0]}, {REAL[name][1]} envs (env steps/s)", ""]
+            lines += ["| system | steps/s (median) | x step() |", "|---|---|---|"]
+            med = {k: statistics.median(v) for k, v in table.items() if v}
+            lock = next((v for k, v in med.items() if "step()" in k), None)
+            for k, v in sorted(med.items(), key=lambda kv: -kv[1]):
+                lines.append(
+                    f"| {k} | {v:,.0f} | {v / lock:.2f}x |" if lock else f"| {k} | {v:,.0f} | - |"
+                )
+            lines.append("")
+            continue
         n, step_s, reset_s, every = WORKLOADS[name]
         nominal = n * every / (every * step_s + reset_s) if step_s or reset_s else None
         ceiling = supplies.get(name)

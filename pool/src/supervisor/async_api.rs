@@ -89,13 +89,6 @@ impl Pool {
         // Answers that came meanwhile free their workers for what was just staged.
         self.core.poll_all()?;
         self.core.absorb()?;
-        // Planned replacements happen here, between two commands (see `recycling`).
-        for k in 0..self.core.slots.len() {
-            let envs = self.core.blocks[k].clone();
-            if envs.clone().any(|e| self.core.envs.turn[e] == Turn::Staged) {
-                self.core.recycle_if_due(k)?;
-            }
-        }
         self.core.dispatch_staged()
     }
 
@@ -143,7 +136,10 @@ impl Pool {
                 timeout: want.timeout.unwrap_or_default(),
             });
         }
-        Ok(self.core.envs.take(max, self.core.spec.obs_bytes()))
+        let got = self.core.envs.take(max, self.core.spec.obs_bytes());
+        // The rows' own replacements by plan, whenever their worker was replaced.
+        self.core.recycled_envs.clone_from(&got.recycled);
+        Ok(got)
     }
 }
 
@@ -218,8 +214,9 @@ impl Core {
             // Keep one sample of each worker for the next answer and one for the caller's.
             let keep = self.cfg.max_borrowed.saturating_sub(2);
             for (_, k) in arrived {
+                let recycled = self.slots[k].recycled && self.slots[k].restarted;
                 let block = self.take_block(k)?;
-                self.envs.arrive(k, block, keep);
+                self.envs.arrive(k, block, keep, recycled);
             }
         }
         self.dispatch_staged()
@@ -231,10 +228,15 @@ impl Core {
             return Ok(());
         }
         for k in 0..self.slots.len() {
-            if !matches!(self.slots[k].state, SlotState::Idle) {
+            let envs = self.blocks[k].clone();
+            if !envs.clone().any(|e| self.envs.turn[e] == Turn::Staged) {
                 continue;
             }
-            let envs = self.blocks[k].clone();
+            // Planned replacements happen here, between two commands (see `recycling`); a
+            // worker replaced now takes its staged envs once it is back.
+            if self.recycle_if_due(k)? || !matches!(self.slots[k].state, SlotState::Idle) {
+                continue;
+            }
             let Some((words, only)) = self.envs.dispatch(k, envs) else {
                 continue;
             };

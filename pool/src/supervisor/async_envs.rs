@@ -58,6 +58,8 @@ pub struct Received {
     pub obs: Vec<u8>,
     /// `(row, bytes)` of the rows whose env wrote extra info.
     pub extras: Vec<(usize, Vec<u8>)>,
+    /// The envs of rows whose worker was replaced by plan ([`crate::Pool::recycled_envs`]).
+    pub recycled: Vec<usize>,
 }
 
 impl Received {
@@ -86,6 +88,8 @@ pub(super) struct AsyncEnvs {
     pub(super) sent: Vec<Vec<usize>>,
     ready: VecDeque<usize>,
     rows: Vec<Option<Row>>,
+    /// Its result answers a replacement by plan of its worker (`worker_recycled`).
+    recycled: Vec<bool>,
     /// The first observation of an env the caller held when its worker was replaced: handed
     /// out at its next send (whose action is dropped).
     restarted: Vec<Option<Box<Copied>>>,
@@ -106,6 +110,7 @@ impl AsyncEnvs {
             ready: VecDeque::new(),
             rows: (0..num_envs).map(|_| None).collect(),
             restarted: (0..num_envs).map(|_| None).collect(),
+            recycled: vec![false; num_envs],
             blocks: Vec::new(),
             free: Vec::new(),
             held_of: vec![VecDeque::new(); num_workers],
@@ -120,6 +125,7 @@ impl AsyncEnvs {
         self.ready.clear();
         self.rows.iter_mut().for_each(|r| *r = None);
         self.restarted.iter_mut().for_each(|r| *r = None);
+        self.recycled.fill(false);
         self.blocks.clear();
         self.free.clear();
         self.held_of.iter_mut().for_each(VecDeque::clear);
@@ -189,19 +195,22 @@ impl AsyncEnvs {
     /// stepped become ready, in row order. A restart's answer (it reset every env of the
     /// block) also replaces the results of its envs that wait in the queue, drops the actions
     /// staged for the others, and keeps the first observation of each env the caller holds
-    /// for its next send. Blocks beyond `keep` held for this worker are copied out.
-    pub(super) fn arrive(&mut self, k: usize, block: Block, keep: usize) {
+    /// for its next send. `recycled`: the restart was a replacement by plan. Blocks beyond
+    /// `keep` held for this worker are copied out.
+    pub(super) fn arrive(&mut self, k: usize, block: Block, keep: usize, recycled: bool) {
         let start = block.env_ids().start;
         let n = block.env_ids().len();
         let b = self.hold(block);
         let sent = std::mem::take(&mut self.sent[k]);
         if !self.block(b).restarted() {
             for e in sent {
+                self.recycled[e] = false;
                 self.make_ready(e, b, e - start);
             }
         } else {
             for j in 0..n {
                 let e = start + j;
+                self.recycled[e] = recycled;
                 match self.turn[e] {
                     Turn::InFlight => self.make_ready(e, b, j),
                     Turn::Staged => {
@@ -241,12 +250,16 @@ impl AsyncEnvs {
             records: Vec::with_capacity(n),
             obs: Vec::with_capacity(n * obs_bytes),
             extras: Vec::new(),
+            recycled: Vec::new(),
         };
         for r in 0..n {
             let Some(e) = self.ready.pop_front() else {
                 break;
             };
             self.turn[e] = Turn::Caller;
+            if std::mem::take(&mut self.recycled[e]) {
+                out.recycled.push(e);
+            }
             let row = self.rows[e].take();
             match &row {
                 Some(Row::Held { b, j }) => {

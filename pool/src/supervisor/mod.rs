@@ -393,7 +393,8 @@ impl Pool {
         self.core.shm_need
     }
     /// The envs whose worker was replaced by plan (`recycle_after_steps`,
-    /// `recycle_above_rss`) during the last call: they report `restarted`, and their episodes
+    /// `recycle_above_rss`) during the last call (async: the rows of the last `recv` whose
+    /// worker was replaced since they were sent): they report `restarted`, and their episodes
     /// were cut there, between two commands.
     pub fn recycled_envs(&self) -> &[usize] {
         &self.core.recycled_envs

@@ -6,18 +6,9 @@ env class itself (that is :class:`rogue_gym.PoolVectorEnv`, over the hosted env 
 * :mod:`~rogue_gym.hosted.adapter`: the worker side, which builds and calls each env.
 * :mod:`~rogue_gym.hosted.infos`: infos as typed rows or pickles.
 * :mod:`~rogue_gym.hosted.leases`: observations handed out without a copy.
+* :mod:`~rogue_gym.hosted.registry`: the caller's gymnasium registry, carried to the workers.
 """
-
-from typing import Any
 
 from .layout import SpaceLayout, UnsupportedSpaceError
 
-__all__ = ["PoolVectorEnv", "SpaceLayout", "UnsupportedSpaceError"]
-
-
-def __getattr__(name: str) -> Any:
-    if name == "PoolVectorEnv":  # rogue_gym.hosted.PoolVectorEnv, its name of old
-        from ..vector import PoolVectorEnv
-
-        return PoolVectorEnv
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__all__ = ["SpaceLayout", "UnsupportedSpaceError"]
