@@ -53,8 +53,8 @@ from typing import Any, Callable, Optional, Sequence, Union
 import gymnasium as gym
 import numpy as np
 
-from .hosted import leases
-from .hosted.layout import SpaceLayout
+from .front import leases
+from .protocol.layout import SpaceLayout
 from .registration import ENV_ID
 from .settings import PoolOptions
 

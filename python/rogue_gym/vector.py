@@ -116,7 +116,7 @@ class PoolVectorEnv(FrontVectorEnv):
             hosts a contiguous block of envs, the blocks differing by at most one env.
         copy: return observations that are yours to keep (default, like ``AsyncVectorEnv``):
             views of a shared-memory slot that the workers do not write again while any of
-            them lives (:mod:`rogue_gym.hosted.leases`), or copies when no other slot is free
+            them lives (:mod:`rogue_gym.front.leases`), or copies when no other slot is free
             (``batch_slots``) or the batch is small; with ``False`` they are views of shared
             memory, valid until the second following ``step``/``reset``.
         autoreset_mode: ``NEXT_STEP`` (default), ``SAME_STEP`` or ``DISABLED``.

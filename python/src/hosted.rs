@@ -1,7 +1,7 @@
 //! The `"python"` env kind: a gymnasium env written in Python, hosted in a pool worker.
 //!
 //! The worker runs the pool's Rust loop with the GIL released; each call on a [`HostedEnv`]
-//! takes the GIL. The adapter (`rogue_gym.hosted.adapter.HostedEnv`) builds the env from the
+//! takes the GIL. The adapter (`rogue_gym.worker.env_adapter.HostedEnv`) builds the env from the
 //! caller's cloudpickled callable, resets it and answers calls; a step is the hot path, so it
 //! runs here, with no Python frame of ours: the action's value (from the adapter's table or
 //! decoder), `env.step`, the observation copied into the destination the worker lends (an
@@ -25,7 +25,7 @@ use serde_json::Value;
 /// The kind name of hosted envs.
 pub(crate) const KIND: &str = "python";
 /// The Python module of the adapter.
-const ADAPTER_MODULE: &str = "rogue_gym.hosted.adapter";
+const ADAPTER_MODULE: &str = "rogue_gym.worker.env_adapter";
 
 /// One hosted env: its adapter object, what a step calls, and the spec the pool agreed on.
 struct HostedEnv {

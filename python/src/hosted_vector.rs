@@ -3,7 +3,7 @@
 //! one per env.
 //!
 //! The worker keeps the envs' episode bookkeeping ([`rogue_gym_pool::EnvBlock`]); each call
-//! takes the GIL and calls the adapter (`rogue_gym.hosted.vector_adapter.HostedVectorEnv`),
+//! takes the GIL and calls the adapter (`rogue_gym.worker.vector_adapter.HostedVectorEnv`),
 //! which writes the batch of observations straight into the worker's rows (by address, during
 //! the call only) and returns rewards and flags as raw arrays and each env's info as bytes. The
 //! JSON spec is `{"kind": "python-vector", "spec": <EnvSpec>, "adapter": {...}}`.
@@ -19,7 +19,7 @@ use crate::hosted::{address, build_adapter, env_error, returned_bytes, spec_and_
 /// The kind name of hosted vector envs.
 pub(crate) const KIND: &str = "python-vector";
 /// The Python module of the adapter.
-const ADAPTER_MODULE: &str = "rogue_gym.hosted.vector_adapter";
+const ADAPTER_MODULE: &str = "rogue_gym.worker.vector_adapter";
 
 /// One worker's hosted vector env.
 struct HostedVector {

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
 from rogue_gym import PoolVectorEnv
-from rogue_gym.hosted import UnsupportedSpaceError
+from rogue_gym.protocol import UnsupportedSpaceError
 
 from hosted_envs import NestedEnv, NoteEnv, TextEnv, WordEnv
 from test_hosted import assert_tree_equal, run_both, tracked

@@ -21,7 +21,7 @@ import rogue_gym
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
 from gymnasium.vector.utils import concatenate, create_empty_array
 from rogue_gym import PoolVectorEnv, WorkerCrashedError
-from rogue_gym.hosted import leases
+from rogue_gym.front import leases
 
 from conftest import pid_alive, pool_files, wait_until
 from hosted_envs import (
@@ -622,7 +622,7 @@ def test_actions_decode_to_fresh_writable_values_of_their_space() -> None:
     """What a worker hands an env for an action's bytes: the same value, as a writable array
     of its own (the env may keep or change it), for one-array and nested spaces."""
     from gymnasium import spaces
-    from rogue_gym.hosted.layout import SpaceLayout
+    from rogue_gym.protocol.layout import SpaceLayout
 
     for space in (
         spaces.Box(-1, 1, (6,), np.float32),
@@ -649,7 +649,7 @@ def test_actions_decode_to_fresh_writable_values_of_their_space() -> None:
 def test_info_rows_are_typed_when_they_can_be() -> None:
     """Numbers and arrays in nested dicts travel as typed rows, read back as the same values
     of the same types; anything else is pickled; many rows become columns at once."""
-    from rogue_gym.hosted.infos import (
+    from rogue_gym.protocol.infos import (
         MAGIC,
         InfoDecoder,
         InfoEncoder,

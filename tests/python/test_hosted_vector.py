@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
 from rogue_gym import PoolVectorEnv
-from rogue_gym.hosted import leases
+from rogue_gym.front import leases
 
 from hosted_envs import InfoEnv, NestedEnv, RaisingEnv, SpecialError
 from test_hosted import assert_killed_worker_restarts, assert_tree_equal, run_both, tracked
@@ -111,8 +111,35 @@ def test_calls_reach_each_env_through_the_vector_env(hosted) -> None:
     assert env.get_attr("t") == (1, 1, 1)
     with pytest.raises(SpecialError, match="negative factor"):
         env.call("scaled_t", -1)
-    with pytest.raises(NotImplementedError, match="hosted vector env"):
-        env.set_attr("t", 5)
+    env.set_attr("t", [5, 6, 7])
+    assert env.get_attr("t") == (5, 6, 7)
+    env.set_attr("t", 4)
+    assert env.call("scaled_t", 2) == (8, 8, 8)
+    with pytest.raises(NotImplementedError, match=r"a hosted vector env does not serve .*setattr"):
+        env.call_envs("setattr", "t", [((1,), {})] * 3)
+
+
+def test_render_set_attr_and_seeded_partial_reset_match_the_vector_env(hosted) -> None:
+    """What a vector env hosted per worker serves beyond stepping: ``render()``,
+    ``set_attr`` and a seeded partial reset give what the vector env in one process gives."""
+    ours = hosted(sync_of(NestedEnv), 4, num_workers=2)
+    ref = SyncVectorEnv([NestedEnv] * 4)
+    try:
+        for env in (ours, ref):
+            env.reset(seed=3)
+            env.set_attr("t", [1, 2, 3, 4])
+        assert_tree_equal(ours.render(), tuple(e.render() for e in ref.envs))
+        mask = np.array([False, True, False, True])
+        got = ours.reset(seed=[None, 11, None, 13], options={"reset_mask": mask})
+        want = ref.reset(seed=[None, 11, None, 13], options={"reset_mask": mask})
+        assert_tree_equal(got[0], want[0])
+        got = ours.reset(seed=20, options={"reset_mask": mask})
+        want = ref.reset(seed=20, options={"reset_mask": mask})
+        assert_tree_equal(got[0], want[0])
+        actions = ref.action_space.sample()
+        assert_tree_equal(ours.step(actions)[0], ref.step(actions)[0])
+    finally:
+        ref.close()
 
 
 def test_sb3_vec_env_hosting_vector_envs_plays_as_dummy_vec_env() -> None:

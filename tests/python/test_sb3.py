@@ -24,7 +24,7 @@ def test_is_a_vec_env_with_sb3_api(make_sb3) -> None:
     assert env.get_attr("max_steps") == [20] * 4
     assert env.get_attr("render_mode") == [None] * 4
     assert env.env_is_wrapped(object) == [False] * 4
-    with pytest.raises(AttributeError):
+    with pytest.raises(NotImplementedError, match=r"the native game does not serve .*setattr"):
         env.set_attr("max_steps", 3)
     with pytest.raises(AttributeError):
         env.env_method("nope")

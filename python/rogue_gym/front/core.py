@@ -4,7 +4,7 @@
 keeps of it: the shared-memory batch slots the workers write observations into, one record
 array and one column buffer per slot (the per-env rewards, flags and counters of the call that
 wrote the slot), the SAME_STEP final-observation buffer, and the lending of slots
-(:mod:`rogue_gym.hosted.leases`). It knows nothing of gymnasium's or SB3's API: the facades in
+(:mod:`rogue_gym.front.leases`). It knows nothing of gymnasium's or SB3's API: the facades in
 :mod:`rogue_gym.front` build those over it, and the env kind (:mod:`rogue_gym.kinds`, bound as
 :class:`Kind`) turns slot bytes into observations and records into infos.
 """
@@ -19,11 +19,11 @@ from typing import Any, Callable, NoReturn, Optional, Protocol, Sequence
 import numpy as np
 from gymnasium import spaces
 
-from .. import _native, _sigterm
+from .. import _native
 from .._records import FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED, RECORD_DTYPE
 from ..errors import CLOSED_MESSAGE, EnvFailedError, PoolClosedError
-from ..hosted import leases
-from ..hosted.adapter import decode_exception
+from ..protocol.exceptions import decode_exception
+from . import leases, sigterm
 from .stats import PoolStats, WorkerStats
 
 __all__ = [
@@ -86,6 +86,16 @@ class Kind(Protocol):
     @property
     def spec(self) -> Any:
         """The envs' ``EnvSpec``, if any."""
+        ...
+
+    @property
+    def who(self) -> str:
+        """Who serves the env operations (a key of :data:`rogue_gym.protocol.ops.SERVED_BY`)."""
+        ...
+
+    @property
+    def ops(self) -> frozenset[str]:
+        """The env operations the kind serves."""
         ...
 
     @property
@@ -156,7 +166,7 @@ class Kind(Protocol):
         arguments: Sequence[tuple[tuple[Any, ...], dict[str, Any]]],
         indices: Sequence[int],
     ) -> list[Any]:
-        """Run call operation ``op`` (:data:`rogue_gym.hosted.adapter.CALL_OPS`) on the envs
+        """Run call operation ``op`` (:data:`rogue_gym.protocol.ops.ENV_OPS`) on the envs
         ``indices`` with ``arguments[j]`` for the ``j``-th; one result each."""
         ...
 
@@ -191,7 +201,7 @@ class Core:
         lend = self.copy and n * self.obs_bytes >= leases.LEND_MIN_BYTES
         settings = kind.pool_settings()
         settings["autoreset"] = "same_step" if same_step else "next_step"
-        _sigterm.install()
+        sigterm.install()
         try:
             try:
                 self.pool: Any = _native.Pool(json.dumps(settings), list(kind.worker_command))

@@ -9,10 +9,11 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-from ..async_calls import already_pending, no_async_call, timed_out, warn_close_pending
-from ..reset_mask import partial_mask, refuse_finished
+from ..protocol.ops import refuse_op
 from ..settings import parse_autoreset_mode
 from .core import Core, Kind, flags, mark_restarted
+from .pending import already_pending, no_async_call, timed_out, warn_close_pending
+from .reset_mask import partial_mask, refuse_finished
 from .stats import PoolStats
 
 __all__ = ["FrontVectorEnv"]
@@ -333,7 +334,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         arguments: Sequence[tuple[tuple[Any, ...], dict[str, Any]]],
         indices: Optional[Sequence[int]] = None,
     ) -> list[Any]:
-        """Run call operation ``op`` (see :data:`rogue_gym.hosted.adapter.CALL_OPS`) on the
+        """Run call operation ``op`` (see :data:`rogue_gym.protocol.ops.ENV_OPS`) on the
         envs ``indices`` (default all), with ``arguments[j]`` = ``(args, kwargs)`` for the
         ``j``-th of them; their results in that order. An env's exception is re-raised here."""
         self._core.check_open()
@@ -341,6 +342,8 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         envs = list(range(self.num_envs)) if indices is None else [int(i) for i in indices]
         if len(arguments) != len(envs):
             raise ValueError(f"{len(arguments)} argument sets for {len(envs)} envs")
+        if op not in self._kind.ops:
+            raise refuse_op(self._kind.who, op)
         return self._kind.call(self._core, op, name, arguments, envs)
 
     def call_async(self, name: str, *args: Any, **kwargs: Any) -> None:

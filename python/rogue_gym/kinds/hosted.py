@@ -3,9 +3,9 @@ worker).
 
 The callables are cloudpickled once, here; each worker process (``python -m
 rogue_gym.worker``, never a fork) builds its block of envs from them and runs the pool's Rust
-loop, which calls the envs through :mod:`rogue_gym.hosted.adapter`. Observations and actions
-cross in shared memory, laid out leaf by leaf (:mod:`rogue_gym.hosted.layout`); infos cross
-only when an env returns a non-empty one (:mod:`rogue_gym.hosted.infos`). The leaves of no
+loop, which calls the envs through :mod:`rogue_gym.worker.env_adapter`. Observations and actions
+cross in shared memory, laid out leaf by leaf (:mod:`rogue_gym.protocol.layout`); infos cross
+only when an env returns a non-empty one (:mod:`rogue_gym.protocol.infos`). The leaves of no
 fixed size (Text, Graph, Sequence, OneOf, custom spaces) travel pickled per env: an
 observation's with the env's info, an action's by a call before the step.
 """
@@ -37,11 +37,11 @@ from ..front.core import (
     reraise,
     scalar_actions,
 )
-from ..hosted import registry
-from ..hosted.adapter import NO_SEED
-from ..hosted.infos import HEAD, RESET_OBS, STEP_OBS, InfoDecoder, split_joined, vector_infos
-from ..hosted.layout import FIXED_SPACES, SpaceLayout, UnsupportedSpaceError, space_leaves
-from ..hosted.vector_adapter import check_vector_env
+from ..protocol import NO_SEED, registry
+from ..protocol.infos import HEAD, RESET_OBS, STEP_OBS, InfoDecoder, split_joined, vector_infos
+from ..protocol.layout import FIXED_SPACES, SpaceLayout, UnsupportedSpaceError, space_leaves
+from ..protocol.ops import SERVED_BY
+from ..protocol.vector_contract import check_vector_env
 from ..settings import PoolOptions
 
 if TYPE_CHECKING:
@@ -240,6 +240,10 @@ class HostedKind:
         self._spec = spec
         self._decoder = InfoDecoder()
         self._started = False
+        #: Who serves this kind's env operations (:data:`rogue_gym.protocol.ops.SERVED_BY`).
+        self.who = "a hosted env" if hosted is None else "a hosted vector env"
+        #: The env operations this kind serves.
+        self.ops = SERVED_BY[self.who]
 
     # -- the pool --------------------------------------------------------------------------
 

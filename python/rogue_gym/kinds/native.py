@@ -8,6 +8,7 @@ frames are rebuilt by replaying each env's episode here (:mod:`rogue_gym.kinds.r
 
 from __future__ import annotations
 
+import weakref
 from typing import TYPE_CHECKING, Any, Optional, Sequence
 
 import gymnasium as gym
@@ -20,6 +21,7 @@ from ..envs.image import ObsSpec, observation_space
 from ..envs.palette import screen_to_rgb
 from ..envs.rogue_env import ACTIONS
 from ..front.core import SUMMARY_FINAL, SUMMARY_RESTARTED, flags, mark_restarted, scalar_actions
+from ..protocol.ops import op_table, run_op
 from ..settings import PoolSettings
 from .replay import ActionHistory
 from .seed_sets import seed_set
@@ -27,7 +29,10 @@ from .seed_sets import seed_set
 if TYPE_CHECKING:
     from ..front.core import Core
 
-__all__ = ["RENDER_MODES", "NativeKind"]
+__all__ = ["RENDER_MODES", "WHO", "NativeKind"]
+
+#: This kind's name in :data:`rogue_gym.protocol.ops.SERVED_BY`.
+WHO = "the native game"
 
 #: How the native game's frames can be rendered: text (``ansi``), printed (``human``), or one
 #: pixel per cell (``rgb_array``).
@@ -92,6 +97,11 @@ class NativeKind:
         self._started = False
         #: The action last sent to each env through the async API (for the replay history).
         self._sent = np.zeros(self.num_envs, np.int64)
+        self._ops = op_table(self, WHO)
+        #: Who serves this kind's env operations (:data:`rogue_gym.protocol.ops.SERVED_BY`).
+        self.who = WHO
+        #: The env operations this kind serves.
+        self.ops = frozenset(self._ops)
 
     # -- the pool --------------------------------------------------------------------------
 
@@ -112,6 +122,7 @@ class NativeKind:
     def bind(self, core: Core) -> None:
         """Check the pool's observation and build one info template per slot over its
         columns (the step path copies a template, nothing per env)."""
+        self._core = weakref.ref(core)
         pool = core.pool
         if tuple(pool.obs_shape) != self.obs_shape or np.dtype(pool.obs_dtype) != self.obs_dtype:
             raise RuntimeError(
@@ -319,7 +330,7 @@ class NativeKind:
 
     # -- calls and render ------------------------------------------------------------------
 
-    def _attributes(self, core: Core) -> dict[str, Any]:
+    def _attributes(self) -> dict[str, Any]:
         return {
             "render_mode": self.render_mode,
             "render_modes": list(RENDER_MODES),
@@ -332,10 +343,12 @@ class NativeKind:
             "metadata": self.metadata,
         }
 
-    def _attribute(self, core: Core, name: str, env: int) -> Any:
+    def _attribute(self, name: str, env: int) -> Any:
         if name == "episode_seed":
+            core = self._core()
+            assert core is not None  # bound while the pool lives
             return int(core.recs[core.slot]["seed"][env]) if self._started else None
-        table = self._attributes(core)
+        table = self._attributes()
         if name not in table:
             raise AttributeError(
                 f"the native game has no attribute {name!r} readable from Python (its envs run "
@@ -351,39 +364,48 @@ class NativeKind:
         arguments: Sequence[tuple[tuple[Any, ...], dict[str, Any]]],
         indices: Sequence[int],
     ) -> list[Any]:
-        """The call operations over the game's readable attributes and its screens; setting
-        attributes and reset options are refused (the game has none)."""
-        out: list[Any] = []
-        for env, (args, kwargs) in zip(indices, arguments):
-            if op == "render" or (op in ("call", "env_method") and name == "render"):
-                out.append(self.frame(env))
-            elif op == "env_method" and name == "get_wrapper_attr":
-                out.append(self._attribute(core, args[0], env))
-            elif op in ("call", "get_attr"):
-                value = self._attribute(core, name, env)
-                out.append(value(*args, **kwargs) if op == "call" and callable(value) else value)
-            elif op == "has_attr":
-                out.append(name == "episode_seed" or name in self._attributes(core))
-            elif op == "is_wrapped":
-                out.append(False)
-            elif op == "set_reset_options":
-                if args and args[0]:
-                    raise ValueError(
-                        f"the native game takes no reset options, got {sorted(args[0])}: pass "
-                        "only reset_mask (game options are set at construction)"
-                    )
-                out.append(None)
-            elif op in ("setattr", "set_wrapper_attr"):
-                raise AttributeError(
-                    f"cannot set {name!r}: the native game runs in worker processes "
-                    "(configure it at construction)"
-                )
-            else:
-                raise AttributeError(
-                    f"the native game has no method {name!r} callable from Python (its envs "
-                    "run in Rust)"
-                )
-        return out
+        """The env operations of :data:`rogue_gym.protocol.ops.SERVED_BY` over the game's
+        readable attributes and its screens (the game has no attributes to set and no reset
+        options)."""
+        return [
+            run_op(self._ops, WHO, op, name, env, *args, **kwargs)
+            for env, (args, kwargs) in zip(indices, arguments)
+        ]
+
+    # The env operations (protocol.ops) for env ``env``.
+    def _op_call(self, name: str, env: int, *args: Any, **kwargs: Any) -> Any:
+        if name == "render":
+            return self.frame(env)
+        value = self._attribute(name, env)
+        return value(*args, **kwargs) if callable(value) else value
+
+    def _op_env_method(self, name: str, env: int, *args: Any, **kwargs: Any) -> Any:
+        if name == "get_wrapper_attr":
+            return self._attribute(args[0], env)
+        if name == "render":
+            return self.frame(env)
+        raise AttributeError(
+            f"the native game has no method {name!r} callable from Python (its envs run in Rust)"
+        )
+
+    def _op_get_attr(self, name: str, env: int) -> Any:
+        return self._attribute(name, env)
+
+    def _op_has_attr(self, name: str, env: int) -> bool:
+        return name == "episode_seed" or name in self._attributes()
+
+    def _op_is_wrapped(self, name: str, env: int, wrapper_class: Any = None) -> bool:
+        return False
+
+    def _op_render(self, name: str, env: int) -> Any:
+        return self.frame(env)
+
+    def _op_set_reset_options(self, name: str, env: int, options: Any) -> None:
+        if options:
+            raise ValueError(
+                f"the native game takes no reset options, got {sorted(options)}: pass only "
+                "reset_mask (game options are set at construction)"
+            )
 
     def frame(self, env: int) -> Any:
         """Env ``env``'s current frame: its screen (text) or, in ``rgb_array`` mode, an image."""

@@ -6,7 +6,7 @@ The pool's Rust worker loop (``python/src/hosted.rs``) calls :class:`HostedVecto
 command for the whole block: it keeps each env's episode bookkeeping itself, and this adapter
 resets or steps the vector env, writes the batch of observations straight into the worker's
 rows of shared memory and returns rewards and flags as raw arrays and each env's info as bytes
-(:mod:`rogue_gym.hosted.infos`). The vector env must autoreset as the pool does; in
+(:mod:`rogue_gym.protocol.infos`). The vector env must autoreset as the pool does; in
 ``SAME_STEP`` mode the final observations of the envs whose episode ended go to their rows of
 the worker's final-observation area, and their last step's info travels as the env's step
 entry, before its reset's.
@@ -22,41 +22,28 @@ from typing import Any, Optional
 
 import cloudpickle
 import numpy as np
-from gymnasium.vector import AsyncVectorEnv, AutoresetMode, SyncVectorEnv, VectorEnv
+from gymnasium.vector import AsyncVectorEnv, AutoresetMode, SyncVectorEnv
 
-from .adapter import NO_SEED, EncodedEnvError, encode_exception, explained, prepare
-from .infos import InfoEncoder, split_vector_info
-from .layout import SpaceLayout
+from ..protocol import NO_SEED
+from ..protocol.exceptions import EncodedEnvError, encode_exception
+from ..protocol.infos import InfoEncoder, split_vector_info
+from ..protocol.layout import SpaceLayout
+from ..protocol.ops import op_table, run_op
+from ..protocol.vector_contract import check_vector_env
+from .env_adapter import explained, prepare
 
-__all__ = ["HostedVectorEnv", "check_vector_env"]
+__all__ = ["WHO", "HostedVectorEnv"]
 
-
-def check_vector_env(envs: Any, num_envs: int, autoreset_mode: Any) -> None:
-    """Raise ``ValueError``/``TypeError`` unless ``envs`` is a gymnasium ``VectorEnv`` of
-    ``num_envs`` envs that autoresets as the pool will (``autoreset_mode``)."""
-    if not isinstance(envs, VectorEnv):
-        raise TypeError(
-            f"vector_env_fn({num_envs}) returned {type(envs).__name__!r}, not a gymnasium "
-            "VectorEnv: it must build a vector env of that many envs"
-        )
-    if int(envs.num_envs) != num_envs:
-        raise ValueError(
-            f"vector_env_fn({num_envs}) built a vector env of {envs.num_envs} envs: it must "
-            "build as many envs as it is asked for"
-        )
-    mode = envs.metadata.get("autoreset_mode", AutoresetMode.NEXT_STEP)
-    if AutoresetMode(mode) != autoreset_mode:
-        raise ValueError(
-            f"the vector env autoresets {AutoresetMode(mode).name} but the pool "
-            f"{autoreset_mode.name}: build it with the same autoreset mode"
-        )
+#: This interpreter's name in :data:`rogue_gym.protocol.ops.SERVED_BY`.
+WHO = "a hosted vector env"
 
 
 def _seed_arg(seeds: list[Optional[int]], envs: Any) -> Any:
-    """The ``seed`` argument of ``envs.reset`` for one seed (or ``None``) per env being reset:
-    ``None`` for none, an ``int`` for consecutive seeds (what every vector env takes), else the
-    list for gymnasium's own vector envs and an ``int64`` array with -1 for "no seed" for
-    others (ale-py's convention)."""
+    """The ``seed`` argument of ``envs.reset`` for one seed (or ``None``) per env of the block
+    (``None`` too for an env not being reset): ``None`` for none, an ``int`` for consecutive
+    seeds of every env (what every vector env takes), else the list for gymnasium's own
+    vector envs and an ``int64`` array with -1 for "no seed" for others (ale-py's
+    convention)."""
     if all(s is None for s in seeds):
         return None
     first = seeds[0]
@@ -83,7 +70,10 @@ class HostedVectorEnv:
         #: Whether each env has not been reset yet (its first reset is seeded in any episode).
         self._fresh = np.ones(self.n, bool)
         self._options: Optional[dict[str, Any]] = None
+        #: Seeds of the next reset of some envs (a seeded partial reset sets them by a call).
+        self._seeds: dict[int, int] = {}
         self._encoder = InfoEncoder()
+        self._ops = op_table(self, WHO)
         #: The last batch of observations (what envs not being reset show again).
         self._last: Any = None
 
@@ -153,7 +143,7 @@ class HostedVectorEnv:
     ) -> Optional[list[Optional[bytes]]]:
         """Reset the envs of ``mask`` (one byte per env), each seeded with its entry of
         ``seeds`` (``uint64``) if it is its schedule's first episode (``episodes``) or its
-        first reset, unless it is :data:`~rogue_gym.hosted.adapter.NO_SEED`; write every env's
+        first reset, unless it is :data:`~rogue_gym.protocol.NO_SEED`; write every env's
         observation at ``address``. Returns each env's info bytes, or ``None``."""
         try:
             which = np.frombuffer(mask, np.bool_)
@@ -165,7 +155,10 @@ class HostedVectorEnv:
                     raise RuntimeError("the vector env has no observations yet: reset it first")
                 self._write(self._last, address)
                 return None
-            use = [int(seed_of[i]) if first[i] and seed_of[i] != NO_SEED else None for i in ids]
+            use: list[Optional[int]] = [None] * self.n
+            for i in ids.tolist():
+                scheduled = int(seed_of[i]) if first[i] and seed_of[i] != NO_SEED else None
+                use[i] = self._seeds.pop(i, scheduled)
             options = dict(self._options or {})
             self._options = None
             if not which.all():
@@ -227,32 +220,49 @@ class HostedVectorEnv:
 
     def call(self, row: int, request: bytes) -> bytes:
         """Answer a call for env ``row`` (a pickled ``(op, name, args, kwargs)``, as
-        :meth:`rogue_gym.hosted.adapter.HostedEnv.call`): through the vector env's own
-        ``call``/``get_attr``/``set_attr`` (this env's element), or reset options."""
+        :meth:`rogue_gym.worker.env_adapter.HostedEnv.call`) through the vector env's own
+        ``call``/``get_attr``/``set_attr``/``render`` (this env's element), or the next
+        reset's options and seed. The operations that need the env itself (``setattr`` on the
+        outermost wrapper, ``is_wrapped``) are refused: a vector env does not hand its envs
+        out."""
         try:
             op, name, args, kwargs = pickle.loads(request)
-            if op == "set_reset_options":
-                self._options, value = args[0], None
-            elif op in ("call", "env_method"):
-                if name in ("reset", "step", "close"):
-                    raise ValueError(f"call({name!r}) is not allowed; use the vector env's own")
-                value = self.envs.call(name, *args, **kwargs)[row]
-            elif op == "get_attr":
-                value = self.envs.get_attr(name)[row]
-            elif op == "has_attr":
-                try:
-                    self.envs.get_attr(name)
-                    value = True
-                except AttributeError:
-                    value = False
-            else:
-                raise NotImplementedError(
-                    f"{op!r} is not available for the envs of a hosted vector env: it reaches "
-                    "them through the vector env's call and get_attr only"
-                )
+            value = run_op(self._ops, WHO, op, name, row, *args, **kwargs)
             return bytes(cloudpickle.dumps(("ok", value)))
         except BaseException as exc:
             return bytes(cloudpickle.dumps(("err", encode_exception(exc))))
+
+    # The env operations (protocol.ops) for env ``row`` of the block.
+    def _op_call(self, name: str, row: int, *args: Any, **kwargs: Any) -> Any:
+        if name in ("reset", "step", "close"):
+            raise ValueError(f"call({name!r}) is not allowed; use the vector env's own")
+        return self.envs.call(name, *args, **kwargs)[row]
+
+    _op_env_method = _op_call
+
+    def _op_get_attr(self, name: str, row: int) -> Any:
+        return self.envs.get_attr(name)[row]
+
+    def _op_has_attr(self, name: str, row: int) -> bool:
+        try:
+            self.envs.get_attr(name)
+        except AttributeError:
+            return False
+        return True
+
+    def _op_set_wrapper_attr(self, name: str, row: int, value: Any) -> None:
+        values = list(self.envs.get_attr(name))
+        values[row] = value
+        self.envs.set_attr(name, values)
+
+    def _op_render(self, name: str, row: int) -> Any:
+        return self.envs.call("render")[row]
+
+    def _op_set_reset_options(self, name: str, row: int, options: Any) -> None:
+        self._options = options
+
+    def _op_set_reset_seed(self, name: str, row: int, seed: int) -> None:
+        self._seeds[row] = int(seed)
 
     def close(self) -> None:
         """Close the vector env (when the worker exits); errors are ignored."""

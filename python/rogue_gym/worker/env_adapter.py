@@ -7,9 +7,8 @@ every reset of the env, and steps the env itself with the parts of :meth:`Hosted
 Sequence, OneOf, custom spaces) travel pickled in the command's info, as entries of their own
 beside the env's info (``STEP_OBS``, ``RESET_OBS``); a step's dynamic actions arrive with
 its command, in a private file beside it, and reach :meth:`HostedEnv.set_action_extra` first.
-Any exception of the env is raised as :class:`EncodedEnvError`, whose message carries the exception (type, message, worker-side
-traceback, and the exception itself pickled when it can be) to the caller, where
-:func:`decode_exception` rebuilds it.
+Any exception of the env is raised as an encoded
+:class:`~rogue_gym.protocol.exceptions.EncodedEnvError`, which the caller rebuilds.
 """
 
 from __future__ import annotations
@@ -19,88 +18,26 @@ import contextlib
 import json
 import pickle
 import sys
-import traceback
 from typing import Any, Optional
 
 import cloudpickle
 import numpy as np
 
-from . import registry
-from .infos import RESET_OBS, STEP_OBS, FlatPlan, InfoEncoder
-from .layout import SpaceLayout
+from ..protocol import NO_SEED, registry
+from ..protocol.exceptions import EncodedEnvError, encode_exception
+from ..protocol.infos import RESET_OBS, STEP_OBS, FlatPlan, InfoEncoder
+from ..protocol.layout import SpaceLayout
+from ..protocol.ops import op_table, run_op
 
-__all__ = [
-    "CALL_OPS",
-    "NO_SEED",
-    "EncodedEnvError",
-    "HostedEnv",
-    "decode_exception",
-    "encode_exception",
-]
+__all__ = ["WHO", "HostedEnv", "explained", "prepare"]
 
-#: The seed the front end schedules to mean "reset without a seed" (no reseeding at all, as
-#: gymnasium's vector envs do on a first ``reset()`` without one).
-NO_SEED = 2**64 - 1
-
-#: The operations of :meth:`HostedEnv.call`.
-CALL_OPS = (
-    "call",
-    "env_method",
-    "get_attr",
-    "has_attr",
-    "set_wrapper_attr",
-    "setattr",
-    "is_wrapped",
-    "render",
-    "set_reset_options",
-    "set_reset_seed",
-)
-
-#: The key of an encoded exception in an env error message.
-_KEY = "rogue_gym_exception"
-
-
-class EncodedEnvError(Exception):
-    """An env's exception on its way to the caller; its message is the JSON encoding."""
-
-
-def encode_exception(exc: BaseException) -> str:
-    """Encode an exception for the trip to the caller (see :func:`decode_exception`)."""
-    kind = type(exc)
-    record: dict[str, Any] = {
-        "type": f"{kind.__module__}.{kind.__qualname__}",
-        "message": str(exc),
-        "traceback": "".join(traceback.format_exception(kind, exc, exc.__traceback__)),
-        "pickle": None,
-    }
-    # An exception that cannot be pickled still travels as text.
-    with contextlib.suppress(Exception):
-        record["pickle"] = base64.b64encode(cloudpickle.dumps(exc)).decode("ascii")
-    return json.dumps({_KEY: record})
-
-
-def decode_exception(message: str) -> Optional[tuple[BaseException, str]]:
-    """The exception and worker-side traceback encoded in an env error message, or ``None``
-    if the message is not such an encoding. An exception that cannot be unpickled comes back
-    as a ``RuntimeError`` naming its type."""
-    try:
-        record = json.loads(message)[_KEY]
-    except (ValueError, KeyError, TypeError):
-        return None
-    exc: Optional[BaseException] = None
-    if record.get("pickle"):
-        try:
-            exc = pickle.loads(base64.b64decode(record["pickle"]))
-        except Exception:
-            exc = None
-    if not isinstance(exc, BaseException):
-        exc = RuntimeError(f"{record['type']}: {record['message']}")
-    return exc, str(record.get("traceback", ""))
+#: This interpreter's name in :data:`rogue_gym.protocol.ops.SERVED_BY`.
+WHO = "a hosted env"
 
 
 def prepare(cfg: dict[str, Any]) -> None:
     """Make the caller's world before an env is built: its ``sys.path`` and its gymnasium
-    registry (:mod:`rogue_gym.hosted.registry`)."""
+    registry (:mod:`rogue_gym.protocol.registry`)."""
     for path in reversed(cfg["sys_path"]):
         if path not in sys.path:
             sys.path.insert(0, path)
@@ -111,7 +48,7 @@ def prepare(cfg: dict[str, Any]) -> None:
 @contextlib.contextmanager
 def explained() -> Any:
     """Build an env; an error about its id or its entry point gets a note of what the worker
-    tried (:func:`rogue_gym.hosted.registry.explain_failure`)."""
+    tried (:func:`rogue_gym.protocol.registry.explain_failure`)."""
     try:
         yield
     except Exception as exc:
@@ -233,6 +170,7 @@ class HostedEnv:
         #: The dynamic leaves of the next step's action (see :meth:`set_action_extra`).
         self._dynamic_actions: list[Any] = []
         self._decode = self._act.decoder() if not self._act.dynamic else self._decode_dynamic
+        self._ops = op_table(self, WHO)
 
     def _decode_dynamic(self, data: bytes) -> Any:
         """An action with dynamic leaves: its fixed leaves from ``data``, the others as the
@@ -322,15 +260,15 @@ class HostedEnv:
     def call(self, request: bytes) -> bytes:
         """Answer a call from the caller (off the hot path): ``request`` is a pickled
         ``(op, name, args, kwargs)``; the reply a cloudpickled ``("ok", value)`` or ``("err",
-        encoded exception)``. ``op`` is one of :data:`CALL_OPS`."""
+        encoded exception)``. ``op`` is one of :data:`~rogue_gym.protocol.ops.ENV_OPS`."""
         try:
             op, name, args, kwargs = pickle.loads(request)
-            value = getattr(self, f"_op_{op}")(name, *args, **kwargs)
+            value = run_op(self._ops, WHO, op, name, *args, **kwargs)
             return bytes(cloudpickle.dumps(("ok", value)))
         except BaseException as exc:
             return bytes(cloudpickle.dumps(("err", encode_exception(exc))))
 
-    # The call operations (see CALL_OPS): gymnasium's and SB3's worker commands.
+    # The env operations (protocol.ops): gymnasium's and SB3's worker commands.
     def _op_call(self, name: str, *args: Any, **kwargs: Any) -> Any:
         if name in ("reset", "step", "close", "set_wrapper_attr"):
             raise ValueError(f"call({name!r}) is not allowed; use the vector env's own {name}()")
