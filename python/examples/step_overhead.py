@@ -3,8 +3,8 @@
 Times, in interleaved rounds on the same machine state (64 envs, 2 workers, paper config,
 random actions):
 
-* ``step``: ``RogueVectorEnv.step`` (one native call decodes the records into reused arrays);
-* ``native``: the bare native ``step_shared`` call from Python (no decoding at all: the floor
+* ``step``: ``RogueVectorEnv.step`` (one native call decodes the results into reused columns);
+* ``native``: the bare native ``Pool.step`` call from Python (columns decoded, nothing else: the floor
   of any facade);
 * with ``--pool-bench PATH``: ``rogue-gym pool-bench --mode shared`` (raw single-process
   engine loop and the Rust pool alone) in the same rounds.
@@ -79,10 +79,10 @@ def main() -> None:
     res: dict[str, list[float]] = {"step": [], "native": [], "raw": [], "pool": []}
     core = env._core
     # The bare native call (a build that keeps its pool elsewhere is timed by `step` only).
-    pool, recs = getattr(core, "pool", None), getattr(core, "recs", None)
+    pool = getattr(core, "pool", None)
 
     def native(a: np.ndarray) -> tuple[Any, ...]:
-        pool.step_shared(a, recs[0], None)  # type: ignore[union-attr,index]
+        pool.step(a)  # type: ignore[union-attr]
         return None, None, np.zeros(1, bool), np.zeros(1, bool), {}
 
     try:

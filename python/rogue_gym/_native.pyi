@@ -3,19 +3,18 @@
 from typing import Any, Optional, Sequence, final
 
 import numpy as np
-from typing_extensions import Self
+from typing_extensions import Self, TypeAlias
+
+#: A call's joined extra info: ``(rows, data, size, ends)``.
+Joined: TypeAlias = tuple[Optional[list[int]], bytes, int, list[int]]
+#: A whole-batch call's result: ``(slot, summary, extras)``.
+SyncResult: TypeAlias = tuple[int, int, Optional[Joined]]
 
 __all__ = [
     "ACTION_KEYS",
     "BOOL_INFO_NAMES",
-    "FLAG_FINAL_OBS",
-    "FLAG_RESTARTED",
-    "FLAG_TERMINATED",
-    "FLAG_TRUNCATED",
-    "MAX_INFO",
     "NUM_ACTIONS",
     "PAPER_CONFIG_JSON",
-    "RECORD_BYTES",
     "SUMMARY_FINAL",
     "SUMMARY_RESTARTED",
     "Game",
@@ -33,12 +32,6 @@ __all__ = [
 __version__: str
 ACTION_KEYS: str
 NUM_ACTIONS: int
-RECORD_BYTES: int
-MAX_INFO: int
-FLAG_TERMINATED: int
-FLAG_TRUNCATED: int
-FLAG_RESTARTED: int
-FLAG_FINAL_OBS: int
 PAPER_CONFIG_JSON: str
 SUMMARY_RESTARTED: int
 SUMMARY_FINAL: int
@@ -87,33 +80,15 @@ class Pool:
     obs_bytes: int
     info_names: list[str]
     def __new__(cls, settings_json: str, worker_command: Sequence[str]) -> Self: ...
-    def step_shared(
-        self,
-        actions: np.ndarray,
-        recs_out: Optional[np.ndarray] = None,
-        final_out: Optional[np.ndarray] = None,
-    ) -> int: ...
-    def take_extras(self, head: int) -> tuple[Optional[list[int]], bytes, int, list[int]]: ...
-    def reset_envs_shared(self, mask: np.ndarray, recs_out: Optional[np.ndarray] = None) -> int: ...
     def column_layout(self) -> tuple[list[tuple[str, str, int, int]], int]: ...
-    def bind_columns(self, buffers: Sequence[np.ndarray]) -> None: ...
-    def step_columns(
-        self, actions: np.ndarray, recs_out: np.ndarray, final_out: Optional[np.ndarray] = None
-    ) -> int: ...
-    def step_shared_send(self, actions: np.ndarray) -> int: ...
-    def reset_shared_send(self) -> int: ...
-    def wait_shared(
-        self,
-        timeout: Optional[float] = None,
-        recs_out: Optional[np.ndarray] = None,
-        final_out: Optional[np.ndarray] = None,
-    ) -> Optional[int]: ...
-    def wait_columns(
-        self,
-        timeout: Optional[float],
-        recs_out: np.ndarray,
-        final_out: Optional[np.ndarray] = None,
-    ) -> Optional[int]: ...
+    def bind_columns(self, buffers: Sequence[np.ndarray], extras_head: int) -> None: ...
+    def step(self, actions: np.ndarray, final_out: Optional[np.ndarray] = None) -> SyncResult: ...
+    def step_send(self, actions: np.ndarray) -> int: ...
+    def reset_send(self) -> int: ...
+    def wait(
+        self, timeout: Optional[float] = None, final_out: Optional[np.ndarray] = None
+    ) -> Optional[SyncResult]: ...
+    def reset_envs(self, mask: np.ndarray) -> SyncResult: ...
     def shared_views(self) -> list[np.ndarray]: ...
     def select_slot(self, slot: int) -> None: ...
     def set_seeds(self, seeds_json: str) -> None: ...
@@ -124,7 +99,7 @@ class Pool:
         min_batch: int | None = None,
         max_batch: int | None = None,
         timeout: float | None = None,
-    ) -> tuple[np.ndarray, np.ndarray, bytes, list[tuple[int, bytes]]]: ...
+    ) -> tuple[int, int, Optional[Joined], np.ndarray, np.ndarray]: ...
     def call_envs(self, requests: Sequence[tuple[int, bytes]]) -> list[tuple[int, bytes]]: ...
     def stage_action_extras(self, extras: Sequence[tuple[int, bytes]]) -> None: ...
     def worker_envs(self, k: int) -> tuple[int, int]: ...

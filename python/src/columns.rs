@@ -1,16 +1,12 @@
-//! Writing a batch's per-env arrays for Python: records at their env rows, final observations,
-//! and the column buffers of `step_columns`; plus the raw byte view of a numpy array that the
-//! pool writes without the GIL.
+//! Writing a call's per-env values for Python: the column buffers every call's results are
+//! decoded into (one form for steps, resets, partial resets and `recv`), the final
+//! observations; plus the raw byte view of a numpy array that the pool writes without the GIL.
 
 use numpy::npyffi::flags::NPY_ARRAY_WRITEABLE;
 use numpy::{PyArrayDescrMethods, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use rogue_gym_pool::{BatchOutput, EnvRecord};
-use rogue_gym_pool::{FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED};
-
-/// Bytes of one [`EnvRecord`] (the Python side mirrors it as a structured dtype).
-pub const RECORD_BYTES: usize = std::mem::size_of::<EnvRecord>();
+use rogue_gym_pool::BatchOutput;
 
 /// A raw mutable byte buffer handed to code running without the GIL.
 pub(crate) struct RawBuf(pub(crate) *mut u8, pub(crate) usize);
@@ -57,45 +53,6 @@ pub(crate) fn raw_bytes(
     Ok(RawBuf(data, nbytes))
 }
 
-pub(crate) fn record_flags(out: &BatchOutput, r: usize) -> u32 {
-    let mut f = 0;
-    if out.terminated[r] {
-        f |= FLAG_TERMINATED;
-    }
-    if out.truncated[r] {
-        f |= FLAG_TRUNCATED;
-    }
-    if out.restarted[r] {
-        f |= FLAG_RESTARTED;
-    }
-    if out.has_final_obs[r] {
-        f |= FLAG_FINAL_OBS;
-    }
-    f
-}
-
-/// Write the rows of `out` as [`EnvRecord`]s at their env ids into `recs`.
-pub(crate) fn write_records(out: &BatchOutput, n_info: usize, recs: &mut [u8]) {
-    for (r, &env) in out.env_ids.iter().enumerate() {
-        let mut rec = EnvRecord {
-            reward: out.reward[r],
-            flags: record_flags(out, r),
-            episode_return: out.episode_return[r],
-            episode: out.episode[r],
-            seed: out.seed[r],
-            episode_length: out.episode_length[r],
-            ..Default::default()
-        };
-        rec.info[..n_info].copy_from_slice(&out.info[r * n_info..(r + 1) * n_info]);
-        let dst = &mut recs[env * RECORD_BYTES..(env + 1) * RECORD_BYTES];
-        // SAFETY: EnvRecord is #[repr(C)] plain data of exactly RECORD_BYTES bytes.
-        let src = unsafe {
-            std::slice::from_raw_parts((&rec as *const EnvRecord).cast::<u8>(), RECORD_BYTES)
-        };
-        dst.copy_from_slice(src);
-    }
-}
-
 /// Copy the valid final observations of `out` to their env rows of `fin`.
 pub(crate) fn write_final(out: &BatchOutput, obs_bytes: usize, fin: &mut [u8]) {
     if out.final_obs.is_empty() {
@@ -137,12 +94,13 @@ pub(crate) fn column_layout(
     (v, off)
 }
 
-/// Summary bit of `step_columns`: some env's worker was restarted.
-pub(crate) const SUMMARY_RESTARTED: usize = 1 << 8;
-/// Summary bit of `step_columns`: some env has a final observation (SAME_STEP).
-pub(crate) const SUMMARY_FINAL: usize = 1 << 9;
+/// Summary bit of a call's result: some env's worker was restarted.
+pub(crate) const SUMMARY_RESTARTED: usize = 1;
+/// Summary bit of a call's result: some env has a final observation (SAME_STEP).
+pub(crate) const SUMMARY_FINAL: usize = 1 << 1;
 
-/// Write the rows of `out` into a column buffer (see [`column_layout`]); returns the
+/// Write the rows of `out` into a column buffer of `n` entries per column (see
+/// [`column_layout`]), each at its env's index or, with `at_row`, at its row's; returns the
 /// `SUMMARY_*` bits.
 ///
 /// # Safety
@@ -152,12 +110,14 @@ pub(crate) unsafe fn write_columns(
     n: usize,
     n_info: usize,
     base: *mut u8,
+    at_row: bool,
 ) -> usize {
     let w = |col: usize| unsafe { base.cast::<u64>().add(col * n) };
     let b8 = 8 * n * (5 + n_info);
     let b = |col: usize| unsafe { base.add(b8 + col * n) };
     let mut summary = 0;
-    for (r, &i) in out.env_ids.iter().enumerate() {
+    for (r, &env) in out.env_ids.iter().enumerate() {
+        let i = if at_row { r } else { env };
         if i >= n {
             continue;
         }

@@ -66,7 +66,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<game::PyGame>()?;
     m.add_class::<pool::PyPool>()?;
     m.add_class::<holders::SharedBatchHolder>()?;
-    m.add("RECORD_BYTES", columns::RECORD_BYTES)?;
     m.add_function(wrap_pyfunction!(game::action_from_key, m)?)?;
     m.add_function(wrap_pyfunction!(worker_main, m)?)?;
     m.add_function(wrap_pyfunction!(block_range, m)?)?;
@@ -74,11 +73,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(summary::floor_summary, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("ACTION_KEYS", rogue_gym_engine::ACTION_KEYS)?;
-    m.add("MAX_INFO", rogue_gym_pool::MAX_INFO)?;
-    m.add("FLAG_TERMINATED", rogue_gym_pool::FLAG_TERMINATED)?;
-    m.add("FLAG_TRUNCATED", rogue_gym_pool::FLAG_TRUNCATED)?;
-    m.add("FLAG_RESTARTED", rogue_gym_pool::FLAG_RESTARTED)?;
-    m.add("FLAG_FINAL_OBS", rogue_gym_pool::FLAG_FINAL_OBS)?;
     m.add(
         "PAPER_CONFIG_JSON",
         rogue_gym_engine::GameConfig::paper().to_json(),

@@ -350,13 +350,6 @@ def test_async_matches_sync_trajectories(make_vec) -> None:
             assert np.array_equal(got[i][t], want[t][i]), (i, t)
 
 
-def test_record_dtype_matches_the_native_layout() -> None:
-    from rogue_gym import _native
-    from rogue_gym._records import RECORD_DTYPE
-
-    assert RECORD_DTYPE.itemsize == _native.RECORD_BYTES == 112
-
-
 def _run(env, acts, mask_at=None, mask=None):
     """Reset, step through ``acts`` (partial reset with ``mask`` after step ``mask_at``)."""
     obs, infos = env.reset()
@@ -481,22 +474,35 @@ def test_partial_reset_rules(make_vec) -> None:
 
 
 @pytest.mark.parametrize("mode", ["next_step", "same_step"])
-def test_native_step_decoding_matches_the_records(make_vec, mode) -> None:
-    """step()'s arrays (decoded natively) equal a numpy decoding of the raw records."""
-    from rogue_gym.front.core import flags
+def test_step_reset_and_recv_return_one_result_form(make_vec, mode) -> None:
+    """Every call's result is decoded the same way: a trajectory stepped with reset/step and
+    the same one through async_reset/send/recv (rows put back in env order) give the same
+    observations, rewards, flags and infos, dtypes included."""
+    synced = make_vec(4, num_workers=2, max_steps=7, autoreset_mode=mode, seed=3)
+    pooled = make_vec(4, num_workers=2, max_steps=7, autoreset_mode=mode, seed=3)
 
-    env = make_vec(4, num_workers=2, max_steps=7, autoreset_mode=mode, seed=3)
-    env.reset()
-    for a in _actions(4, 40, seed=8):
-        obs, rew, term, trunc, infos = env.step(a)
-        recs = env._core.recs[env._core.slot]
-        t, tr, _, _ = flags(recs)
-        assert rew.dtype == np.float64 and term.dtype == np.bool_ and trunc.dtype == np.bool_
-        assert np.array_equal(rew, recs["reward"].astype(np.float64))
-        assert np.array_equal(term, t) and np.array_equal(trunc, tr)
-        for key, arr in env._kind.info_arrays(recs).items():
-            assert infos[key].dtype == arr.dtype and np.array_equal(infos[key], arr), key
-            assert infos[f"_{key}"].all()
+    def in_env_order(out):
+        obs, rew, term, trunc, infos = out
+        order = np.argsort(infos["env_id"])
+        return (obs[order], rew[order], term[order], trunc[order]), {
+            k: v[order] for k, v in infos.items() if k != "env_id"
+        }
+
+    want = synced.reset()
+    pooled.async_reset()
+    got = in_env_order(pooled.recv())
+    assert np.array_equal(got[0][0], want[0])
+    skip = ("final_obs", "_final_obs", "final_info", "_final_info")
+    for t, a in enumerate(_actions(4, 40, seed=8)):
+        obs, rew, term, trunc, infos = synced.step(a)
+        pooled.send(a, np.arange(4))
+        (g_obs, g_rew, g_term, g_trunc), g_infos = in_env_order(pooled.recv())
+        assert np.array_equal(g_obs, obs) and np.array_equal(g_rew, rew), t
+        assert g_rew.dtype == rew.dtype == np.float64 and g_term.dtype == np.bool_
+        assert np.array_equal(g_term, term) and np.array_equal(g_trunc, trunc), t
+        assert sorted(g_infos) == sorted(k for k in infos if k not in skip), t
+        for key, arr in g_infos.items():
+            assert arr.dtype == infos[key].dtype and np.array_equal(arr, infos[key]), (t, key)
 
 
 def test_step_info_arrays_live_until_the_second_following_step(make_vec) -> None:
@@ -525,9 +531,9 @@ def test_render_replay_follows_a_partial_reset(make_vec) -> None:
         env.reset()
         for t, a in enumerate(acts):
             env.step(a)
-            # The replay history follows every env's episode (length as the records say).
-            recs = env._core.recs[env._core.slot]
-            assert np.array_equal(env._kind._history.length, recs["episode_length"]), t
+            # The episode log follows every env's episode (length as the columns say).
+            cols = env._core.cols[env._core.slot]
+            assert np.array_equal(env._core.log.length, cols["episode_length"]), t
             if m is not None and t == 3:  # all envs just ended: unmasked ones autoreset next
                 env.reset(options={"reset_mask": m})
         screens.append(env.render())

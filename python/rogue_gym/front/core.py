@@ -1,186 +1,114 @@
 """The pool under every vector env class, whatever env kind it hosts.
 
 :class:`Core` owns the native pool (supervisor and worker processes) and what the caller side
-keeps of it: the shared-memory batch slots the workers write observations into, one record
-array and one column buffer per slot (the per-env rewards, flags and counters of the call that
-wrote the slot), the SAME_STEP final-observation buffer, and the lending of slots
-(:mod:`rogue_gym.front.leases`). It knows nothing of gymnasium's or SB3's API: the facades in
-:mod:`rogue_gym.front` build those over it, and the env kind (:mod:`rogue_gym.kinds`, bound as
-:class:`Kind`) turns slot bytes into observations and records into infos.
+keeps of it: the shared-memory batch slots the workers write observations into, one column
+buffer per slot and one for ``recv`` (the per-env rewards, flags, counters and info values of
+the call that wrote them), the SAME_STEP final-observation buffer, the lending of slots
+(:mod:`rogue_gym.front.leases`), and the call lifecycle every kind shares: whether the envs
+were reset (:attr:`Core.started`), which episodes ended at the last call (:attr:`Core.ended`)
+and, for kinds that render by replay, each env's actions since its episode began
+(:attr:`Core.log`). Every call returns one :class:`Result`. It knows nothing of gymnasium's or
+SB3's API: the facades in :mod:`rogue_gym.front` build those over it, and the env kind
+(:mod:`rogue_gym.kinds`) turns slot bytes into observations and columns into infos.
 """
 
 from __future__ import annotations
 
 import errno
 import json
+import pickle
 import weakref
-from typing import Any, Callable, NoReturn, Optional, Protocol, Sequence
+from typing import TYPE_CHECKING, Any, Callable, NoReturn, Optional, Sequence
 
 import numpy as np
-from gymnasium import spaces
 
 from .. import _native
-from .._records import FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED, RECORD_DTYPE
 from ..errors import CLOSED_MESSAGE, EnvFailedError, PoolClosedError
 from ..protocol.exceptions import decode_exception
+from ..protocol.infos import HEAD
 from . import leases, sigterm
+from .episode_log import EpisodeLog
 from .stats import PoolStats, WorkerStats
+
+if TYPE_CHECKING:
+    from ..kinds.spec import Kind
 
 __all__ = [
     "SUMMARY_FINAL",
     "SUMMARY_RESTARTED",
     "Core",
-    "Kind",
+    "Result",
     "copy_tree",
-    "flags",
     "mark_restarted",
+    "out_of_range",
     "raised_in_worker",
     "reraise",
     "row_of",
     "scalar_actions",
 ]
 
-#: Bit of a step's summary: some env's worker was restarted during the call.
+#: Bit of a result's summary: some env's worker was restarted during the call.
 SUMMARY_RESTARTED: int = _native.SUMMARY_RESTARTED
-#: Bit of a step's summary: some env has a final observation (SAME_STEP).
+#: Bit of a result's summary: some env has a final observation (SAME_STEP).
 SUMMARY_FINAL: int = _native.SUMMARY_FINAL
 
+#: A call's extra info as the native pool joins it: ``(rows, data, size, ends)`` (see
+#: :func:`rogue_gym.protocol.infos.split_joined`), or ``None`` when no env wrote any.
+Extras = Optional[tuple[Optional[list[int]], bytes, int, list[int]]]
 
-class Kind(Protocol):
-    """An env kind: its data, and the calls that differ from one kind to another.
 
-    The step path calls :meth:`actions` and :meth:`step_infos` once per step, never anything
-    per env.
+class Result:
+    """One call's result, in the one form every call has: per-env values as columns.
+
+    A whole-batch call (step, reset, partial reset) has one row per env, in env order, in the
+    column buffer of the batch ``slot`` it wrote (reused by a later call that writes the same
+    slot). A ``recv`` has one row per env received (``env_ids``), in the ``recv`` buffer, and
+    its observations (``obs``, a fresh copy).
     """
 
-    @property
-    def num_envs(self) -> int:
-        """Envs in the pool."""
-        ...
+    __slots__ = ("cols", "env_ids", "extras", "obs", "rows", "slot", "summary")
 
-    @property
-    def obs_bytes(self) -> int:
-        """Bytes of one env's observation in a batch slot."""
-        ...
-
-    @property
-    def single_observation_space(self) -> spaces.Space:
-        """One env's observation space."""
-        ...
-
-    @property
-    def single_action_space(self) -> spaces.Space:
-        """One env's action space."""
-        ...
-
-    @property
-    def metadata(self) -> dict[str, Any]:
-        """The envs' ``metadata`` (render modes)."""
-        ...
-
-    @property
-    def render_mode(self) -> Optional[str]:
-        """The envs' render mode."""
-        ...
-
-    @property
-    def spec(self) -> Any:
-        """The envs' ``EnvSpec``, if any."""
-        ...
-
-    @property
-    def who(self) -> str:
-        """Who serves the env operations (a key of :data:`rogue_gym.protocol.ops.SERVED_BY`)."""
-        ...
-
-    @property
-    def ops(self) -> frozenset[str]:
-        """The env operations the kind serves."""
-        ...
-
-    @property
-    def worker_command(self) -> Sequence[str]:
-        """Program and leading args of a worker process."""
-        ...
-
-    def pool_settings(self) -> dict[str, Any]:
-        """The native pool's settings (JSON object) but the autoreset mode and slot count."""
-        ...
-
-    def bind(self, core: Core) -> None:
-        """Called once the pool runs (per-slot templates, the pool's info names)."""
-        ...
-
-    def batch_views(self, rows: np.ndarray) -> Any:
-        """Observations of ``rows`` (``(k, obs_bytes)`` uint8) as a batch of the observation
-        space, without a copy."""
-        ...
-
-    def obs_filler(self) -> Optional[Callable[[Any, Optional[np.ndarray]], Any]]:
-        """``None`` when the slot's observations are whole; else the function that makes a
-        batch of them (of every env, or of ``env_ids``) whole, after the call's infos were
-        read: the values of leaves of no fixed size, which travel apart. Bound once, at
-        construction: a kind without such leaves costs the hot path nothing."""
-        ...
-
-    def actions(self, actions: Any, env_ids: Optional[Sequence[int]]) -> np.ndarray:
-        """A batch of actions (for every env, or ``env_ids``) checked, as the pool takes them:
-        int64 indices or uint8 bytes."""
-        ...
-
-    def seed_schedule(self, seed: Any, core: Core) -> Optional[dict[str, Any]]:
-        """The episode-seed schedule for ``reset(seed=seed)``; ``None`` keeps the current one.
-        ``ValueError``/``TypeError`` for a seed the kind cannot take."""
-        ...
-
-    def seed_partial(self, seed: Any, mask: np.ndarray, core: Core) -> None:
-        """Seed the next reset of the envs of ``mask`` (a partial reset with ``seed``: an int
-        ``s`` seeds env ``i`` with ``s + i``, a list gives each env's); a ``ValueError`` for a
-        kind whose seeds cannot be set per env."""
-        ...
-
-    def reset_infos(self, core: Core, slot: int, only: Optional[np.ndarray]) -> dict[str, Any]:
-        """The infos of a reset of every env, or of the envs of ``only`` (a partial reset)."""
-        ...
-
-    def step_infos(self, core: Core, slot: int, summary: int, same_step: bool) -> dict[str, Any]:
-        """The infos of a step (``final_obs``/``final_info`` in SAME_STEP, ``worker_restarted``)."""
-        ...
-
-    def recv_infos(
+    def __init__(
         self,
-        core: Core,
-        recs: np.ndarray,
-        env_extras: list[tuple[int, bytes]],
-        env_id: np.ndarray,
-    ) -> dict[str, Any]:
-        """The infos of an async ``recv`` batch (rows in ``env_id`` order; ``env_extras``:
-        the ``(env id, bytes)`` of envs that wrote extra info)."""
-        ...
+        cols: dict[str, np.ndarray],
+        summary: int,
+        extras: Extras,
+        slot: Optional[int] = None,
+        env_ids: Optional[np.ndarray] = None,
+        obs: Optional[np.ndarray] = None,
+    ) -> None:
+        #: Column name to array (``rows`` entries; ``info_int``/``info_bool``: one row each).
+        self.cols = cols
+        #: ``SUMMARY_*`` bits.
+        self.summary = summary
+        #: The joined extra info of the rows that wrote some (hosted envs' infos).
+        self.extras = extras
+        #: The batch slot written (whole-batch calls), else ``None``.
+        self.slot = slot
+        #: The env of each row (``recv``), else ``None`` (every env, in order).
+        self.env_ids = env_ids
+        #: The rows' observations as bytes, ``(rows, obs_bytes)`` (``recv``), else ``None``.
+        self.obs = obs
+        #: Rows of the result.
+        self.rows = len(cols["reward"])
 
-    def call(
-        self,
-        core: Core,
-        op: str,
-        name: str,
-        arguments: Sequence[tuple[tuple[Any, ...], dict[str, Any]]],
-        indices: Sequence[int],
-    ) -> list[Any]:
-        """Run call operation ``op`` (:data:`rogue_gym.protocol.ops.ENV_OPS`) on the envs
-        ``indices`` with ``arguments[j]`` for the ``j``-th; one result each."""
-        ...
+    @property
+    def restarted(self) -> Optional[np.ndarray]:
+        """The rows whose env's worker was restarted during the call, or ``None`` if none."""
+        return self.cols["restarted"] if self.summary & SUMMARY_RESTARTED else None
 
-    def info_counts(self) -> tuple[int, int]:
-        """Env info rows received so far as typed rows and as pickles (``stats()``)."""
-        ...
+    @property
+    def ended(self) -> np.ndarray:
+        """The rows whose episode ended at the call (terminated or truncated)."""
+        return self.cols["terminated"] | self.cols["truncated"]
 
-    def render(self, core: Core) -> Optional[tuple[Any, ...]]:
-        """Every env's frame in the render mode."""
-        ...
+    def ids(self) -> np.ndarray:
+        """The env of each row."""
+        return np.arange(self.rows) if self.env_ids is None else self.env_ids
 
 
 class Core:
-    """The native pool of one vector env, its batch slots, records and column buffers.
+    """The native pool of one vector env, its batch slots, column buffers and call lifecycle.
 
     Args:
         kind: the env kind (spaces, settings, observation views).
@@ -189,6 +117,8 @@ class Core:
         copy: the facade hands out observations that are the caller's to keep; large batches
             are then lent (the slot is not written again while a returned array lives) rather
             than copied.
+    The kind's ``log_steps`` (not ``None``: it renders by replay) has each env's actions
+    since its episode began kept in :attr:`log`, for episodes of up to that many steps.
     """
 
     def __init__(self, kind: Kind, *, same_step: bool, copy: bool) -> None:
@@ -219,29 +149,35 @@ class Core:
         #: The pool's name: the prefix of its shared-memory files.
         self.name: str = self.pool.name()
         self.num_workers: int = int(self.pool.num_workers)
+        #: One env's observation as the workers write it: shape, dtype name, info value names.
+        self.obs_shape = tuple(self.pool.obs_shape)
+        self.obs_dtype = str(self.pool.obs_dtype)
+        self.info_names: list[str] = list(self.pool.info_names)
         self.slots = [np.asarray(v).reshape(n, self.obs_bytes) for v in self.pool.shared_views()]
         self.views = [kind.batch_views(s) for s in self.slots]
         self.lender = leases.SlotLender(self.slots, kind.batch_views) if lend else None
         self.final = np.zeros((n, self.obs_bytes), np.uint8) if same_step else None
-        # One record array per slot (the call that wrote the slot), and one to write next.
-        self.recs = [np.zeros(n, RECORD_DTYPE) for _ in self.slots]
-        self._next_recs = np.zeros(n, RECORD_DTYPE)
-        self.cols = self._bind_columns()
-        #: The slot written by the last call.
+        #: One column buffer per slot, then ``recv``'s.
+        self.cols = self._bind_columns(len(self.slots) + 1)
+        #: The slot written by the last whole-batch call.
         self.slot = 0
-        #: No reset or step since the pool started.
-        self.fresh = True
+        #: Whether the envs were reset (a reset, or ``async_reset``) since the pool started.
+        self.started = False
+        #: The envs whose episode ended at their last call (terminated or truncated).
+        self.ended = np.zeros(n, bool)
+        #: Each env's actions since its episode began (kinds that render by replay).
+        self.log = None if kind.log_steps is None else EpisodeLog(n, kind.log_steps)
         #: Observation batches handed out: lent, copied, or as views (``stats()``).
         self.lent = self.copied = self.viewed = 0
         kind.bind(self)
 
-    def _bind_columns(self) -> list[dict[str, np.ndarray]]:
-        """One column buffer per slot, bound in the native pool (see ``step_columns``):
-        per-env rewards, flags, counters and info rows, decoded from the slot's records."""
+    def _bind_columns(self, count: int) -> list[dict[str, np.ndarray]]:
+        """``count`` column buffers, bound in the native pool: per-env rewards, flags,
+        counters and info rows of the call that wrote them."""
         n = self.num_envs
         layout, total = self.pool.column_layout()
         buffers, out = [], []
-        for _ in self.slots:
+        for _ in range(count):
             buf = np.zeros(total, np.uint8)
             cols: dict[str, np.ndarray] = {}
             for name, dt, off, rows in layout:
@@ -251,7 +187,7 @@ class Core:
             cols["seed"] = cols["seed"].view(np.int64)
             buffers.append(buf)
             out.append(cols)
-        self.pool.bind_columns(buffers)
+        self.pool.bind_columns(buffers, HEAD)
         return out
 
     # -- calls -----------------------------------------------------------------------------
@@ -275,49 +211,37 @@ class Core:
             if free is not None:
                 self.call(self.pool.select_slot, free)
 
-    def _took(self, slot: int) -> int:
-        """Book the slot a call wrote: its records are the ones just written."""
-        self.recs[slot], self._next_recs = self._next_recs, self.recs[slot]
+    def _took(self, r: tuple[int, int, Extras]) -> Result:
+        """The result of a whole-batch call, from the native ``(slot, summary, extras)``."""
+        slot, summary, extras = r
         self.slot = slot
-        self.fresh = False
-        return slot
+        return Result(self.cols[slot], summary, extras, slot)
 
-    def step(self, actions: np.ndarray) -> int:
-        """A whole sync step: the slot written ``|`` the ``SUMMARY_*`` bits; the slot's columns
-        hold the decoded records."""
+    def step(self, actions: np.ndarray) -> Result:
+        """A whole sync step."""
         self._steer()
-        r = self.call(self.pool.step_columns, actions, self._next_recs, self.final)
-        self._took(r & 0xFF)
-        return int(r)
+        return self._took(self.call(self.pool.step, actions, self.final))
 
     def send_step(self, actions: np.ndarray) -> None:
         """The first half of :meth:`step`: the workers step while the caller goes on."""
         self._steer()
-        self.call(self.pool.step_shared_send, actions)
-
-    def wait_step(self, timeout: Optional[float]) -> Optional[int]:
-        """The second half of :meth:`send_step`: what :meth:`step` returns, or ``None`` when
-        ``timeout`` seconds passed first (the step stays pending)."""
-        r = self.call(self.pool.wait_columns, timeout, self._next_recs, self.final)
-        if r is None:
-            return None
-        self._took(r & 0xFF)
-        return int(r)
+        self.call(self.pool.step_send, actions)
 
     def send_reset(self) -> None:
         """The first half of a full reset."""
         self._steer()
-        self.call(self.pool.reset_shared_send)
+        self.call(self.pool.reset_send)
 
-    def wait_reset(self, timeout: Optional[float]) -> Optional[int]:
-        """The second half of :meth:`send_reset`: the slot, or ``None`` on ``timeout``."""
-        slot = self.call(self.pool.wait_shared, timeout, self._next_recs, None)
-        return None if slot is None else self._took(int(slot))
+    def wait(self, timeout: Optional[float]) -> Optional[Result]:
+        """The second half of :meth:`send_step` or :meth:`send_reset`, or ``None`` when
+        ``timeout`` seconds passed first (the call stays pending)."""
+        r = self.call(self.pool.wait, timeout, self.final)
+        return None if r is None else self._took(r)
 
-    def reset_envs(self, mask: np.ndarray) -> int:
+    def reset_envs(self, mask: np.ndarray) -> Result:
         """A partial reset (the envs of ``mask``; the others' observations written again)."""
         self._steer()
-        return self._took(int(self.call(self.pool.reset_envs_shared, mask, self._next_recs)))
+        return self._took(self.call(self.pool.reset_envs, mask))
 
     def set_seeds(self, schedule: dict[str, Any]) -> None:
         """Replace the episode-seed schedule (applies from the next reset)."""
@@ -344,6 +268,27 @@ class Core:
         assert self.final is not None
         return copy_tree(row_of(self.kind.batch_views(self.final[env : env + 1]), 0))
 
+    def stage_action_extras(self, extras: list[tuple[int, bytes]]) -> None:
+        """Stage the pickled parts of no fixed size of the next step's actions, ``(env id,
+        bytes)`` each: the step command to each env's worker carries them."""
+        self.call(self.pool.stage_action_extras, extras)
+
+    def call_envs(self, op: str, name: str, requests: Sequence[tuple[int, Any]]) -> list[Any]:
+        """Run env operation ``op`` with ``name`` in the workers: ``requests`` are ``(env,
+        (args, kwargs))``; one result each, or the env's own exception raised here."""
+        encoded = [
+            (env, pickle.dumps((op, name, *call), protocol=pickle.HIGHEST_PROTOCOL))
+            for env, call in requests
+        ]
+        results = []
+        for env, data in self.call(self.pool.call_envs, encoded):
+            status, value = pickle.loads(data)
+            if status == "err":
+                exc = raised_in_worker(value, f"env {env} during {op}({name!r})")
+                raise exc if exc is not None else RuntimeError(f"env {env}: {value}")
+            results.append(value)
+        return results
+
     # -- async (EnvPool-style) -------------------------------------------------------------
 
     def async_reset(self) -> None:
@@ -359,28 +304,24 @@ class Core:
         min_batch: Optional[int] = None,
         max_batch: Optional[int] = None,
         timeout: Optional[float] = None,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[tuple[int, bytes]]]:
-        """The first envs ready: ``(obs rows, records, env ids, extras)``, the rows a fresh
-        copy; ``extras`` are the ``(env id, bytes)`` of envs that wrote extra info."""
-        ids, raw, recs, extras = self.call(self.pool.recv, min_batch, max_batch, timeout)
-        rows = raw.reshape(-1, self.obs_bytes)
-        return rows, np.frombuffer(recs, RECORD_DTYPE), ids, extras
+    ) -> Result:
+        """The first envs ready (their columns are views of the ``recv`` buffer, valid until
+        the next ``recv``; their observations a fresh copy)."""
+        rows, summary, extras, ids, raw = self.call(self.pool.recv, min_batch, max_batch, timeout)
+        cols = {k: v[..., :rows] for k, v in self.cols[-1].items()}
+        return Result(cols, summary, extras, None, ids, raw.reshape(-1, self.obs_bytes))
 
-    def mark_recycled(self, infos: dict[str, Any]) -> None:
+    def mark_recycled(self, infos: dict[str, Any], env_ids: Optional[np.ndarray]) -> None:
         """Flag the restarted envs whose worker was replaced by plan during the last call
         (``worker_recycled`` and its mask); asked of the pool only when some env restarted."""
         if "worker_restarted" not in infos:
             return
         ids = self.pool.recycled_envs()
         if ids:
-            mask = np.isin(self._env_ids(infos), ids)
+            rows = np.arange(self.num_envs) if env_ids is None else env_ids
+            mask = np.isin(rows, ids)
             infos["worker_recycled"] = mask
             infos["_worker_recycled"] = mask.copy()
-
-    @staticmethod
-    def _env_ids(infos: dict[str, Any]) -> np.ndarray:
-        """The env of each row of a call's infos: ``env_id`` (recv), else every env."""
-        return np.asarray(infos.get("env_id", np.arange(len(infos["worker_restarted"]))))
 
     # -- the pool --------------------------------------------------------------------------
 
@@ -423,23 +364,22 @@ class Core:
         self._finalizer()
 
 
-def flags(recs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(terminated, truncated, restarted, has_final_obs)`` bool arrays of a record batch."""
-    f = recs["flags"]
-    return (
-        (f & FLAG_TERMINATED) != 0,
-        (f & FLAG_TRUNCATED) != 0,
-        (f & FLAG_RESTARTED) != 0,
-        (f & FLAG_FINAL_OBS) != 0,
-    )
-
-
 def scalar_actions(n: int) -> str:
     """The message of a ``TypeError`` for one action given to a vector env of ``n`` envs (as
     gymnasium's vector envs refuse it)."""
     return (
         f"expected a batch of actions, one per env ({n}), got a scalar: a vector env takes "
         "an array of shape (num_envs, ...)"
+    )
+
+
+def out_of_range(env: int, action: Any, low: int, high: int, space: Any = None) -> str:
+    """The message of a ``ValueError`` for env ``env``'s ``action`` outside ``low`` to
+    ``high`` (of ``space``, when named); the pool's own check words it the same."""
+    of = "" if space is None else f" of {space}"
+    count = f" (range({high + 1}))" if low == 0 else ""
+    return (
+        f"env {env}: action {action} is out of range{of}; valid actions are {low} to {high}{count}"
     )
 
 

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Any, Optional, Sequence, Union
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Optional, Sequence, Union
 
 import gymnasium as gym
 import numpy as np
@@ -11,15 +12,29 @@ from gymnasium.vector.utils import batch_space
 
 from ..protocol.ops import refuse_op
 from ..settings import parse_autoreset_mode
-from .core import Core, Kind, flags, mark_restarted
+from .core import Core, Result, copy_tree, mark_restarted
 from .pending import already_pending, no_async_call, timed_out, warn_close_pending
 from .reset_mask import partial_mask, refuse_finished
 from .stats import PoolStats
+
+if TYPE_CHECKING:
+    from ..kinds.spec import Kind
 
 __all__ = ["FrontVectorEnv"]
 
 Seed = Union[int, Sequence[Optional[int]], None]
 StepResult = tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]
+
+
+@dataclass(frozen=True)
+class Pending:
+    """The split call in flight, as gymnasium's ``AsyncState``: ``what`` is ``"step"``,
+    ``"reset"`` or ``"call"``; ``done`` is what a call that already ran left for its wait
+    (a partial reset's ``(obs, infos)``, a call's ``("ok", results)`` or ``("err",
+    exception)``), or ``None`` while the workers are at it."""
+
+    what: str
+    done: Any = None
 
 
 class FrontVectorEnv(gym.vector.VectorEnv):
@@ -66,13 +81,12 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         self._fill = kind.obs_filler()
         self._same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
         self._disabled = self.autoreset_mode == AutoresetMode.DISABLED
-        #: Envs whose episode ended at the last call (DISABLED refuses to step them).
-        self._done = np.zeros(self.num_envs, bool)
-        self._started = False
-        #: The split call in flight (``"step"``/``"reset"``) and, for a partial reset, its result.
-        self._pending: Optional[tuple[str, Any]] = None
+        #: The split call in flight.
+        self._pending: Optional[Pending] = None
         self._async_ids: Optional[np.ndarray] = None
         self._last_slot: Optional[int] = None
+        #: The actions each env took last (kept for the episode log).
+        self._taken = np.zeros(kind.num_envs, np.int64)
         self._stats_base: Optional[PoolStats] = None
         #: Whether the env was closed (gymnasium's ``close()`` sets it).
         self.closed = False
@@ -148,18 +162,20 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         core.check_open()
         self._not_pending("reset_async")
         options = dict(options or {})
-        mask = partial_mask(options.pop("reset_mask", None), self.num_envs, self._started)
+        mask = partial_mask(options.pop("reset_mask", None), self.num_envs, core.started)
         if mask is not None and seed is not None:
             self._kind.seed_partial(seed, mask, core)
         if options:  # for each env's next reset, as AsyncVectorEnv passes them
             self._call_all("set_reset_options", "", (options,))
         if mask is not None:
-            slot = core.reset_envs(mask)
-            self._done &= ~mask
-            infos = self._kind.reset_infos(core, slot, mask)
-            result = (self._observations(slot), infos)
-            self._last_slot = slot
-            self._pending = ("reset", result)
+            res = core.reset_envs(mask)
+            restarted = res.restarted
+            reset = mask if restarted is None else mask | restarted
+            core.ended &= ~reset
+            if core.log is not None:
+                core.log.record(res, None, self._same_step, rows=reset)
+            infos = self._infos(res, mask)
+            self._pending = Pending("reset", (self._observations(res), infos))
             return
         schedule = self._kind.seed_schedule(seed, core)
         if isinstance(seed, (int, np.integer)):
@@ -167,25 +183,27 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         if schedule is not None:
             core.set_seeds(schedule)
         core.send_reset()
-        self._pending = ("reset", None)
+        self._pending = Pending("reset")
 
     def reset_wait(self, timeout: Optional[float] = None) -> tuple[Any, dict[str, Any]]:
         """The second half of :meth:`reset_async`: wait at most ``timeout`` seconds (``None``:
         the pool's own bound) and return ``(obs, infos)``. On a timeout
         (``multiprocessing.TimeoutError``) the reset stays pending: call it again."""
-        self._core.check_open()
+        core = self._core
+        core.check_open()
         partial = self._take_pending("reset")
         if partial is not None:
             return partial
-        slot = self._core.wait_reset(timeout)
-        if slot is None:
-            self._pending = ("reset", None)
+        res = core.wait(timeout)
+        if res is None:
+            self._pending = Pending("reset")
             raise timed_out("reset", timeout)
-        self._done[:] = False
-        self._started = True
-        self._last_slot = slot
-        infos = self._kind.reset_infos(self._core, slot, None)
-        return self._observations(slot), infos
+        core.ended[:] = False
+        core.started = True
+        if core.log is not None:
+            core.log.record(res, None, self._same_step)
+        infos = copy_tree(self._infos(res))  # a reset's infos are the caller's to keep
+        return self._observations(res), infos
 
     # -- step ------------------------------------------------------------------------------
 
@@ -193,66 +211,85 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         """Step every env with ``actions`` (a batch of the action space); returns ``(obs,
         rewards, terminations, truncations, infos)``. Rewards and flags are fresh arrays."""
         acts = self._step_actions(actions, "step")
-        return self._stepped(self._core.step(acts))
+        return self._stepped(self._core.step(acts), acts)
 
     def step_async(self, actions: Any) -> None:
         """The first half of :meth:`step` (gymnasium's ``AsyncVectorEnv.step_async``): send
         ``actions`` and return at once; the workers step while you do something else."""
         acts = self._step_actions(actions, "step_async")
         self._core.send_step(acts)
-        self._pending = ("step", None)
+        self._pending = Pending("step", acts)
 
     def step_wait(self, timeout: Optional[float] = None) -> StepResult:
         """The second half of :meth:`step_async`: wait at most ``timeout`` seconds (``None``:
         the pool's own bound) and return what :meth:`step` returns. On a timeout
         (``multiprocessing.TimeoutError``) the step stays pending: call it again."""
         self._core.check_open()
-        self._take_pending("step")
-        r = self._core.wait_step(timeout)
-        if r is None:
-            self._pending = ("step", None)
+        acts = self._take_pending("step")
+        res = self._core.wait(timeout)
+        if res is None:
+            self._pending = Pending("step", acts)
             raise timed_out("step", timeout)
-        return self._stepped(r)
+        return self._stepped(res, acts)
 
     def _step_actions(self, actions: Any, caller: str) -> np.ndarray:
         """Checks before a step; the actions as the pool takes them."""
-        self._core.check_open()
+        core = self._core
+        core.check_open()
         if self._pending is not None:
-            raise already_pending(caller, self._pending[0])
-        if not self._started:
+            raise already_pending(caller, self._pending.what)
+        if not core.started:
             raise RuntimeError("call reset() before step()")
         if self._disabled:
-            refuse_finished(self._done)
+            refuse_finished(core.ended)
         return self._kind.actions(actions, None)
 
-    def _stepped(self, r: int) -> StepResult:
+    def _stepped(self, res: Result, actions: np.ndarray) -> StepResult:
         """What a step returns, from the slot the workers wrote and its columns."""
-        core = self._core
-        slot = r & 0xFF
-        self._last_slot = slot
-        cols = core.cols[slot]
-        infos = self._kind.step_infos(core, slot, r, self._same_step)
-        core.mark_recycled(infos)
+        cols = res.cols
+        log = self._core.log
+        if log is not None:
+            log.record(res, actions, self._same_step)
+        infos = self._infos(res)
         terminated, truncated = cols["terminated"].copy(), cols["truncated"].copy()
-        if self._disabled:
-            self._done = terminated | truncated
-        return self._observations(slot), cols["reward"].copy(), terminated, truncated, infos
+        self._core.ended = terminated | truncated
+        return self._observations(res), cols["reward"].copy(), terminated, truncated, infos
 
-    def _observations(self, slot: int) -> Any:
-        """Every env's observations in ``slot``, made whole where the kind needs it."""
-        obs = self._core.observations(slot)
-        return obs if self._fill is None else self._fill(obs, None)
+    def _infos(self, res: Result, only: Optional[np.ndarray] = None) -> dict[str, Any]:
+        """A call's infos (``only``: a partial reset's mask): the kind's, then what every kind
+        reports (restarted and recycled workers, ``env_id`` for ``recv``). Read before the
+        observations: a kind may complete those from its infos."""
+        core = self._core
+        if res.slot is not None:
+            self._last_slot = res.slot
+        infos = self._kind.infos(core, res, only)
+        if res.env_ids is not None:
+            infos["env_id"] = res.env_ids
+        restarted = res.restarted
+        if restarted is not None:
+            mark_restarted(infos, restarted)
+            core.mark_recycled(infos, res.env_ids)
+        return infos
+
+    def _observations(self, res: Result) -> Any:
+        """The observations of a call's rows, made whole where the kind needs it."""
+        if res.slot is not None:
+            obs = self._core.observations(res.slot)
+            return obs if self._fill is None else self._fill(obs, None)
+        assert res.obs is not None
+        obs = self._kind.batch_views(res.obs)
+        return obs if self._fill is None else self._fill(obs, res.env_ids)
 
     def _not_pending(self, caller: str) -> None:
         if self._pending is not None:
-            raise already_pending(caller, self._pending[0])
+            raise already_pending(caller, self._pending.what)
 
     def _take_pending(self, what: str) -> Any:
         """End the pending ``{what}_async`` (``NoAsyncCallError`` if there is none); what it
         left for its wait."""
-        if self._pending is None or self._pending[0] != what:
+        if self._pending is None or self._pending.what != what:
             raise no_async_call(what)
-        left, self._pending = self._pending[1], None
+        left, self._pending = self._pending.done, None
         return left
 
     def episode_counters(self) -> tuple[np.ndarray, np.ndarray]:
@@ -260,8 +297,8 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         an env whose episode ended on that step shows the ended episode's."""
         if self._last_slot is None:
             raise RuntimeError("call reset() first")
-        recs = self._core.recs[self._last_slot]
-        return recs["episode_return"].copy(), recs["episode_length"].astype(np.int64)
+        cols = self._core.cols[self._last_slot]
+        return cols["episode_return"].copy(), cols["episode_length"].copy()
 
     # -- EnvPool-style async API -----------------------------------------------------------
 
@@ -280,7 +317,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         if schedule is not None:
             core.set_seeds(schedule)
         core.async_reset()
-        self._started = True
+        core.started = True
         self._async_ids = None
 
     def send(self, actions: Any, env_id: Optional[Any] = None) -> None:
@@ -292,7 +329,10 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         if ids is None:
             raise RuntimeError("send() needs env_id, or a previous recv() whose envs it answers")
         env_ids = [int(i) for i in np.atleast_1d(ids)]
-        self._core.send(self._kind.actions(actions, env_ids), env_ids)
+        acts = self._kind.actions(actions, env_ids)
+        self._core.send(acts, env_ids)
+        if self._core.log is not None:
+            self._taken[env_ids] = acts
 
     def recv(
         self,
@@ -313,17 +353,16 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         """
         core = self._core
         core.check_open()
-        rows, recs, env_id, extras = core.recv(min_batch, max_batch, timeout)
-        obs = self._kind.batch_views(rows)
-        self._async_ids = env_id
-        terminated, truncated, restarted, _ = flags(recs)
-        infos = self._kind.recv_infos(core, recs, extras, env_id)
-        if self._fill is not None:
-            obs = self._fill(obs, env_id)
-        mark_restarted(infos, restarted)
-        infos["env_id"] = env_id
-        core.mark_recycled(infos)
-        return obs, recs["reward"].astype(np.float64), terminated, truncated, infos
+        res = core.recv(min_batch, max_batch, timeout)
+        assert res.env_ids is not None
+        self._async_ids = res.env_ids
+        cols = res.cols
+        terminated, truncated = cols["terminated"].copy(), cols["truncated"].copy()
+        core.ended[res.env_ids] = terminated | truncated
+        if core.log is not None:
+            core.log.record(res, self._taken, self._same_step)
+        infos = self._infos(res)
+        return self._observations(res), cols["reward"].copy(), terminated, truncated, infos
 
     # -- calls -----------------------------------------------------------------------------
 
@@ -356,7 +395,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
             done: tuple[str, Any] = ("ok", self.call(name, *args, **kwargs))
         except Exception as exc:  # raised by call_wait, as AsyncVectorEnv raises it there
             done = ("err", exc)
-        self._pending = ("call", done)
+        self._pending = Pending("call", done)
 
     def call_wait(self, timeout: Optional[float] = None) -> tuple[Any, ...]:
         """The second half of :meth:`call_async`: one result per env (``timeout`` is accepted
@@ -405,7 +444,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         if core is None:
             return
         if self._pending is not None and not core.closed:
-            warn_close_pending(self._pending[0])
+            warn_close_pending(self._pending.what)
         self._pending = None
         core.close()
 

@@ -27,25 +27,16 @@ from gymnasium.error import CustomSpaceError
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_differing_spaces
 
-from ..errors import EnvFailedError
-from ..front.core import (
-    SUMMARY_FINAL,
-    SUMMARY_RESTARTED,
-    flags,
-    mark_restarted,
-    raised_in_worker,
-    reraise,
-    scalar_actions,
-)
+from ..front.core import SUMMARY_FINAL, out_of_range, scalar_actions
 from ..protocol import NO_SEED, registry
-from ..protocol.infos import HEAD, RESET_OBS, STEP_OBS, InfoDecoder, split_joined, vector_infos
+from ..protocol.infos import RESET_OBS, STEP_OBS, InfoDecoder, split_joined, vector_infos
 from ..protocol.layout import FIXED_SPACES, SpaceLayout, UnsupportedSpaceError, space_leaves
 from ..protocol.ops import SERVED_BY
 from ..protocol.vector_contract import check_vector_env
 from ..settings import PoolOptions
 
 if TYPE_CHECKING:
-    from ..front.core import Core
+    from ..front.core import Core, Result
 
 __all__ = ["DEFAULT_INFO_BYTES", "HOSTED_WORKER_POLL_US", "HostedKind", "VectorEnvFn"]
 
@@ -239,7 +230,8 @@ class HostedKind:
         }
         self._spec = spec
         self._decoder = InfoDecoder()
-        self._started = False
+        #: Hosted envs render in their workers.
+        self.log_steps: Optional[int] = None
         #: Who serves this kind's env operations (:data:`rogue_gym.protocol.ops.SERVED_BY`).
         self.who = "a hosted env" if hosted is None else "a hosted vector env"
         #: The env operations this kind serves.
@@ -312,7 +304,7 @@ class HostedKind:
             (int(env), pickle.dumps(list(row), protocol=pickle.HIGHEST_PROTOCOL))
             for env, row in zip(ids, zip(*columns))
         ]
-        core.pool.stage_action_extras(extras)
+        core.stage_action_extras(extras)
 
     def _discrete_indices(
         self, actions: Any, env_ids: Optional[Sequence[int]], n: int
@@ -328,10 +320,7 @@ class HostedKind:
         if bad.any():
             j = int(np.flatnonzero(bad)[0])
             env = j if env_ids is None else env_ids[j]
-            raise ValueError(
-                f"env {env}: action {a[j]} is out of range of {space}; valid actions are "
-                f"{start} to {start + size - 1}"
-            )
+            raise ValueError(out_of_range(env, a[j], start, start + size - 1, space))
         return a.astype(np.int64) - start
 
     def _seeds(self, seed: Any) -> dict[str, Any]:
@@ -365,9 +354,8 @@ class HostedKind:
     def seed_schedule(self, seed: Any, core: Core) -> Optional[dict[str, Any]]:
         """An int seeds env ``i`` with ``seed + i``, a list seeds each env; ``None`` keeps each
         env's generator (a first reset without a seed reseeds nothing, as gymnasium's)."""
-        if seed is None and self._started:
+        if seed is None and core.started:
             return None
-        self._started = True
         return self._seeds(seed)
 
     def seed_partial(self, seed: Any, mask: np.ndarray, core: Core) -> None:
@@ -392,53 +380,30 @@ class HostedKind:
 
     # -- infos -----------------------------------------------------------------------------
 
-    def _infos(
-        self, core: Core, restarted: Optional[np.ndarray], final: set[int]
-    ) -> dict[str, Any]:
+    def infos(self, core: Core, result: Result, only: Optional[np.ndarray]) -> dict[str, Any]:
+        """The infos the envs returned, merged as gymnasium's vector envs merge them (in
+        SAME_STEP, with the ended envs' ``final_obs`` and ``final_info``)."""
+        rows = result.rows
+        final: set[int] = set()
+        if result.summary & SUMMARY_FINAL and core.same_step and result.env_ids is None:
+            final = {int(i) for i in np.flatnonzero(result.cols["has_final_obs"])}
         infos: dict[str, Any] = {}
-        mark_restarted(infos, restarted)
-        rows, data, size, ends = core.pool.take_extras(HEAD)
-        if size and not final and self._decoder.put_uniform(infos, data, rows, self.num_envs):
-            return infos  # the usual step: one typed info layout, decoded in one go
+        extras: list[tuple[int, bytes]] = []
+        if result.extras is not None:
+            joined, data, size, ends = result.extras
+            if size and not final and self._decoder.put_uniform(infos, data, joined, rows):
+                return infos  # the usual step: one typed info layout, decoded in one go
+            extras = split_joined(joined, data, size, ends, rows)
+        elif not final:
+            return infos
+        env_of = result.ids()
         return vector_infos(
             infos,
             self._decoder,
-            split_joined(rows, data, size, ends, self.num_envs),
-            self.num_envs,
-            lambda env, entries: self._env_info(core, env, entries, env in final),
-            final,
-        )
-
-    def reset_infos(self, core: Core, slot: int, only: Optional[np.ndarray]) -> dict[str, Any]:
-        """The infos the envs' resets returned."""
-        self._started = True
-        return self._infos(core, flags(core.recs[slot])[2], set())
-
-    def step_infos(self, core: Core, slot: int, summary: int, same_step: bool) -> dict[str, Any]:
-        """The infos the envs returned, merged as gymnasium's vector envs merge them."""
-        cols = core.cols[slot]
-        restarted = cols["restarted"] if summary & SUMMARY_RESTARTED else None
-        final: set[int] = set()
-        if summary & SUMMARY_FINAL and same_step:
-            final = {int(i) for i in np.flatnonzero(cols["has_final_obs"])}
-        return self._infos(core, restarted, final)
-
-    def recv_infos(
-        self,
-        core: Core,
-        recs: np.ndarray,
-        env_extras: list[tuple[int, bytes]],
-        env_id: np.ndarray,
-    ) -> dict[str, Any]:
-        """The infos of the batch's envs, one row each (``env_extras``: ``(env id, bytes)``)."""
-        row_of = {int(e): r for r, e in enumerate(env_id)}
-        extras = [(row_of[env], data) for env, data in env_extras]
-        return vector_infos(
-            {},
-            self._decoder,
             extras,
-            len(env_id),
-            lambda row, entries: self._env_info(core, int(env_id[row]), entries, False),
+            rows,
+            lambda row, entries: self._env_info(core, int(env_of[row]), entries, row in final),
+            final,
         )
 
     def _env_info(
@@ -479,22 +444,7 @@ class HostedKind:
         indices: Sequence[int],
     ) -> list[Any]:
         """Run ``op`` in the envs' workers; an env's exception is re-raised here."""
-        requests = [
-            (int(env), pickle.dumps((op, name, args, kwargs), protocol=pickle.HIGHEST_PROTOCOL))
-            for env, (args, kwargs) in zip(indices, arguments)
-        ]
-        try:
-            replies = core.pool.call_envs(requests)
-        except EnvFailedError as err:
-            reraise(err)
-        results = []
-        for env, data in replies:
-            status, value = pickle.loads(data)
-            if status == "err":
-                exc = raised_in_worker(value, f"env {env} during {op}({name!r})")
-                raise exc if exc is not None else RuntimeError(f"env {env}: {value}")
-            results.append(value)
-        return results
+        return core.call_envs(op, name, list(zip(indices, arguments)))
 
     def render(self, core: Core) -> Optional[tuple[Any, ...]]:
         """Every env's ``render()``."""

@@ -2,8 +2,9 @@
 
 Its spaces come from the engine, its seeds from the pool's episode schedule (env ``i``'s
 ``e``-th episode plays the same dungeon whatever the worker count), its infos from the
-records the workers write (decoded into preallocated columns, no per-env Python), and its
-frames are rebuilt by replaying each env's episode here (:mod:`rogue_gym.kinds.replay`).
+columns every call is decoded into (no per-env Python), and its frames are rebuilt by
+replaying each env's episode, as the front logs it (:mod:`rogue_gym.front.episode_log`), on an
+in-process engine.
 """
 
 from __future__ import annotations
@@ -20,14 +21,13 @@ from .._config import resolve_config, to_json
 from ..envs.image import ObsSpec, observation_space
 from ..envs.palette import screen_to_rgb
 from ..envs.rogue_env import ACTIONS
-from ..front.core import SUMMARY_FINAL, SUMMARY_RESTARTED, flags, mark_restarted, scalar_actions
+from ..front.core import SUMMARY_FINAL, out_of_range, scalar_actions
 from ..protocol.ops import op_table, run_op
 from ..settings import PoolSettings
-from .replay import ActionHistory
 from .seed_sets import seed_set
 
 if TYPE_CHECKING:
-    from ..front.core import Core
+    from ..front.core import Core, Result
 
 __all__ = ["RENDER_MODES", "WHO", "NativeKind"]
 
@@ -84,19 +84,8 @@ class NativeKind:
         self._info_keys: list[str] = []
         self._masks: dict[str, np.ndarray] = {}
         self._actions = np.zeros(self.num_envs, np.int64)
-        #: The actions of the last step (int64, one per env).
-        self.last_actions = self._actions
-        self._history = (
-            ActionHistory(self.config, self.max_steps, self.stair_reward, self.num_envs)
-            if render_mode is not None
-            else None
-        )
-        # Render bookkeeping (NEXT_STEP): envs whose episode ended at the last call, whose next
-        # step starts a new episode; and those a partial reset left to be autoreset.
-        self._ended = np.zeros(self.num_envs, bool)
-        self._started = False
-        #: The action last sent to each env through the async API (for the replay history).
-        self._sent = np.zeros(self.num_envs, np.int64)
+        #: Frames are rebuilt by replay: the front logs episodes of up to ``max_steps``.
+        self.log_steps: Optional[int] = self.max_steps + 2 if render_mode is not None else None
         self._ops = op_table(self, WHO)
         #: Who serves this kind's env operations (:data:`rogue_gym.protocol.ops.SERVED_BY`).
         self.who = WHO
@@ -123,13 +112,12 @@ class NativeKind:
         """Check the pool's observation and build one info template per slot over its
         columns (the step path copies a template, nothing per env)."""
         self._core = weakref.ref(core)
-        pool = core.pool
-        if tuple(pool.obs_shape) != self.obs_shape or np.dtype(pool.obs_dtype) != self.obs_dtype:
+        if core.obs_shape != self.obs_shape or np.dtype(core.obs_dtype) != self.obs_dtype:
             raise RuntimeError(
-                f"pool observation {pool.obs_dtype}{tuple(pool.obs_shape)} differs from the "
-                f"engine's {self.obs_dtype}{self.obs_shape}"
+                f"pool observation {core.obs_dtype}{core.obs_shape} differs from the engine's "
+                f"{self.obs_dtype}{self.obs_shape}"
             )
-        self.info_names = list(pool.info_names)
+        self.info_names = core.info_names
         self._templates = []
         for cols in core.cols:
             values: dict[str, np.ndarray] = {
@@ -161,10 +149,6 @@ class NativeKind:
         n = self.num_envs if env_ids is None else len(env_ids)
         a = actions
         if type(a) is np.ndarray and a.dtype == np.int64 and a.shape == (n,):
-            if env_ids is None:
-                self.last_actions = a
-            elif self._history is not None:
-                self._sent[np.asarray(env_ids, np.int64)] = a
             return a
         if isinstance(a, str):
             if len(a) != n:
@@ -193,16 +177,10 @@ class NativeKind:
             bad = a >= len(ACTIONS)
             if bad.any():
                 i = int(np.flatnonzero(bad)[0])
-                raise ValueError(
-                    f"env {i}: action {a[i]} is out of range; valid actions are 0 to "
-                    f"{len(ACTIONS) - 1} (range({len(ACTIONS)}))"
-                )
+                env = i if env_ids is None else env_ids[i]
+                raise ValueError(out_of_range(env, a[i], 0, len(ACTIONS) - 1))
         out = self._actions if env_ids is None else np.empty(n, np.int64)
         np.copyto(out, a, casting="unsafe")
-        if env_ids is None:
-            self.last_actions = out
-        elif self._history is not None:
-            self._sent[np.asarray(env_ids, np.int64)] = out
         return out
 
     def seed_schedule(self, seed: Any, core: Core) -> Optional[dict[str, Any]]:
@@ -217,7 +195,7 @@ class NativeKind:
         seed = int(seed)
         if not 0 <= seed < 2**64:
             raise ValueError(f"seed must be in [0, 2**64), got {seed}")
-        if core.fresh and seed == self.base_seed:
+        if not core.started and seed == self.base_seed:
             return None  # the pool just started from this schedule
         self.base_seed = seed
         self.seeds["base"] = seed
@@ -232,97 +210,45 @@ class NativeKind:
 
     # -- infos -----------------------------------------------------------------------------
 
-    def info_arrays(self, recs: np.ndarray) -> dict[str, np.ndarray]:
-        """The info values and episode counters of a record batch as fresh arrays."""
-        out: dict[str, np.ndarray] = {
-            "seed": recs["seed"].view(np.int64).copy(),
-            "episode_index": recs["episode"].astype(np.int64),
-            "episode_return": recs["episode_return"].copy(),
-            "episode_length": recs["episode_length"].astype(np.int64),
-        }
-        n = len(self.info_names)
-        if n:
-            values = recs["info"][:, :n].T
-            ints = np.ascontiguousarray(values, dtype=np.int64)
-            for k, name in enumerate(self.info_names):
-                out[name] = values[k] != 0 if name in _BOOL_INFO else ints[k]
-        return out
-
-    def reset_infos(self, core: Core, slot: int, only: Optional[np.ndarray]) -> dict[str, Any]:
-        """Every env's info values (or, for a partial reset, the reset envs', others 0)."""
-        recs = core.recs[slot]
-        restarted = flags(recs)[2]
-        reset = np.ones(self.num_envs, bool) if only is None else only | restarted
-        infos: dict[str, Any] = {}
-        for key, arr in self.info_arrays(recs).items():
+    def infos(self, core: Core, result: Result, only: Optional[np.ndarray]) -> dict[str, Any]:
+        """A whole-batch call: the slot's info template (arrays reused, like the slot, unless
+        the env hands out copies) and, in SAME_STEP, the ended envs' ``final_obs`` and
+        ``final_info``. A partial reset (``only``) or a ``recv``: fresh arrays, the rows not
+        reset zero and unmasked."""
+        if only is None and result.slot is not None:
+            infos = self._templates[result.slot].copy()
+            infos.update(self._masks)
+            if core.copy:
+                for key in self._info_keys:
+                    infos[key] = infos[key].copy()
+            if result.summary & SUMMARY_FINAL and core.same_step:
+                self._add_finals(core, infos, result.cols["has_final_obs"].copy())
+            return infos
+        template = self._templates[-1 if result.slot is None else result.slot]
+        rows = result.rows
+        shown = np.ones(rows, bool)
+        if only is not None:
+            restarted = result.restarted
+            shown = only if restarted is None else only | restarted
+        infos = {}
+        for key in self._info_keys:
+            arr = template[key][:rows].copy()
             if only is not None:
-                arr[~reset] = 0
+                arr[~shown] = 0
             infos[key] = arr
-            infos[f"_{key}"] = reset
-        mark_restarted(infos, restarted)
-        if self._history is not None:
-            if only is not None:
-                self._ended &= ~reset  # the others are still to be autoreset
-            else:
-                self._ended[:] = False
-            self._history.on_reset(recs, reset)
-        self._started = True
+            infos[f"_{key}"] = shown
         return infos
 
-    def step_infos(self, core: Core, slot: int, summary: int, same_step: bool) -> dict[str, Any]:
-        """The slot's info template (arrays reused, like the slot), the masks, and in
-        SAME_STEP the ended envs' ``final_obs``/``final_info``."""
-        cols = core.cols[slot]
-        infos = self._templates[slot].copy()
-        infos.update(self._masks)
-        if core.copy:
-            for key in self._info_keys:
-                infos[key] = infos[key].copy()
-        if summary & SUMMARY_RESTARTED:
-            mark_restarted(infos, cols["restarted"])
-        history = self._history
-        if history is not None:
-            recs = core.recs[slot]
-            restarted = cols["restarted"]
-            history.on_step(self.last_actions, ~self._ended & ~restarted, recs)
-            history.on_reset(recs, self._ended | restarted)
-            if not same_step:
-                self._ended = cols["terminated"] | cols["truncated"]
-        if summary & SUMMARY_FINAL and same_step:
-            ended = cols["has_final_obs"].copy()
-            final_obs = np.full(self.num_envs, None, dtype=object)
-            for i in np.flatnonzero(ended):
-                final_obs[i] = core.final_obs(int(i))
-            infos["final_info"] = infos.copy()
-            infos["_final_info"] = ended
-            infos["final_obs"] = final_obs
-            infos["_final_obs"] = ended
-            if history is not None:
-                history.on_reset(core.recs[slot], ended, seed_known=False)
-        return infos
-
-    def recv_infos(
-        self,
-        core: Core,
-        recs: np.ndarray,
-        env_extras: list[tuple[int, bytes]],
-        env_id: np.ndarray,
-    ) -> dict[str, Any]:
-        """The info values of the batch's envs (one row each, all set); the replay history
-        follows the rows, so that ``render()`` shows the envs as they are now."""
-        if self._history is not None:
-            ids = np.asarray(env_id, np.int64)
-            same_step = core.same_step
-            self._history.on_rows(ids, recs, self._sent, same_step)
-            if not same_step:
-                self._ended[ids] = (recs["flags"] & 3) != 0
-            self._started = True
-        infos: dict[str, Any] = {}
-        ones = np.ones(len(recs), bool)
-        for key, arr in self.info_arrays(recs).items():
-            infos[key] = arr
-            infos[f"_{key}"] = ones
-        return infos
+    def _add_finals(self, core: Core, infos: dict[str, Any], ended: np.ndarray) -> None:
+        """(SAME_STEP) ``final_obs`` and ``final_info`` (the step's infos) of the envs whose
+        episode ended at the step."""
+        final_obs = np.full(self.num_envs, None, dtype=object)
+        for i in np.flatnonzero(ended):
+            final_obs[i] = core.final_obs(int(i))
+        infos["final_info"] = infos.copy()
+        infos["_final_info"] = ended
+        infos["final_obs"] = final_obs
+        infos["_final_obs"] = ended
 
     def info_counts(self) -> tuple[int, int]:
         """None: the game's infos are fixed fields of its records, not rows."""
@@ -347,7 +273,7 @@ class NativeKind:
         if name == "episode_seed":
             core = self._core()
             assert core is not None  # bound while the pool lives
-            return int(core.recs[core.slot]["seed"][env]) if self._started else None
+            return int(core.cols[core.slot]["seed"].view(np.uint64)[env]) if core.started else None
         table = self._attributes()
         if name not in table:
             raise AttributeError(
@@ -413,15 +339,22 @@ class NativeKind:
         return screen_to_rgb(screen) if self.render_mode == "rgb_array" else screen
 
     def screen(self, env: int) -> str:
-        """The current screen of env ``env`` (map rows and status line), rebuilt by replay."""
-        if self._history is None:
+        """The current screen of env ``env`` (map rows and status line), rebuilt by replaying
+        its episode as the front logged it."""
+        core = self._core()
+        if core is None or core.log is None:
             raise RuntimeError(
                 "rendering needs render_mode='ansi', 'human' or 'rgb_array' (actions are only "
                 "recorded then)"
             )
-        if not self._started:
+        if not core.started:
             raise RuntimeError("call reset() before render()")
-        return self._history.screen(env)
+        seed, actions = core.log.episode(env)
+        game = _native.Game(to_json(self.config), self.max_steps, self.stair_reward)
+        game.reset(seed)
+        for a in actions:
+            game.step(int(a))
+        return "\n".join([*game.screen(), game.status_line()])
 
     def render(self, core: Core) -> Optional[tuple[Any, ...]]:
         """Every env's frame; ``human`` prints the screens and returns ``None``."""

@@ -444,7 +444,7 @@ class InfoDecoder:
 def split_joined(
     rows: Optional[Sequence[int]], data: bytes, size: int, ends: Sequence[int], n: int
 ) -> list[tuple[int, bytes]]:
-    """The ``(row, bytes)`` of joined extras (the pool's ``take_extras``): ``rows`` (``None``:
+    """The ``(row, bytes)`` of joined extras (a result's ``extras``): ``rows`` (``None``:
     all ``n`` in order), each ``size`` bytes of ``data``, or ending at ``ends``."""
     if size:
         ends = range(size, len(data) + 1, size)

@@ -1,0 +1,83 @@
+//! The EnvPool-style async API, env by env: `async_reset`, `send` to any envs, and `recv` of
+//! the first envs ready, whose result is decoded into the `recv` column buffer row by row.
+
+use numpy::PyArray1;
+use pyo3::prelude::*;
+use pyo3::types::PyTuple;
+use rogue_gym_pool::{Received, RecvWant};
+
+use super::PyPool;
+use super::results::join_extras;
+use crate::gil::lock_gil_free;
+use crate::settings;
+
+#[pymethods]
+impl PyPool {
+    /// Async: reset every env; collect the results with `recv()`.
+    fn async_reset(&self, py: Python<'_>) -> PyResult<()> {
+        self.with_pool(py, |p, _| p.async_reset())
+    }
+
+    /// Async: send `actions` (int64 indices, or raw uint8 bytes for hosted envs whose actions
+    /// travel so) to `env_ids` (any envs, each at most once until received).
+    fn send(
+        &self,
+        py: Python<'_>,
+        actions: &Bound<'_, PyAny>,
+        env_ids: Vec<usize>,
+    ) -> PyResult<()> {
+        let acts = self.owned_actions(actions, env_ids.len())?;
+        self.with_pool(py, move |p, _| p.send_actions(acts.as_actions(), &env_ids))
+    }
+
+    /// Async: the first envs ready, `(rows, summary, extras, env_ids, obs)`: their per-env
+    /// values decoded into the `recv` column buffer (its first `rows` entries), the
+    /// `SUMMARY_*` bits, the joined extras of the rows that wrote some (see `Joined`), the
+    /// int64 env id of each row, and their observations as one uint8 array (`rows x
+    /// obs_bytes`, a fresh copy). `min_batch`, `max_batch` (default both `batch_size`) and
+    /// `timeout` (seconds) as `RecvWant`: return once `max_batch` are ready, or at the
+    /// deadline with at least `min_batch` (else `TimeoutError`, nothing lost).
+    #[pyo3(signature = (min_batch=None, max_batch=None, timeout=None))]
+    fn recv<'py>(
+        &self,
+        py: Python<'py>,
+        min_batch: Option<usize>,
+        max_batch: Option<usize>,
+        timeout: Option<f64>,
+    ) -> PyResult<Bound<'py, PyTuple>> {
+        let timeout = timeout
+            .map(|t| settings::duration("timeout", t))
+            .transpose()?;
+        let got: Received = self.with_pool(py, move |p, _| {
+            let b = p.batch_size();
+            let max = max_batch.unwrap_or(b).max(min_batch.unwrap_or(1));
+            let min = min_batch.unwrap_or(max.min(b));
+            p.recv_want(RecvWant {
+                min_batch: min,
+                max_batch: max,
+                timeout,
+            })
+        })?;
+        let rows = got.env_ids.len();
+        let summary = {
+            let mut out = lock_gil_free(py, &self.out)?;
+            got.fill(self.n_info, &mut out);
+            out.extras.clear();
+            let recv_buffer = self.columns_bound()?.saturating_sub(1);
+            self.decode_into(&out, recv_buffer, true)?
+        };
+        let head = self.extras_head.load(std::sync::atomic::Ordering::Relaxed);
+        let extras = join_extras(py, &got.extras, rows, head)?;
+        let ids: Vec<i64> = got.env_ids.iter().map(|&e| e as i64).collect();
+        PyTuple::new(
+            py,
+            [
+                rows.into_pyobject(py)?.into_any(),
+                summary.into_pyobject(py)?.into_any(),
+                extras.into_pyobject(py)?.into_any(),
+                PyArray1::from_vec(py, ids).into_any(),
+                PyArray1::from_vec(py, got.obs).into_any(),
+            ],
+        )
+    }
+}
