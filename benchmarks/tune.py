@@ -3,7 +3,7 @@
 For each env and size, ``tune`` runs as a user would (its defaults), then an independent sweep
 times every one of its candidates again; the pick's sweep median is compared with the sweep's
 best, and where they differ the two are timed side by side in pairs (``--final-pairs``), whose
-median ratio is the figure that holds on a machine whose speed drifts (``rogue_gym.tune.duel``:
+median ratio is the figure that holds on a machine whose speed drifts (``rogue_gym.tuning.duel``:
 both pools alive, stepped in alternating bursts). PufferLib's
 ``autotune`` runs beside it where pufferlib imports.
 
@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 import rogue_gym
-from rogue_gym.tune import Candidate
+from rogue_gym.tuning import Candidate
 
 from builds_ab import median_interval
 from hosted_throughput import env_fn as hosted_env_fn
@@ -77,13 +77,13 @@ def puffer_autotune(name: str, n: int, seconds: float) -> dict[str, Any]:
 def head_to_head(
     env: Any, n: int, pick: Any, best: Any, pairs: int, burst: float
 ) -> dict[str, Any]:
-    """The pick against the sweep's best, side by side (``rogue_gym.tune.duel``: both pools
+    """The pick against the sweep's best, side by side (``rogue_gym.tuning.duel``: both pools
     alive, ``pairs`` pairs of alternating bursts): the median of the pairs' ratios, pick over
     best. The sweep's medians move by more than 5% between sweeps on this VM; bursts a fraction
     of a second apart do not see the machine's drift."""
     if pick == best:
         return {"pairs": 0, "ratio": 1.0, "ratios": [], "interval": [1.0, 1.0]}
-    d = rogue_gym.tune.duel(env, n, pick, best, pairs=pairs, burst=burst)
+    d = rogue_gym.tuning.duel(env, n, pick, best, pairs=pairs, burst=burst)
     ratios = d.ratios if d.first == pick.label else [1 / r for r in d.ratios]
     return {
         "pairs": pairs,

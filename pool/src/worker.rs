@@ -25,11 +25,11 @@ use crate::wire::{
 };
 
 mod block;
-mod hosted;
+mod envs;
 mod slot;
 
 use block::BlockHost;
-use hosted::{Hosted, answer_calls, take_action_extras};
+use envs::{WorkerEnvs, answer_calls, take_action_extras};
 use slot::{BlockOut, Slot, SlotCtx};
 
 #[derive(Debug, thiserror::Error)]
@@ -188,17 +188,17 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
             WorkerError::Msg(format!("cannot build env {building}: {e}"))
         })?;
     let mut hosted = match built {
-        Built::Envs(list) => Hosted::Each(
+        Built::Envs(list) => WorkerEnvs::Each(
             list.into_iter()
                 .zip(globals)
                 .map(|(env, g)| Slot::new(env, g))
                 .collect(),
         ),
-        Built::Block(block) => Hosted::Block(BlockHost::new(block, globals)),
+        Built::Block(block) => WorkerEnvs::Block(BlockHost::new(block, globals)),
     };
     let spec = match &hosted {
-        Hosted::Each(slots) => slots[0].env.spec(),
-        Hosted::Block(host) => host.spec(),
+        WorkerEnvs::Each(slots) => slots[0].env.spec(),
+        WorkerEnvs::Block(host) => host.spec(),
     };
     let n_info = spec.info_names.len().min(MAX_INFO);
     let aw = spec.action_words();

@@ -11,6 +11,8 @@ The entry points:
   Stable-Baselines3 ``VecEnv`` s (imported lazily: ``import rogue_gym`` needs neither SB3 nor
   torch).
 * :mod:`rogue_gym.envpool`: EnvPool's API (``envpool.make``) over any gymnasium id.
+* :func:`rogue_gym.tune`: time the pool's layouts for an env and say which is fastest
+  (:mod:`rogue_gym.tuning`).
 
 ``RogueGym-v0`` is registered with gymnasium on import.
 """
@@ -66,6 +68,8 @@ def __getattr__(name: str) -> Any:
     # ``from . import sb3``: that asks this function for ``sb3`` again, without end.
     if name in ("RogueVecEnv", "PoolVecEnv"):
         return getattr(importlib.import_module(".sb3", __name__), name)
-    if name in ("tune", "sb3"):  # tune is callable as tune(env, num_envs)
-        return importlib.import_module(f".{name}", __name__)
+    if name == "sb3":
+        return importlib.import_module(".sb3", __name__)
+    if name == "tune":  # rogue_gym.tune(env, num_envs) is rogue_gym.tuning.tune
+        return importlib.import_module(".tuning", __name__).tune
     raise AttributeError(f"module 'rogue_gym' has no attribute {name!r}")

@@ -77,7 +77,7 @@ def check_cpus(num_workers: int) -> Check:
             "cpus",
             False,
             f"{detail}; {num_workers} workers is more than twice that",
-            f"use num_workers <= {max(1, int(2 * cpus))} (python -m rogue_gym.tune picks one), "
+            f"use num_workers <= {max(1, int(2 * cpus))} (python -m rogue_gym.tuning picks one), "
             "or give the job more CPUs (docker --cpus, Kubernetes resources.limits.cpu, Slurm "
             "--cpus-per-task)",
         )

@@ -123,11 +123,25 @@ def _cartpole() -> Any:
     return gym.make("CartPole-v1")
 
 
+def _cartpole_vector(n: int) -> Any:
+    """``n`` CartPoles in a ``SyncVectorEnv`` (NEXT_STEP): a vector env per worker block."""
+    from gymnasium.vector import SyncVectorEnv
+
+    return SyncVectorEnv([_cartpole] * n)
+
+
+def _cartpole_vector_same_step(n: int) -> Any:
+    """As :func:`_cartpole_vector`, autoresetting in SAME_STEP (what SB3's facade needs)."""
+    from gymnasium.vector import AutoresetMode, SyncVectorEnv
+
+    return SyncVectorEnv([_cartpole] * n, autoreset_mode=AutoresetMode.SAME_STEP)
+
+
 @pytest.fixture
 def make_kind() -> Iterator[Callable[..., Any]]:
     """``make_kind(kind, facade="gymnasium", num_envs=4, **kw)``: a pool of the native game
-    (paper config, seed 0) or of hosted CartPole, 2 workers, as a gymnasium vector env or an
-    SB3 ``VecEnv``; closed at teardown and checked for leftover workers and files. For the
+    (paper config, seed 0), of hosted CartPole or of CartPole in one ``SyncVectorEnv`` per
+    worker (``"vector"``), 2 workers, as a gymnasium vector env or an SB3 ``VecEnv``; closed at teardown and checked for leftover workers and files. For the
     tests of behaviour every kind shares."""
     made: list[Any] = []
 
@@ -144,6 +158,11 @@ def make_kind() -> Iterator[Callable[..., Any]]:
         elif kind == "hosted":
             fns = [_cartpole] * num_envs
             env = (PoolVecEnv if facade == "sb3" else rogue_gym.PoolVectorEnv)(fns, **kw)
+        elif kind == "vector":
+            if facade == "sb3":
+                env = PoolVecEnv.from_vector_env(_cartpole_vector_same_step, num_envs, **kw)
+            else:
+                env = rogue_gym.PoolVectorEnv.from_vector_env(_cartpole_vector, num_envs, **kw)
         else:
             raise ValueError(f"unknown kind {kind!r}")
         made.append(env)

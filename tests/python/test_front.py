@@ -1,5 +1,6 @@
 """Behaviour every env kind shares through the one front end, checked for each kind (the native
-game and hosted CartPole) and, where SB3 sees it too, for each facade."""
+game, hosted CartPole, and CartPole in a vector env per worker) and, where SB3 sees it too, for
+each facade."""
 
 from __future__ import annotations
 
@@ -7,13 +8,19 @@ import gc
 import os
 import signal
 
+import gymnasium as gym
 import numpy as np
 import pytest
 import rogue_gym
+from rogue_gym.protocol.ops import ENV_OPS, SERVED_BY, op_table
+from rogue_gym.worker.env_adapter import WHO as ENV_ADAPTER
+from rogue_gym.worker.env_adapter import HostedEnv
+from rogue_gym.worker.vector_adapter import WHO as VECTOR_ADAPTER
+from rogue_gym.worker.vector_adapter import HostedVectorEnv
 
 from conftest import PAPER, pid_alive, pool_files, wait_until
 
-KINDS = ["native", "hosted"]
+KINDS = ["native", "hosted", "vector"]
 
 
 def _zeros(env) -> np.ndarray:
@@ -164,3 +171,44 @@ def test_a_scalar_action_is_a_type_error_and_a_wrong_count_a_value_error(kind, m
     with pytest.raises(ValueError, match=r"\(4,\)"):
         env.step(np.zeros(3, np.int64))
     env.step(_zeros(env))  # still usable
+
+
+#: One call of each env operation that every env of the kinds here can answer.
+_SAMPLE_CALLS = {
+    "call": ("render_mode", ()),
+    "env_method": ("get_wrapper_attr", ("render_mode",)),
+    "get_attr": ("render_mode", ()),
+    "has_attr": ("render_mode", ()),
+    "set_wrapper_attr": ("gravity", (9.8,)),
+    "setattr": ("tag", (1,)),
+    "is_wrapped": ("", (gym.Wrapper,)),
+    "render": ("", ()),
+    "set_reset_options": ("", ({},)),
+    "set_reset_seed": ("", (5,)),
+}
+
+
+def test_the_worker_side_interpreters_have_a_handler_for_each_operation_they_declare() -> None:
+    assert set(_SAMPLE_CALLS) == set(ENV_OPS)
+    for cls, who in ((HostedEnv, ENV_ADAPTER), (HostedVectorEnv, VECTOR_ADAPTER)):
+        assert set(op_table(cls, who)) == SERVED_BY[who]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_each_kind_serves_the_operations_its_table_declares_and_refuses_the_rest(
+    kind, make_kind
+) -> None:
+    """Every operation a kind declares answers one result per env; every other one is
+    refused at the call, naming the kind and the operation."""
+    env = make_kind(kind, **({"render_mode": "ansi"} if kind == "native" else {}))
+    env.reset(seed=0)
+    who, served = env._kind.who, env._kind.ops
+    assert served == SERVED_BY[who] and served <= set(ENV_OPS)
+    n = env.num_envs
+    for op, (name, args) in _SAMPLE_CALLS.items():
+        if op in served:
+            assert len(env.call_envs(op, name, [(args, {})] * n)) == n, op
+        else:
+            with pytest.raises(NotImplementedError, match=f"{who} does not serve .*'{op}'"):
+                env.call_envs(op, name, [(args, {})] * n)
+    env.step(_zeros(env))  # the pool goes on

@@ -13,7 +13,9 @@ import time
 import gymnasium as gym
 import pytest
 import rogue_gym
-import rogue_gym.tune as tune_mod
+import rogue_gym.tuning as tune_mod
+from rogue_gym.tuning import search as tune_search
+from rogue_gym.tuning import timing as tune_timing
 
 from hosted_envs import SleepEnv, SlowResetEnv
 
@@ -55,7 +57,7 @@ def test_tune_runs_from_the_command_line_on_the_native_game() -> None:
         [
             sys.executable,
             "-m",
-            "rogue_gym.tune",
+            "rogue_gym.tuning",
             "RogueGym-v0",
             "--num-envs",
             "4",
@@ -92,9 +94,9 @@ def test_an_async_layout_leaves_nothing_running_between_bursts() -> None:
     # In a duel the other pool is timed between this one's bursts: steps still in flight would
     # take its CPUs and start this one's next burst with work already done.
     slow = [functools.partial(SleepEnv, 0.002)] * 4
-    target = tune_mod._Target("hosted", slow, None, 4)
+    target = tune_timing.Target("hosted", slow, None, 4)
     batched = tune_mod.Candidate("async", {"num_workers": 4, "batch_size": 2})
-    with tune_mod._Live(target, batched) as live:
+    with tune_timing.Live(target, batched) as live:
         assert live.burst(0.1) > 0
         before = live.env.stats().env_steps
         time.sleep(0.2)  # 100 steps' time of each env, were any running
@@ -114,7 +116,7 @@ def test_tune_times_again_only_the_layouts_within_half_the_best(
         timing.shares.append((0.5, 0.3, 0.2))
         return 0.01
 
-    monkeypatch.setattr(tune_mod, "_time_run", fake_run)
+    monkeypatch.setattr(tune_search, "time_run", fake_run)
     out = io.StringIO()
     result = rogue_gym.tune([cartpole] * 4, 4, seconds=0.01, rounds=3, cpus=2, out=out)
     runs = {t.candidate.label: len(t.steps_per_s) for t in result.timings}
@@ -141,8 +143,8 @@ def test_three_batch_slots_are_a_candidate_where_batches_are_lent() -> None:
     slots = [c.kwargs.get("batch_slots") for c in tune_mod.candidates("hosted", 8, None, 2, True)]
     assert slots.count(3) == 4  # one per worker count, 1 to 4 on 2 CPUs
     assert 3 not in [c.kwargs.get("batch_slots") for c in tune_mod.candidates("hosted", 8, None, 2)]
-    assert tune_mod._obs_bytes("native", None) == 17 * 16 * 32
-    assert tune_mod._obs_bytes("hosted", lambda: gym.make("CartPole-v1")) == 4 * 4
+    assert tune_timing.obs_bytes("native", None) == 17 * 16 * 32
+    assert tune_timing.obs_bytes("hosted", lambda: gym.make("CartPole-v1")) == 4 * 4
 
 
 def test_tune_recommends_async_one_env_per_worker_for_slow_resets() -> None:

@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use super::async_envs::{Received, Turn};
 use super::stepping::Actions;
 use super::workers::SlotState;
-use super::{Core, Pool};
+use super::{Pool, Supervisor};
 use crate::error::PoolError;
 
 /// How many envs an async [`Pool::recv_want`] hands over, and how long it may wait for them:
@@ -43,13 +43,13 @@ impl Pool {
     pub fn async_reset(&mut self) -> Result<(), PoolError> {
         self.begin_call()?;
         self.drain()?;
-        self.core.async_mode = true;
-        for k in 0..self.core.slots.len() {
-            self.core.send_reset(k, 0)?;
-            let envs = self.core.blocks[k].clone();
-            self.core.envs.all_in_flight(k, envs);
+        self.sup.async_mode = true;
+        for k in 0..self.sup.slots.len() {
+            self.sup.send_reset(k, 0)?;
+            let envs = self.sup.blocks[k].clone();
+            self.sup.envs.all_in_flight(k, envs);
         }
-        self.core.must_reset = false;
+        self.sup.must_reset = false;
         Ok(())
     }
 
@@ -68,12 +68,12 @@ impl Pool {
         env_ids: &[usize],
     ) -> Result<(), PoolError> {
         self.begin_call()?;
-        self.core.check_started("send")?;
+        self.sup.check_started("send")?;
         self.check_actions(actions, env_ids)?;
-        self.core.check_sendable(env_ids)?;
+        self.sup.check_sendable(env_ids)?;
         // A sync reset may start the async API too (as TorchRL's loop does).
-        self.core.async_mode = true;
-        let (ab, aw) = (self.core.spec.action_bytes, self.core.spec.action_words());
+        self.sup.async_mode = true;
+        let (ab, aw) = (self.sup.spec.action_bytes, self.sup.spec.action_words());
         let mut words = vec![0u64; aw];
         for (r, &e) in env_ids.iter().enumerate() {
             match actions {
@@ -84,12 +84,12 @@ impl Pool {
                         .copy_from_slice(&b[r * ab..(r + 1) * ab]);
                 }
             }
-            self.core.envs.stage(e, &words);
+            self.sup.envs.stage(e, &words);
         }
         // Answers that came meanwhile free their workers for what was just staged.
-        self.core.poll_all()?;
-        self.core.absorb()?;
-        self.core.dispatch_staged()
+        self.sup.poll_all()?;
+        self.sup.absorb()?;
+        self.sup.dispatch_staged()
     }
 
     /// Async: wait for the next `batch_size` envs and hand them over, first ready first.
@@ -106,8 +106,8 @@ impl Pool {
                 want.min_batch, want.max_batch
             )));
         }
-        self.core.check_started("recv")?;
-        let outstanding = self.core.envs.outstanding();
+        self.sup.check_started("recv")?;
+        let outstanding = self.sup.envs.outstanding();
         if outstanding < want.min_batch {
             return Err(PoolError::State(format!(
                 "recv() needs {} envs sent and not yet received but only {outstanding} are: send() actions (or async_reset()) first",
@@ -128,7 +128,7 @@ impl Pool {
             },
             until,
         )?;
-        let ready = self.core.envs.num_ready();
+        let ready = self.sup.envs.num_ready();
         if !done && ready < want.min_batch {
             return Err(PoolError::RecvTimeout {
                 ready,
@@ -136,14 +136,14 @@ impl Pool {
                 timeout: want.timeout.unwrap_or_default(),
             });
         }
-        let got = self.core.envs.take(max, self.core.spec.obs_bytes());
+        let got = self.sup.envs.take(max, self.sup.spec.obs_bytes());
         // The rows' own replacements by plan, whenever their worker was replaced.
-        self.core.recycled_envs.clone_from(&got.recycled);
+        self.sup.recycled_envs.clone_from(&got.recycled);
         Ok(got)
     }
 }
 
-impl Core {
+impl Supervisor {
     /// Fail a `send` or `recv` that needs an `async_reset` first: with the failures that made
     /// it so, if they were seen outside a wait (by a `send`) and not raised yet.
     fn check_started(&mut self, call: &str) -> Result<(), PoolError> {

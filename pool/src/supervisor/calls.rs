@@ -2,14 +2,14 @@
 //! reads and writes, method calls, renders), through files in the pool's directory.
 
 use super::workers::SlotState;
-use super::{Core, Pool};
+use super::{Pool, Supervisor};
 use crate::error::PoolError;
 use crate::wire::{CMD_CALL, calls};
 
 /// One worker's entries of a call file: `(row in its block, bytes)`.
 type Entries<'a> = Vec<(u32, &'a [u8])>;
 
-impl Core {
+impl Supervisor {
     /// `(env id, bytes)` entries grouped by worker.
     fn per_worker<'a>(
         &self,
@@ -40,10 +40,10 @@ impl Pool {
     /// was staged before for those workers is replaced; a reset drops what it finds staged.
     /// This works for EnvPool-style [`Pool::send_actions`] to some workers too.
     pub fn stage_action_extras(&mut self, extras: &[(usize, Vec<u8>)]) -> Result<(), PoolError> {
-        let per_worker = self.core.per_worker(extras)?;
+        let per_worker = self.sup.per_worker(extras)?;
         for (k, entries) in per_worker.iter().enumerate() {
             if !entries.is_empty() {
-                self.core.slots[k].action_extras = Some(calls::encode(entries));
+                self.sup.slots[k].action_extras = Some(calls::encode(entries));
             }
         }
         Ok(())
@@ -60,8 +60,8 @@ impl Pool {
     ) -> Result<Vec<(usize, Vec<u8>)>, PoolError> {
         self.begin_call()?;
         self.all_idle()?;
-        let per_worker = self.core.per_worker(requests)?;
-        let c = &mut self.core;
+        let per_worker = self.sup.per_worker(requests)?;
+        let c = &mut self.sup;
         let mut asked = Vec::new();
         for (k, entries) in per_worker.iter().enumerate() {
             if entries.is_empty() {
@@ -86,7 +86,7 @@ impl Pool {
                     || matches!(c.slots[k].state, SlotState::Pending { .. }))
             })
         })?;
-        let c = &mut self.core;
+        let c = &mut self.sup;
         let mut replies = Vec::with_capacity(requests.len());
         for &(k, generation) in &asked {
             if c.slots[k].generation != generation || !matches!(c.slots[k].state, SlotState::Idle) {

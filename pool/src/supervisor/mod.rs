@@ -38,7 +38,10 @@ pub use async_envs::Received;
 pub use stepping::{Actions, validate_actions};
 use workers::{SlotState, WorkerSlot};
 
-struct Core {
+/// The supervisor proper: the workers (their processes, blocks, channels and layouts), the
+/// shared batch buffer and the bookkeeping of the call in flight. [`Pool`] wraps it with the
+/// per-env async layer.
+struct Supervisor {
     cfg: PoolConfig,
     spec: EnvSpec,
     /// Block layout of each worker (blocks may differ by one env).
@@ -94,7 +97,7 @@ struct Core {
     /// The last worker failure, for the report of a call that outlived its bound.
     last_failure: Option<Box<WorkerFailure>>,
     /// When the current call began, and when a worker first failed during it: its bound
-    /// ([`Core::call_deadline`]) counts from these.
+    /// ([`Supervisor::call_deadline`]) counts from these.
     call_started: Instant,
     call_failed_at: Option<Instant>,
     /// The shared slot of a sync step or reset that was sent and not yet collected
@@ -113,7 +116,7 @@ struct Core {
 /// supervisor's pid: create the pool on a long-lived thread.
 pub struct Pool {
     listener: Option<BlockListener>,
-    core: Core,
+    sup: Supervisor,
     interrupt: Option<InterruptCheck>,
 }
 
@@ -131,9 +134,9 @@ const DEADLINE_MARGIN: Duration = Duration::from_millis(20);
 impl std::fmt::Debug for Pool {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Pool")
-            .field("name", &self.core.id.name())
-            .field("num_envs", &self.core.cfg.num_envs)
-            .field("num_workers", &self.core.cfg.num_workers)
+            .field("name", &self.sup.id.name())
+            .field("num_envs", &self.sup.cfg.num_envs)
+            .field("num_workers", &self.sup.cfg.num_workers)
             .finish()
     }
 }
@@ -243,7 +246,7 @@ impl Pool {
         let mut pool = Pool {
             listener: None,
             interrupt,
-            core: Core {
+            sup: Supervisor {
                 cfg,
                 spec,
                 layouts,
@@ -286,12 +289,12 @@ impl Pool {
         };
         // From here on, Drop cleans up whatever was created.
         pool.start(&wcfg)?;
-        pool.core.worker_config = Some(wcfg);
+        pool.sup.worker_config = Some(wcfg);
         Ok(pool)
     }
 
     fn start(&mut self, wcfg: &WorkerConfig) -> Result<(), PoolError> {
-        let c = &mut self.core;
+        let c = &mut self.sup;
         let json = serde_json::to_string(wcfg)
             .map_err(|e| PoolError::Config(format!("cannot serialize worker config: {e}")))?;
         rogue_gym_ipc::private::write_private_file(&c.config_path, json.as_bytes())?;
@@ -336,13 +339,13 @@ impl Pool {
         }
         c.node = Some(node);
         self.begin_call()?;
-        let c = &mut self.core;
+        let c = &mut self.sup;
         for k in 0..c.cfg.num_workers {
             c.spawn(k, false)?;
         }
         self.wait_until(|c| !c.slots.iter().any(|s| s.state.coming_back()))?;
-        self.core.started = true;
-        rogue_gym_ipc::verify_pool_files(&self.core.id)?;
+        self.sup.started = true;
+        rogue_gym_ipc::verify_pool_files(&self.sup.id)?;
         Ok(())
     }
 
@@ -354,10 +357,10 @@ impl Pool {
     pub fn set_seeds(&mut self, seeds: SeedSchedule) -> Result<(), PoolError> {
         self.begin_call()?;
         seeds
-            .validate(self.core.cfg.num_envs as u64)
+            .validate(self.sup.cfg.num_envs as u64)
             .map_err(PoolError::Config)?;
         self.drain()?;
-        let c = &mut self.core;
+        let c = &mut self.sup;
         let mut wcfg = c
             .worker_config
             .clone()
@@ -377,67 +380,67 @@ impl Pool {
 
     /// The env spec (observation shape and dtype, actions, info names).
     pub fn spec(&self) -> &EnvSpec {
-        &self.core.spec
+        &self.sup.spec
     }
     /// Number of envs.
     pub fn num_envs(&self) -> usize {
-        self.core.cfg.num_envs
+        self.sup.cfg.num_envs
     }
     /// Number of workers.
     pub fn num_workers(&self) -> usize {
-        self.core.cfg.num_workers
+        self.sup.cfg.num_workers
     }
     /// Bytes the pool needs in `/dev/shm`, checked against its free space before the pool was
     /// created: the batch buffer (its pages reserved) and the blocks' records and infos.
     pub fn shm_bytes(&self) -> u64 {
-        self.core.shm_need
+        self.sup.shm_need
     }
     /// The envs whose worker was replaced by plan (`recycle_after_steps`,
     /// `recycle_above_rss`) during the last call (async: the rows of the last `recv` whose
     /// worker was replaced since they were sent): they report `restarted`, and their episodes
     /// were cut there, between two commands.
     pub fn recycled_envs(&self) -> &[usize] {
-        &self.core.recycled_envs
+        &self.sup.recycled_envs
     }
     /// The envs worker `k` hosts (contiguous; blocks differ by at most one env, the larger
     /// first).
     pub fn worker_envs(&self, k: usize) -> Range<usize> {
-        self.core.blocks.get(k).cloned().unwrap_or(0..0)
+        self.sup.blocks.get(k).cloned().unwrap_or(0..0)
     }
     /// Envs per async [`Pool::recv`].
     pub fn batch_size(&self) -> usize {
-        self.core.cfg.batch_size.unwrap_or(self.core.cfg.num_envs)
+        self.sup.cfg.batch_size.unwrap_or(self.sup.cfg.num_envs)
     }
     /// Bytes of one observation.
     pub fn obs_bytes(&self) -> usize {
-        self.core.spec.obs_bytes()
+        self.sup.spec.obs_bytes()
     }
     /// The pool's files (name, prefix, directories).
     pub fn id(&self) -> &PoolId {
-        &self.core.id
+        &self.sup.id
     }
     /// Current worker pids (index = worker).
     pub fn worker_pids(&self) -> Vec<u32> {
-        self.core.slots.iter().map(|s| s.pid).collect()
+        self.sup.slots.iter().map(|s| s.pid).collect()
     }
     /// The workers' current pids (index = worker) as a shared handle that other threads may
     /// read at any time, even while a call runs (a monitor, a chaos test); a worker is 0 before
     /// its first start and after [`Pool::close`].
     pub fn pids_handle(&self) -> std::sync::Arc<[std::sync::atomic::AtomicU32]> {
-        self.core.pids.clone()
+        self.sup.pids.clone()
     }
     /// Worker restarts so far.
     pub fn restarts(&self) -> u32 {
-        self.core.restarts
+        self.sup.restarts
     }
     /// Worker deaths and hangs so far, under either failure policy.
     pub fn worker_deaths(&self) -> u32 {
-        self.core.deaths
+        self.sup.deaths
     }
     /// Each worker's statistics since the pool started (see [`crate::stats`]): read from the
     /// workers' counters in shared memory, no message; empty once closed.
     pub fn stats(&self) -> Vec<WorkerStats> {
-        let c = &self.core;
+        let c = &self.sup;
         match &c.stats {
             Some(buf) => (0..c.cfg.num_workers)
                 .map(|k| buf.worker(k, &c.counts[k]))
@@ -451,14 +454,14 @@ impl Pool {
     /// `None` when there is no `step_timeout`: a call then waits as long as live workers take,
     /// but at most `start_timeout` from the first worker failure it sees.
     pub fn call_bound(&self) -> Option<Duration> {
-        self.core
+        self.sup
             .cfg
             .step_timeout
-            .map(|t| t + self.core.cfg.start_timeout)
+            .map(|t| t + self.sup.cfg.start_timeout)
     }
     /// The configuration.
     pub fn config(&self) -> &PoolConfig {
-        &self.core.cfg
+        &self.sup.cfg
     }
 
     /// Install (or remove) a check run between the slices of any wait that has lasted at least
@@ -470,7 +473,7 @@ impl Pool {
         self.interrupt = check;
     }
 
-    fn wait_until(&mut self, done: impl Fn(&Core) -> bool) -> Result<(), PoolError> {
+    fn wait_until(&mut self, done: impl Fn(&Supervisor) -> bool) -> Result<(), PoolError> {
         self.wait_until_or(done, None).map(|_| ())
     }
 
@@ -478,7 +481,7 @@ impl Pool {
     /// wait again later). The call's own bound still raises.
     fn wait_until_or(
         &mut self,
-        done: impl Fn(&Core) -> bool,
+        done: impl Fn(&Supervisor) -> bool,
         until: Option<Instant>,
     ) -> Result<bool, PoolError> {
         self.wait_for(|c| Ok(done(c)), until)
@@ -488,79 +491,80 @@ impl Pool {
     /// blocks into ready envs and sends staged envs to workers that became free).
     fn wait_for(
         &mut self,
-        mut done: impl FnMut(&mut Core) -> Result<bool, PoolError>,
+        mut done: impl FnMut(&mut Supervisor) -> Result<bool, PoolError>,
         until: Option<Instant>,
     ) -> Result<bool, PoolError> {
         let listener = self.listener.as_ref().ok_or(PoolError::Closed)?;
-        let core = &mut self.core;
+        let sup = &mut self.sup;
         let interrupt = &mut self.interrupt;
-        let policy = core.cfg.wait;
+        let policy = sup.cfg.wait;
         let t0 = Instant::now();
-        let deadline = match (core.call_deadline(), until) {
+        let deadline = match (sup.call_deadline(), until) {
             (Some(d), Some(u)) => Some(d.min(u)),
             (d, u) => d.or(u),
         };
-        let past_deadline = |core: &Core| core.call_deadline().is_some_and(|d| Instant::now() >= d);
+        let past_deadline =
+            |sup: &Supervisor| sup.call_deadline().is_some_and(|d| Instant::now() >= d);
         let out = hybrid_wait::<PoolError>(listener.listener(), &policy, deadline, |call| {
             if call == WaitCall::Idle {
-                if past_deadline(core) {
-                    return Err(core.not_back_in_time());
+                if past_deadline(sup) {
+                    return Err(sup.not_back_in_time());
                 }
-                core.check_liveness()?;
-                if past_deadline(core) {
-                    return Err(core.not_back_in_time());
+                sup.check_liveness()?;
+                if past_deadline(sup) {
+                    return Err(sup.not_back_in_time());
                 }
                 if let Some(check) = interrupt.as_mut()
                     && t0.elapsed() >= INTERRUPT_AFTER
                     && check()
                 {
-                    core.must_reset = true;
+                    sup.must_reset = true;
                     return Err(PoolError::Interrupted);
                 }
             }
-            core.poll_all()?;
-            if core.discard_faults {
+            sup.poll_all()?;
+            if sup.discard_faults {
                 // Env errors of abandoned commands; a worker lost meanwhile is still news.
-                core.faults
+                sup.faults
                     .retain(|f| !matches!(f, PoolError::EnvFailed { .. }));
             }
-            if !core.faults.is_empty() {
-                if !core
+            if !sup.faults.is_empty() {
+                if !sup
                     .slots
                     .iter()
                     .any(|s| matches!(s.state, SlotState::Pending { .. }))
                 {
                     // Every worker of the call has answered or was handled: raise all its
                     // failures at once, so that one reset clears them.
-                    let all = std::mem::take(&mut core.faults);
+                    let all = std::mem::take(&mut sup.faults);
                     return Err(PoolError::collected(all).unwrap_or(PoolError::Interrupted));
                 } else {
                     return Ok(false);
                 }
             }
-            done(core)
+            done(sup)
         })?;
         match out {
             WaitOutcome::Done => Ok(true),
-            WaitOutcome::TimedOut if past_deadline(&self.core) => Err(self.core.not_back_in_time()),
+            WaitOutcome::TimedOut if past_deadline(&self.sup) => Err(self.sup.not_back_in_time()),
             WaitOutcome::TimedOut => Ok(false),
         }
     }
 
     /// Start a public call: the pool must be open; the call's bound counts from now.
     fn begin_call(&mut self) -> Result<(), PoolError> {
-        if self.core.closed {
+        if self.sup.closed {
             return Err(PoolError::Closed);
         }
-        self.core.call_started = Instant::now();
-        self.core.call_failed_at = None;
-        self.core.recycled_envs.clear();
+        self.sup.call_started = Instant::now();
+        self.sup.call_failed_at = None;
+        self.sup.recycled_envs.clear();
         Ok(())
     }
 
     /// Check one action per env of `env_ids` (indices in range, or the right byte count).
     fn check_actions(&self, actions: Actions<'_>, env_ids: &[usize]) -> Result<(), PoolError> {
-        let spec = &self.core.spec;
+        let spec = &self.sup.spec;
         match actions {
             Actions::Indices(a) if spec.action_bytes == 0 => {
                 if a.len() != env_ids.len() {
@@ -593,7 +597,7 @@ impl Pool {
     }
 
     fn check_obs_buf(&self, obs_out: &[u8]) -> Result<(), PoolError> {
-        let expected = self.core.cfg.num_envs * self.core.spec.obs_bytes();
+        let expected = self.sup.cfg.num_envs * self.sup.spec.obs_bytes();
         if obs_out.len() != expected {
             return Err(PoolError::BadBuffer {
                 what: "observation buffer",
@@ -609,7 +613,7 @@ impl Pool {
         // coming back.
         self.wait_until(|c| !c.slots.iter().any(|s| s.state.coming_back()))?;
         if self
-            .core
+            .sup
             .slots
             .iter()
             .any(|s| !matches!(s.state, SlotState::Idle))
@@ -624,39 +628,39 @@ impl Pool {
     /// Wait for every outstanding request (and starting worker) and discard the results,
     /// env errors of those requests included.
     fn drain(&mut self) -> Result<(), PoolError> {
-        self.core.split = None;
-        self.core.faults.clear();
-        self.core.discard_faults = true;
+        self.sup.split = None;
+        self.sup.faults.clear();
+        self.sup.discard_faults = true;
         let drained = self.wait_until(|c| {
             !c.slots
                 .iter()
                 .any(|s| s.state.coming_back() || matches!(s.state, SlotState::Pending { .. }))
         });
-        self.core.discard_faults = false;
+        self.sup.discard_faults = false;
         drained?;
-        for s in &mut self.core.slots {
+        for s in &mut self.sup.slots {
             if matches!(s.state, SlotState::Ready(_)) {
                 s.state = SlotState::Idle;
             }
             s.restarted = false;
         }
-        self.core.ready_order.clear();
-        self.core.envs.clear();
-        self.core.async_mode = false;
+        self.sup.ready_order.clear();
+        self.sup.envs.clear();
+        self.sup.async_mode = false;
         Ok(())
     }
 
     /// Stop the workers and remove every file of the pool (`/dev/shm` and directories).
     /// Idempotent; also run by `Drop`. Blocks still held by the caller stay readable.
     pub fn close(&mut self) -> Result<(), PoolError> {
-        if self.core.closed {
+        if self.sup.closed {
             return Ok(());
         }
-        self.core.closed = true;
-        for k in 0..self.core.slots.len() {
-            self.core.drop_successor(k, None);
+        self.sup.closed = true;
+        for k in 0..self.sup.slots.len() {
+            self.sup.drop_successor(k, None);
         }
-        let c = &mut self.core;
+        let c = &mut self.sup;
         for s in &c.slots {
             if s.child.is_some() {
                 let _ = s.ports.send_cmd(u64::MAX, CMD_CLOSE, 0, |_| {});
@@ -694,7 +698,7 @@ impl Pool {
     }
 }
 
-impl Core {
+impl Supervisor {
     /// When the current call must give up (see [`Pool::call_bound`]): a little before its
     /// bound, so that the error is raised within it.
     fn call_deadline(&self) -> Option<Instant> {

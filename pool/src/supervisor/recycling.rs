@@ -17,7 +17,7 @@ use std::fs;
 use std::process::Child;
 use std::time::{Duration, Instant};
 
-use super::Core;
+use super::Supervisor;
 use super::workers::SlotState;
 use crate::error::PoolError;
 use crate::wire::{CMD_CLOSE, successor_go, successor_marker};
@@ -66,7 +66,7 @@ fn reap(mut child: Child, within: Duration) {
     }
 }
 
-impl Core {
+impl Supervisor {
     /// Whether recycling is on at all.
     fn recycling(&self) -> bool {
         self.cfg.recycle_after_steps.is_some() || self.cfg.recycle_above_rss.is_some()

@@ -56,10 +56,10 @@ impl Pool {
         self.begin_call()?;
         self.check_obs_buf(obs_out)?;
         self.drain()?;
-        for k in 0..self.core.slots.len() {
-            self.core.send_reset(k, 0)?;
+        for k in 0..self.sup.slots.len() {
+            self.sup.send_reset(k, 0)?;
         }
-        self.core.must_reset = false;
+        self.sup.must_reset = false;
         self.gather_all(Some(obs_out), out)
     }
 
@@ -90,10 +90,10 @@ impl Pool {
 
     /// Send each worker its block of `actions`.
     fn send_steps(&mut self, actions: Actions<'_>, target: u32) -> Result<(), PoolError> {
-        let ab = self.core.spec.action_bytes;
-        for k in 0..self.core.slots.len() {
-            let rows = self.core.env_range(k);
-            self.core.send_step(k, actions.rows(rows, ab), target)?;
+        let ab = self.sup.spec.action_bytes;
+        for k in 0..self.sup.slots.len() {
+            let rows = self.sup.env_range(k);
+            self.sup.send_step(k, actions.rows(rows, ab), target)?;
         }
         Ok(())
     }
@@ -124,9 +124,9 @@ impl Pool {
     /// no async partial reset). A worker restarted during the call resets all its envs (they
     /// report `restarted`).
     pub fn reset_envs(&mut self, mask: &[bool], out: &mut BatchOutput) -> Result<usize, PoolError> {
-        let slot = self.core.next_slot;
+        let slot = self.sup.next_slot;
         self.reset_masked(mask, slot as u32 + 1, None, out)?;
-        self.core.next_slot = (slot + 1) % self.core.cfg.batch_slots;
+        self.sup.next_slot = (slot + 1) % self.sup.cfg.batch_slots;
         Ok(slot)
     }
 
@@ -150,21 +150,21 @@ impl Pool {
         out: &mut BatchOutput,
     ) -> Result<(), PoolError> {
         self.begin_call()?;
-        if mask.len() != self.core.cfg.num_envs {
+        if mask.len() != self.sup.cfg.num_envs {
             return Err(PoolError::BadBuffer {
                 what: "reset mask",
-                expected: self.core.cfg.num_envs,
+                expected: self.sup.cfg.num_envs,
                 got: mask.len(),
             });
         }
-        if self.core.must_reset {
+        if self.sup.must_reset {
             return Err(PoolError::State(
                 "a partial reset needs every env started: call a full reset() first (after creation, set_seeds or a worker failure)".into(),
             ));
         }
         self.all_idle()?;
-        for k in 0..self.core.slots.len() {
-            self.core.send_reset_masked(k, target, Some(mask))?;
+        for k in 0..self.sup.slots.len() {
+            self.sup.send_reset_masked(k, target, Some(mask))?;
         }
         self.gather_all(obs_out, out)
     }
@@ -190,10 +190,10 @@ impl Pool {
         out: &mut BatchOutput,
     ) -> Result<usize, PoolError> {
         self.prepare_sync_step(actions)?;
-        let slot = self.core.next_slot;
+        let slot = self.sup.next_slot;
         self.send_steps(actions, slot as u32 + 1)?;
         self.gather_all(None, out)?;
-        self.core.next_slot = (slot + 1) % self.core.cfg.batch_slots;
+        self.sup.next_slot = (slot + 1) % self.sup.cfg.batch_slots;
         Ok(slot)
     }
 
@@ -203,9 +203,9 @@ impl Pool {
     /// with [`Pool::wait_shared`]; a sync call in between fails (a reset abandons the step).
     pub fn send_step_shared(&mut self, actions: Actions<'_>) -> Result<usize, PoolError> {
         self.prepare_sync_step(actions)?;
-        let slot = self.core.next_slot;
+        let slot = self.sup.next_slot;
         self.send_steps(actions, slot as u32 + 1)?;
-        self.core.split = Some(slot);
+        self.sup.split = Some(slot);
         Ok(slot)
     }
 
@@ -214,12 +214,12 @@ impl Pool {
     pub fn send_reset_shared(&mut self) -> Result<usize, PoolError> {
         self.begin_call()?;
         self.drain()?;
-        let slot = self.core.next_slot;
-        for k in 0..self.core.slots.len() {
-            self.core.send_reset(k, slot as u32 + 1)?;
+        let slot = self.sup.next_slot;
+        for k in 0..self.sup.slots.len() {
+            self.sup.send_reset(k, slot as u32 + 1)?;
         }
-        self.core.must_reset = false;
-        self.core.split = Some(slot);
+        self.sup.must_reset = false;
+        self.sup.split = Some(slot);
         Ok(slot)
     }
 
@@ -243,25 +243,25 @@ impl Pool {
         timeout: Option<std::time::Duration>,
         out: &mut BatchOutput,
     ) -> Result<Option<usize>, PoolError> {
-        let Some(slot) = self.core.split else {
+        let Some(slot) = self.sup.split else {
             return Err(PoolError::State(
                 "no step or reset is pending: send_step_shared() or send_reset_shared() first"
                     .into(),
             ));
         };
         let until = timeout.map(|t| std::time::Instant::now() + t);
-        let workers = self.core.slots.len();
+        let workers = self.sup.slots.len();
         match self.wait_until_or(|c| c.ready_order.len() == workers, until) {
             Ok(false) => return Ok(None),
             Ok(true) => {}
             Err(e) => {
-                self.core.split = None;
+                self.sup.split = None;
                 return Err(e);
             }
         }
-        self.core.split = None;
+        self.sup.split = None;
         self.gather_all(None, out)?;
-        self.core.next_slot = (slot + 1) % self.core.cfg.batch_slots;
+        self.sup.next_slot = (slot + 1) % self.sup.cfg.batch_slots;
         Ok(Some(slot))
     }
 
@@ -269,30 +269,30 @@ impl Pool {
     /// caller that keeps the observations of some slots without copying them (all but one of
     /// the [`crate::PoolConfig::batch_slots`]) steers the workers to a slot it no longer holds.
     pub fn select_slot(&mut self, slot: usize) -> Result<(), PoolError> {
-        let slots = self.core.cfg.batch_slots;
+        let slots = self.sup.cfg.batch_slots;
         if slot >= slots {
             return Err(PoolError::Config(format!(
                 "slot {slot} does not exist: the pool has {slots} batch slots (0..{slots})"
             )));
         }
-        self.core.next_slot = slot;
+        self.sup.next_slot = slot;
         Ok(())
     }
 
     /// Slots of the shared batch buffer ([`crate::PoolConfig::batch_slots`]).
     pub fn batch_slots(&self) -> usize {
-        self.core.cfg.batch_slots
+        self.sup.cfg.batch_slots
     }
 
     /// The observations of shared batch slot `slot` (`num_envs x obs_bytes`, env-major,
     /// 64-byte aligned). See [`Pool::step_shared`] for when they are valid.
     pub fn shared_obs(&self, slot: usize) -> &[u8] {
-        let n = self.core.cfg.num_envs * self.core.spec.obs_bytes();
-        match &self.core.batch {
+        let n = self.sup.cfg.num_envs * self.sup.spec.obs_bytes();
+        match &self.sup.batch {
             // SAFETY: the slot lies inside the mapping. Workers write a slot only during a
             // `*_shared` call, which needs `&mut self`: none runs while this borrow lives.
-            Some(b) if slot < self.core.cfg.batch_slots => unsafe {
-                std::slice::from_raw_parts(b.as_ptr().add(slot * self.core.slot_bytes), n)
+            Some(b) if slot < self.sup.cfg.batch_slots => unsafe {
+                std::slice::from_raw_parts(b.as_ptr().add(slot * self.sup.slot_bytes), n)
             },
             _ => &[],
         }
@@ -302,21 +302,21 @@ impl Pool {
     /// Holding this `Arc` keeps the mapping valid even after [`Pool::close`] (e.g. as the base
     /// object of numpy views); `None` after close.
     pub fn shared_buffer(&self) -> Option<std::sync::Arc<rogue_gym_ipc::SharedBuffer>> {
-        self.core.batch.clone()
+        self.sup.batch.clone()
     }
 
     /// Distance in bytes between two shared batch slots.
     pub fn shared_slot_bytes(&self) -> usize {
-        self.core.slot_bytes
+        self.sup.slot_bytes
     }
 
     /// Raw pointer to shared batch slot `slot` (for zero-copy views in other languages; keep
     /// [`Pool::shared_buffer`] alive with the view). Null after `close`.
     pub fn shared_obs_ptr(&self, slot: usize) -> *const u8 {
-        match &self.core.batch {
-            Some(b) if slot < self.core.cfg.batch_slots => {
+        match &self.sup.batch {
+            Some(b) if slot < self.sup.cfg.batch_slots => {
                 // SAFETY: the offset stays inside the mapping.
-                unsafe { b.as_ptr().add(slot * self.core.slot_bytes) }
+                unsafe { b.as_ptr().add(slot * self.sup.slot_bytes) }
             }
             _ => std::ptr::null(),
         }
@@ -326,9 +326,9 @@ impl Pool {
     /// per env, and no async request is outstanding.
     fn prepare_sync_step(&mut self, actions: Actions<'_>) -> Result<(), PoolError> {
         self.begin_call()?;
-        let all: Vec<usize> = (0..self.core.cfg.num_envs).collect();
+        let all: Vec<usize> = (0..self.sup.cfg.num_envs).collect();
         self.check_actions(actions, &all)?;
-        if self.core.must_reset {
+        if self.sup.must_reset {
             return Err(PoolError::State(
                 "call reset() before step() (after creation or after a worker failure)".into(),
             ));
@@ -336,8 +336,8 @@ impl Pool {
         self.all_idle()?;
         // Planned replacements happen here, between two commands (see `recycling`).
         let mut replaced = false;
-        for k in 0..self.core.slots.len() {
-            replaced |= self.core.recycle_if_due(k)?;
+        for k in 0..self.sup.slots.len() {
+            replaced |= self.sup.recycle_if_due(k)?;
         }
         if replaced {
             self.all_idle()?;
@@ -351,14 +351,14 @@ impl Pool {
         out: &mut BatchOutput,
     ) -> Result<(), PoolError> {
         // Copy each block as soon as it arrives, overlapping with the other workers' steps.
-        let w = self.core.slots.len();
-        let ob = self.core.spec.obs_bytes();
+        let w = self.sup.slots.len();
+        let ob = self.sup.spec.obs_bytes();
         let mut blocks: Vec<Option<Block>> = (0..w).map(|_| None).collect();
         let mut got = 0;
         while got < w {
             self.wait_until(|c| !c.ready_order.is_empty())?;
-            while let Some(k) = self.core.ready_order.pop_front() {
-                let b = self.core.take_block(k)?;
+            while let Some(k) = self.sup.ready_order.pop_front() {
+                let b = self.sup.take_block(k)?;
                 if let Some(o) = obs_out.as_deref_mut() {
                     let envs = b.env_ids();
                     o[envs.start * ob..envs.end * ob].copy_from_slice(b.obs());
@@ -368,7 +368,7 @@ impl Pool {
             }
         }
         out.clear();
-        let n_info = self.core.spec.info_names.len();
+        let n_info = self.sup.spec.info_names.len();
         let batch = Batch {
             blocks: blocks.into_iter().flatten().collect(),
         };

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use rogue_gym_ipc::{BlockSample, SupervisorPorts};
 
-use super::Core;
+use super::Supervisor;
 use super::recycling::Successor;
 use super::stepping::Actions;
 use crate::batch::Block;
@@ -114,7 +114,7 @@ fn status_parts(st: &ExitStatus) -> (Option<i32>, Option<i32>) {
     (st.code(), st.signal())
 }
 
-impl Core {
+impl Supervisor {
     pub(super) fn env_range(&self, k: usize) -> Range<usize> {
         self.blocks[k].clone()
     }
@@ -446,7 +446,7 @@ impl Core {
     }
 
     /// Detect dead and hung workers, whatever they were doing (starting, restarting, or
-    /// answering a command), and handle each per policy ([`Core::handle_failure`]). A failure
+    /// answering a command), and handle each per policy ([`Supervisor::handle_failure`]). A failure
     /// the caller must hear of is queued in `self.faults`; only a spent restart budget, and a
     /// SIGBUS during the pool's first start, return at once.
     pub(super) fn check_liveness(&mut self) -> Result<(), PoolError> {

@@ -415,12 +415,12 @@ class HostedKind:
         info: dict[str, Any] = {}
         final_info: dict[str, Any] = {}
         final_dynamic: list[Any] = []
-        for kind, entry in entries:
-            if kind == STEP_OBS and final:
+        for tag, entry in entries:
+            if tag == STEP_OBS and final:
                 final_dynamic = entry
-            elif kind in (STEP_OBS, RESET_OBS):
+            elif tag in (STEP_OBS, RESET_OBS):
                 self._dynamic_obs[env] = entry
-            elif kind == "step" and final:
+            elif tag == "step" and final:
                 final_info = entry
             else:
                 info.update(entry)

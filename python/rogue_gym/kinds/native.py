@@ -251,7 +251,7 @@ class NativeKind:
         infos["_final_obs"] = ended
 
     def info_counts(self) -> tuple[int, int]:
-        """None: the game's infos are fixed fields of its records, not rows."""
+        """None: the game's infos are fixed columns, not rows."""
         return 0, 0
 
     # -- calls and render ------------------------------------------------------------------

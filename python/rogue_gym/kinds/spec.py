@@ -6,8 +6,9 @@ shared memory, how a call's columns and extra info become infos, which env opera
 serves, and how it renders. The front (:mod:`rogue_gym.front`) owns every call and its
 lifecycle (started, ended episodes, restarted workers, the episode log) for every kind.
 
-A new kind is one module of this package implementing :class:`Kind`; the test kind in
-``tests/python/test_kind_spec.py`` shows the least one needs.
+A new kind is one module of this package implementing :class:`Kind`;
+``tests/python/test_kind_spec.py`` builds a small one (the pool's built-in test env) to show
+the least one needs.
 """
 
 from __future__ import annotations

@@ -38,12 +38,12 @@ __all__ = [
 
 #: Marks a typed row (a pickle starts with 0x80).
 MAGIC = b"RGi1"
-#: ``magic, kind (0 reset, 1 step), structure hash, structure length``; 24 bytes.
+#: ``magic, tag (0 reset, 1 step), structure hash, structure length``; 24 bytes.
 _HEADER = struct.Struct("<4sB3xQI4x")
 HEADER_BYTES = _HEADER.size
-#: The bytes that tell a row's kind and structure (magic, kind, padding, hash).
+#: The bytes that tell a row's tag and structure (magic, tag, padding, hash).
 HEAD = 16
-KINDS = ("reset", "step")
+TAGS = ("reset", "step")
 #: The entries that carry the values of an observation's dynamic leaves (a list, in the order
 #: of ``SpaceLayout.dynamic``): of the step's observation, and of the reset's. Always pickled.
 STEP_OBS, RESET_OBS = "step_obs", "reset_obs"
@@ -158,15 +158,15 @@ class _Layout:
             else None
         )
 
-    def encode(self, info: dict[str, Any], kind: int) -> bytes:
+    def encode(self, info: dict[str, Any], tag: int) -> bytes:
         if self.flat:
-            return self.prefixes[kind] + self.pack(*info.values())
+            return self.prefixes[tag] + self.pack(*info.values())
         if not self.has_arrays:
-            return self.prefixes[kind] + self.pack(*_flat_scalars(info))
+            return self.prefixes[tag] + self.pack(*_flat_scalars(info))
         scalars: list[Any] = []
         arrays: list[bytes] = []
         _split(info, scalars, arrays)
-        return b"".join([self.prefixes[kind], self.pack(*scalars), *arrays])
+        return b"".join([self.prefixes[tag], self.pack(*scalars), *arrays])
 
 
 def _flat_scalars(info: dict[str, Any]) -> Iterable[Any]:
@@ -200,9 +200,9 @@ class InfoEncoder:
     def encode(self, entries: list[tuple[str, Any]]) -> bytes:
         """The bytes of one call's entries: a typed row for a single typed info, else the
         pickled entries."""
-        if len(entries) == 1 and entries[0][0] in KINDS:
-            kind, info = entries[0]
-            data, _ = self._typed(info, KINDS.index(kind))
+        if len(entries) == 1 and entries[0][0] in TAGS:
+            tag, info = entries[0]
+            data, _ = self._typed(info, TAGS.index(tag))
             if data is not None:
                 return data
         return pickle.dumps(entries, protocol=pickle.HIGHEST_PROTOCOL)
@@ -214,8 +214,8 @@ class InfoEncoder:
             return pickle.dumps([("step", info)], protocol=pickle.HIGHEST_PROTOCOL), None
         return data, None if layout is None else layout.plan
 
-    def _typed(self, info: dict[str, Any], kind: int) -> tuple[Optional[bytes], Optional[_Layout]]:
-        """``info`` as a typed row of ``kind``, and its layout; ``(None, None)`` if it is not
+    def _typed(self, info: dict[str, Any], tag: int) -> tuple[Optional[bytes], Optional[_Layout]]:
+        """``info`` as a typed row of ``tag``, and its layout; ``(None, None)`` if it is not
         typed."""
         try:
             plan = None if self._flat is None else self._flat.plan
@@ -228,7 +228,7 @@ class InfoEncoder:
             else:
                 layout = self._layout_of(info)
             if layout is not None:
-                return layout.encode(info, kind), layout
+                return layout.encode(info, tag), layout
         except (struct.error, OverflowError, TypeError):
             pass  # e.g. an int beyond int64: pickled as it is
         return None, None
@@ -394,7 +394,7 @@ class InfoDecoder:
             self.pickled_rows += 1
             return pickle.loads(data)
         self.typed_rows += 1
-        return [(KINDS[data[4]], self._layout(data).one(data))]
+        return [(TAGS[data[4]], self._layout(data).one(data))]
 
     def put_uniform(
         self,
@@ -403,7 +403,7 @@ class InfoDecoder:
         rows: Optional[Sequence[int]],
         n: int,
     ) -> bool:
-        """Add rows that share one kind and structure (so one size), joined in ``data``, to
+        """Add rows that share one tag and structure (so one size), joined in ``data``, to
         vector infos of ``n`` rows: those of ``rows``, or all ``n`` in order for ``None``, in
         one go; ``False`` (nothing added) if they are not typed."""
         if data[:4] != MAGIC:
@@ -421,7 +421,7 @@ class InfoDecoder:
         if not rows:
             return True
         ids, datas = zip(*rows)
-        if len({d[:HEAD] for d in datas}) == 1:  # the usual call: one kind and structure
+        if len({d[:HEAD] for d in datas}) == 1:  # the usual call: one tag and structure
             every = len(ids) == n and ids == tuple(range(n))
             if self.put_uniform(infos, b"".join(datas), None if every else ids, n):
                 return True

@@ -8,16 +8,16 @@ use super::slot::{BlockOut, Slot, SlotCtx, apply};
 use crate::wire::{EnvFault, calls};
 
 /// A worker's envs: one [`Env`] each, or one [`crate::EnvBlock`] for them all.
-pub(super) enum Hosted {
+pub(super) enum WorkerEnvs {
     Each(Vec<Slot>),
     Block(BlockHost),
 }
 
-impl Hosted {
+impl WorkerEnvs {
     pub(super) fn len(&self) -> usize {
         match self {
-            Hosted::Each(slots) => slots.len(),
-            Hosted::Block(host) => host.len(),
+            WorkerEnvs::Each(slots) => slots.len(),
+            WorkerEnvs::Block(host) => host.len(),
         }
     }
 
@@ -34,14 +34,14 @@ impl Hosted {
         ctx: &SlotCtx,
     ) -> Result<usize, EnvFault> {
         let slots = match (self, only) {
-            (Hosted::Block(host), None) => {
+            (WorkerEnvs::Block(host), None) => {
                 host.serve(kind, payload, out, ctx)?;
                 return Ok(host.len());
             }
-            (Hosted::Block(host), Some(_)) => {
+            (WorkerEnvs::Block(host), Some(_)) => {
                 return Err(host.whole_block_only());
             }
-            (Hosted::Each(slots), _) => slots,
+            (WorkerEnvs::Each(slots), _) => slots,
         };
         let mut served = 0;
         for (j, s) in slots.iter_mut().enumerate() {
@@ -67,10 +67,10 @@ impl Hosted {
 /// block's first env id).
 fn for_each_entry<T>(
     path: &std::path::Path,
-    hosted: &mut Hosted,
+    hosted: &mut WorkerEnvs,
     first: u64,
     context: &str,
-    mut f: impl FnMut(&mut Hosted, usize, &[u8]) -> Result<T, crate::EnvError>,
+    mut f: impl FnMut(&mut WorkerEnvs, usize, &[u8]) -> Result<T, crate::EnvError>,
 ) -> Result<Vec<(u32, T)>, EnvFault> {
     let fail = |env: u64, message: String| EnvFault::new(env, context, message);
     let entries = calls::take(path).map_err(|e| fail(first, e))?;
@@ -93,13 +93,13 @@ fn for_each_entry<T>(
 pub(super) fn answer_calls(
     id: &PoolId,
     (index, generation): (usize, u64),
-    hosted: &mut Hosted,
+    hosted: &mut WorkerEnvs,
     first: u64,
 ) -> Result<(), EnvFault> {
     let path = calls::request_path(id, index, generation);
     let replies = for_each_entry(&path, hosted, first, "a call", |h, j, request| match h {
-        Hosted::Each(slots) => slots[j].env.call(request),
-        Hosted::Block(host) => host.call(j, request),
+        WorkerEnvs::Each(slots) => slots[j].env.call(request),
+        WorkerEnvs::Block(host) => host.call(j, request),
     })?;
     let entries: Vec<(u32, &[u8])> = replies.iter().map(|(r, b)| (*r, b.as_slice())).collect();
     calls::write(
@@ -114,13 +114,13 @@ pub(super) fn answer_calls(
 pub(super) fn take_action_extras(
     id: &PoolId,
     (index, generation): (usize, u64),
-    hosted: &mut Hosted,
+    hosted: &mut WorkerEnvs,
     first: u64,
 ) -> Result<(), EnvFault> {
     let path = calls::action_extras_path(id, index, generation);
     for_each_entry(&path, hosted, first, "actions", |h, j, extra| match h {
-        Hosted::Each(slots) => slots[j].env.set_action_extra(extra),
-        Hosted::Block(_) => Err(crate::EnvError::new(
+        WorkerEnvs::Each(slots) => slots[j].env.set_action_extra(extra),
+        WorkerEnvs::Block(_) => Err(crate::EnvError::new(
             "a vector env per worker takes actions of a fixed size only",
         )),
     })?;

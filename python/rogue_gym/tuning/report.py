@@ -1,0 +1,83 @@
+"""What tune measured: the table and the advice."""
+
+from __future__ import annotations
+
+import statistics
+from dataclasses import dataclass, field
+from typing import Optional
+
+from .duel import Duel
+from .timing import Timing
+
+__all__ = ["TuneResult"]
+
+
+@dataclass
+class TuneResult:
+    """What tune measured, best first."""
+
+    timings: list[Timing]
+    num_envs: int
+    seconds: float
+    #: The fastest against each rival within :data:`DUEL_BAND`, side by side, in the
+    #: order run; the last winner is ranked first.
+    duels: list[Duel] = field(default_factory=list)
+
+    @property
+    def best(self) -> Timing:
+        """The fastest candidate."""
+        return self.timings[0]
+
+    @property
+    def best_pool(self) -> Optional[Timing]:
+        """The fastest layout of the pool (not ``SyncVectorEnv``)."""
+        return next((t for t in self.timings if t.candidate.mode != "sync" and t.median > 0), None)
+
+    def table(self) -> str:
+        """The table: one row per candidate, best first."""
+        lines = [
+            f"{'layout':<58} {'steps/s':>12} {'env':>5} {'transport':>9} {'caller':>6}",
+        ]
+        for t in self.timings:
+            if t.error is not None:
+                lines.append(f"{t.candidate.label:<58} {'failed':>12}  {t.error[:60]}")
+                continue
+            shares = [statistics.median(s[i] for s in t.shares) for i in range(3)]
+            env, transport, caller = (f"{x:.0%}" if x == x else "-" for x in shares)
+            lines.append(
+                f"{t.candidate.label:<58} {t.median:>12,.0f} {env:>5} {transport:>9} {caller:>6}"
+            )
+        for d in self.duels:
+            lines.append(
+                f"side by side: {d.first} at {d.ratio:.3f}x {d.second} "
+                f"(median of {len(d.ratios)} pairs)"
+            )
+        return "\n".join(lines)
+
+    def advice(self) -> str:
+        """The line to paste (or the advice to use ``SyncVectorEnv``)."""
+        pool = self.best_pool
+        if self.best.candidate.mode == "sync" or pool is None:
+            x = 0.0
+            if pool is not None:
+                x = self.best.median / pool.median
+                for d in self.duels:
+                    if (d.first, d.second) == (self.best.candidate.label, pool.candidate.label):
+                        x = d.ratio
+            ratio = f" ({x:.2f}x the best pool layout)" if pool else ""
+            return (
+                f"SyncVectorEnv is the fastest here{ratio}: this env is too cheap for worker "
+                "processes at this size on this machine; use gymnasium.vector.SyncVectorEnv"
+            )
+        c = pool.candidate
+        kwargs = ", ".join(f"{k}={v!r}" for k, v in c.kwargs.items())
+        if c.mode == "vector":
+            return f"best: PoolVectorEnv.from_vector_env(vector_env_fn, {self.num_envs}, {kwargs})"
+        how = {
+            "async": " (then step with send/recv)",
+            "harvest": (
+                f" (then recv(min_batch=1, max_batch={self.num_envs}, timeout=1e-3) and send "
+                "actions to the envs received)"
+            ),
+        }.get(c.mode, "")
+        return f"best: make_vec(env, {self.num_envs}, {kwargs}){how}"
