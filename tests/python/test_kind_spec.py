@@ -81,6 +81,9 @@ class ToyKind:
         t = result.cols["info_int"][0].copy()
         return {"t": t, "_t": np.ones(result.rows, bool) if only is None else only}
 
+    def final(self, core: Core, env: int) -> tuple[Any, dict[str, Any]]:
+        return self.batch_views(core.final[env : env + 1])[0].copy(), {}
+
     def call(
         self,
         core: Core,

@@ -10,9 +10,10 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
+from ..protocol.infos import add_row_info
 from ..protocol.ops import refuse_op
 from ..settings import parse_autoreset_mode
-from .core import Core, Result, copy_tree, mark_restarted
+from .core import SUMMARY_FINAL, Core, Result, copy_tree, mark_restarted
 from .pending import already_pending, no_async_call, timed_out, warn_close_pending
 from .reset_mask import partial_mask, refuse_finished
 from .stats import PoolStats
@@ -263,6 +264,10 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         if res.slot is not None:
             self._last_slot = res.slot
         infos = self._kind.infos(core, res, only)
+        if self._same_step and res.slot is not None and res.summary & SUMMARY_FINAL:
+            for env in np.flatnonzero(res.cols["has_final_obs"]).tolist():
+                obs, info = self._kind.final(core, env)
+                add_row_info(infos, {"final_obs": obs, "final_info": info}, env, self.num_envs)
         if res.env_ids is not None:
             infos["env_id"] = res.env_ids
         restarted = res.restarted

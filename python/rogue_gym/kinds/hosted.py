@@ -230,6 +230,8 @@ class HostedKind:
         }
         self._spec = spec
         self._decoder = InfoDecoder()
+        #: (SAME_STEP) each ended env's final dynamic leaves and last step info, until read.
+        self._finals: dict[int, tuple[list[Any], dict[str, Any]]] = {}
         #: Hosted envs render in their workers.
         self.log_steps: Optional[int] = None
         #: Who serves this kind's env operations (:data:`rogue_gym.protocol.ops.SERVED_BY`).
@@ -381,8 +383,8 @@ class HostedKind:
     # -- infos -----------------------------------------------------------------------------
 
     def infos(self, core: Core, result: Result, only: Optional[np.ndarray]) -> dict[str, Any]:
-        """The infos the envs returned, merged as gymnasium's vector envs merge them (in
-        SAME_STEP, with the ended envs' ``final_obs`` and ``final_info``)."""
+        """The infos the envs returned, merged as gymnasium's vector envs merge them (the
+        ended envs' last step infos are kept for :meth:`final`)."""
         rows = result.rows
         final: set[int] = set()
         if result.summary & SUMMARY_FINAL and core.same_step and result.env_ids is None:
@@ -409,9 +411,9 @@ class HostedKind:
     def _env_info(
         self, core: Core, env: int, entries: list[tuple[str, Any]], final: bool
     ) -> dict[str, Any]:
-        """One env's info for this call, as gymnasium's vector envs build it: the reset's (or
-        step's) info and, when the episode ended in SAME_STEP mode, ``final_obs`` and the last
-        step's info as ``final_info``."""
+        """One env's info for this call: the reset's (or step's). When the episode ended in
+        SAME_STEP mode, the last step's info and the final observation's dynamic leaves are
+        kept for :meth:`final`."""
         info: dict[str, Any] = {}
         final_info: dict[str, Any] = {}
         final_dynamic: list[Any] = []
@@ -424,10 +426,15 @@ class HostedKind:
                 final_info = entry
             else:
                 info.update(entry)
-        if final and core.final is not None:
-            info["final_obs"] = self._obs_layout.env_value(core.final_obs(env), final_dynamic)
-            info["final_info"] = final_info
+        if final:
+            self._finals[env] = (final_dynamic, final_info)
         return info
+
+    def final(self, core: Core, env: int) -> tuple[Any, dict[str, Any]]:
+        """(SAME_STEP) env ``env``'s final observation (dynamic leaves included) and the info
+        of its last step."""
+        dynamic, info = self._finals.pop(env, ([], {}))
+        return self._obs_layout.env_value(core.final_obs(env), dynamic), info
 
     def info_counts(self) -> tuple[int, int]:
         """Info rows decoded so far: typed, and pickled."""

@@ -21,7 +21,7 @@ from .._config import resolve_config, to_json
 from ..envs.image import ObsSpec, observation_space
 from ..envs.palette import screen_to_rgb
 from ..envs.rogue_env import ACTIONS
-from ..front.core import SUMMARY_FINAL, out_of_range, scalar_actions
+from ..front.core import out_of_range, scalar_actions
 from ..protocol.ops import op_table, run_op
 from ..settings import PoolSettings
 from .seed_sets import seed_set
@@ -212,17 +212,14 @@ class NativeKind:
 
     def infos(self, core: Core, result: Result, only: Optional[np.ndarray]) -> dict[str, Any]:
         """A whole-batch call: the slot's info template (arrays reused, like the slot, unless
-        the env hands out copies) and, in SAME_STEP, the ended envs' ``final_obs`` and
-        ``final_info``. A partial reset (``only``) or a ``recv``: fresh arrays, the rows not
-        reset zero and unmasked."""
+        the env hands out copies). A partial reset (``only``) or a ``recv``: fresh arrays, the
+        rows not reset zero and unmasked."""
         if only is None and result.slot is not None:
             infos = self._templates[result.slot].copy()
             infos.update(self._masks)
             if core.copy:
                 for key in self._info_keys:
                     infos[key] = infos[key].copy()
-            if result.summary & SUMMARY_FINAL and core.same_step:
-                self._add_finals(core, infos, result.cols["has_final_obs"].copy())
             return infos
         template = self._templates[-1 if result.slot is None else result.slot]
         rows = result.rows
@@ -239,16 +236,11 @@ class NativeKind:
             infos[f"_{key}"] = shown
         return infos
 
-    def _add_finals(self, core: Core, infos: dict[str, Any], ended: np.ndarray) -> None:
-        """(SAME_STEP) ``final_obs`` and ``final_info`` (the step's infos) of the envs whose
-        episode ended at the step."""
-        final_obs = np.full(self.num_envs, None, dtype=object)
-        for i in np.flatnonzero(ended):
-            final_obs[i] = core.final_obs(int(i))
-        infos["final_info"] = infos.copy()
-        infos["_final_info"] = ended
-        infos["final_obs"] = final_obs
-        infos["_final_obs"] = ended
+    def final(self, core: Core, env: int) -> tuple[Any, dict[str, Any]]:
+        """(SAME_STEP) env ``env``'s final observation and the info values of its last step
+        (the step's row describes the ended episode)."""
+        template = self._templates[core.slot]
+        return core.final_obs(env), {key: template[key][env] for key in self._info_keys}
 
     def info_counts(self) -> tuple[int, int]:
         """None: the game's infos are fixed columns, not rows."""

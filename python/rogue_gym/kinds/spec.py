@@ -122,8 +122,14 @@ class Kind(Protocol):
 
     def infos(self, core: Core, result: Result, only: Optional[np.ndarray]) -> dict[str, Any]:
         """The infos of a call's rows (``only``: a partial reset's mask; the other rows' info
-        is empty), as gymnasium's vector envs return them (``final_obs``/``final_info`` in
-        SAME_STEP). The front adds what every kind reports (``worker_restarted``, ``env_id``)."""
+        is empty), as gymnasium's vector envs return them. The front adds what every kind
+        reports (``final_obs``/``final_info`` in SAME_STEP, ``worker_restarted``, ``env_id``)."""
+        ...
+
+    def final(self, core: Core, env: int) -> tuple[Any, dict[str, Any]]:
+        """(SAME_STEP, after :meth:`infos` of a step where env ``env``'s episode ended) its
+        final observation and the info of its last step; the front adds them to the infos as
+        gymnasium does (``final_obs``, ``final_info``)."""
         ...
 
     def call(
