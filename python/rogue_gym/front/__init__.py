@@ -6,9 +6,16 @@ env kind.
   call/get_attr/set_attr, render, close);
 * :class:`rogue_gym.front.vec_env.FrontVecEnv`: SB3's ``VecEnv`` over it (needs
   stable-baselines3);
-* :class:`rogue_gym.front.core.Core`: the native pool, its batch slots and buffers.
+* :class:`rogue_gym.front.core.Core`: the native pool, its batch slots and column buffers,
+  one :class:`~rogue_gym.front.core.Result` per call, and the call lifecycle;
+* the rest of the caller's side: :mod:`~rogue_gym.front.episode_log` (episodes for a replay),
+  :mod:`~rogue_gym.front.leases` (observations lent without a copy),
+  :mod:`~rogue_gym.front.pending` (gymnasium's errors for split calls out of order),
+  :mod:`~rogue_gym.front.reset_mask`, :mod:`~rogue_gym.front.sigterm` and
+  :mod:`~rogue_gym.front.stats`.
 
-The env kind (:mod:`rogue_gym.kinds`) is bound once at construction. The public classes
+The env kind (:mod:`rogue_gym.kinds`, a :class:`~rogue_gym.kinds.spec.Kind`) is bound once at
+construction. The public classes
 (``RogueVectorEnv``, ``PoolVectorEnv``, ``RogueVecEnv``, ``PoolVecEnv``) are these classes with
 the constructor of their kind.
 """
