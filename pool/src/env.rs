@@ -232,3 +232,12 @@ pub fn bytes_as_f32_mut(obs: &mut [u8]) -> Result<&mut [f32], EnvError> {
     }
     Ok(mid)
 }
+
+/// The words for an action index outside `0..num_actions`, written once: the pool's checks
+/// (and the Python front's, which words it the same) say it so.
+pub fn action_out_of_range(value: impl std::fmt::Display, num_actions: usize) -> String {
+    format!(
+        "action {value} is out of range; valid actions are 0 to {} (range({num_actions}))",
+        num_actions.saturating_sub(1)
+    )
+}

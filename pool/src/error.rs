@@ -184,7 +184,7 @@ pub enum PoolError {
         got: usize,
     },
     /// An action out of range.
-    #[error("env {env}: action {value} is out of range; valid actions are 0 to {} (range({num_actions}))", num_actions.saturating_sub(1))]
+    #[error("env {env}: {}", crate::env::action_out_of_range(value, *num_actions))]
     BadAction {
         /// Env id.
         env: usize,

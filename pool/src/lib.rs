@@ -46,7 +46,9 @@ pub mod worker;
 
 pub use batch::{Batch, BatchOutput, Block};
 pub use config::{AutoresetMode, FailurePolicy, PoolConfig, WorkerCommand};
-pub use env::{Dtype, Env, EnvBlock, EnvError, EnvSpec, MAX_INFO, StepOutcome};
+pub use env::{
+    Dtype, Env, EnvBlock, EnvError, EnvSpec, MAX_INFO, StepOutcome, action_out_of_range,
+};
 pub use error::{FailureCause, PoolError, WorkerFailure};
 pub use kinds::test_env::TestEnv;
 pub use registry::{BlockCtor, Built, EnvCtor, EnvRegistry};

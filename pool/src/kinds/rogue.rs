@@ -113,9 +113,8 @@ impl Env for RogueEnv {
     fn step(&mut self, action: usize, obs: &mut [u8]) -> Result<StepOutcome, EnvError> {
         let a = Action::from_index(action).ok_or_else(|| {
             EnvError::new(format!(
-                "rogue env: action {action} is out of range; valid actions are 0 to {} (range({}))",
-                rogue_gym_engine::NUM_ACTIONS - 1,
-                rogue_gym_engine::NUM_ACTIONS
+                "rogue env: {}",
+                crate::env::action_out_of_range(action, rogue_gym_engine::NUM_ACTIONS)
             ))
         })?;
         let r = self.game.step(a);

@@ -58,11 +58,7 @@ impl<E> Slot<E> {
         if ctx.action_bytes > 0 || value < ctx.num_actions as u64 {
             return Ok(());
         }
-        let msg = format!(
-            "action {value} is out of range; valid actions are 0 to {} (range({}))",
-            ctx.num_actions.saturating_sub(1),
-            ctx.num_actions
-        );
+        let msg = crate::env::action_out_of_range(value, ctx.num_actions);
         Err(fault(self, "step".into(), msg))
     }
 
