@@ -202,7 +202,7 @@ def test_each_kind_serves_the_operations_its_table_declares_and_refuses_the_rest
     refused at the call, naming the kind and the operation."""
     env = make_kind(kind, **({"render_mode": "ansi"} if kind == "native" else {}))
     env.reset(seed=0)
-    who, served = env._kind.who, env._kind.ops
+    who, served = env._kind.facts.who, env._kind.facts.ops
     assert served == SERVED_BY[who] and served <= set(ENV_OPS)
     n = env.num_envs
     for op, (name, args) in _SAMPLE_CALLS.items():

@@ -6,14 +6,14 @@ lifecycle, resets, partial resets, the async API, refusing what the kind does no
 from __future__ import annotations
 
 import sys
-from typing import Any, Callable, ClassVar, Optional, Sequence
+from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
 import pytest
 from gymnasium import spaces
 from rogue_gym.front.core import Core, Result
 from rogue_gym.front.vector_env import FrontVectorEnv
-from rogue_gym.kinds.spec import Kind
+from rogue_gym.kinds.spec import Kind, KindFacts
 from rogue_gym.protocol.ops import run_op
 from rogue_gym.settings import PoolOptions
 
@@ -24,27 +24,26 @@ OBS_SHAPE, NUM_ACTIONS, MAX_STEPS = (6,), 3, 5
 
 
 class ToyKind:
-    """The least a kind needs: facts, settings, codecs, infos, operations and render."""
-
-    who = "the toy env"
-    ops = frozenset({"call"})
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
-    render_mode = None
-    spec = None
-    log_steps = None
-    obs_bytes = int(np.prod(OBS_SHAPE))
-    single_observation_space = spaces.Box(0, 255, OBS_SHAPE, np.uint8)
-    single_action_space = spaces.Discrete(NUM_ACTIONS)
+    """The least a kind needs: facts, settings, codecs, seeds, infos, operations, render."""
 
     def __init__(self, num_envs: int) -> None:
-        self.num_envs = num_envs
-        self.worker_command = [sys.executable, "-m", "rogue_gym.worker"]
+        self.facts = KindFacts(
+            num_envs=num_envs,
+            single_observation_space=spaces.Box(0, 255, OBS_SHAPE, np.uint8),
+            single_action_space=spaces.Discrete(NUM_ACTIONS),
+            metadata={"render_modes": []},
+            render_mode=None,
+            spec=None,
+            worker_command=[sys.executable, "-m", "rogue_gym.worker"],
+            who="the toy env",
+            ops=frozenset({"call"}),
+        )
         self._base = 0
 
     def pool_settings(self) -> dict[str, Any]:
         env = {"kind": "test", "obs_shape": list(OBS_SHAPE), "num_actions": NUM_ACTIONS}
         return {
-            **PoolOptions(num_workers=2).pool_json(self.num_envs),
+            **PoolOptions(num_workers=2).pool_json(self.facts.num_envs),
             "env": {**env, "max_steps": MAX_STEPS},
             "seeds": self._schedule(),
         }
@@ -68,20 +67,20 @@ class ToyKind:
     def actions(self, actions: Any, env_ids: Optional[Sequence[int]]) -> np.ndarray:
         return np.asarray(actions, np.int64)
 
-    def seed_schedule(self, seed: Any, core: Core) -> Optional[dict[str, Any]]:
+    def seeds(self, seed: Any, mask: Optional[np.ndarray], core: Core) -> Optional[dict[str, Any]]:
+        if mask is not None:
+            raise ValueError("the toy env's seeds are a schedule: no seeded partial resets")
         if seed is None:
             return None
         self._base = int(seed)
         return self._schedule()
-
-    def seed_partial(self, seed: Any, mask: np.ndarray, core: Core) -> None:
-        raise ValueError("the toy env's seeds are a schedule")
 
     def infos(self, core: Core, result: Result, only: Optional[np.ndarray]) -> dict[str, Any]:
         t = result.cols["info_int"][0].copy()
         return {"t": t, "_t": np.ones(result.rows, bool) if only is None else only}
 
     def final(self, core: Core, env: int) -> tuple[Any, dict[str, Any]]:
+        assert core.final is not None  # SAME_STEP
         return self.batch_views(core.final[env : env + 1])[0].copy(), {}
 
     def call(
@@ -93,7 +92,7 @@ class ToyKind:
         indices: Sequence[int],
     ) -> list[Any]:
         table = {"call": lambda name, env: {"max_steps": MAX_STEPS}[name]}
-        return [run_op(table, self.who, op, name, env) for env in indices]
+        return [run_op(table, self.facts.who, op, name, env) for env in indices]
 
     def info_counts(self) -> tuple[int, int]:
         return 0, 0

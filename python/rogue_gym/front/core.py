@@ -117,31 +117,30 @@ class Core:
         copy: the facade hands out observations that are the caller's to keep; large batches
             are then lent (the slot is not written again while a returned array lives) rather
             than copied.
-    The kind's ``log_steps`` (not ``None``: it renders by replay) has each env's actions
+    The kind's ``facts.log_steps`` (not ``None``: it renders by replay) has each env's actions
     since its episode began kept in :attr:`log`, for episodes of up to that many steps.
     """
 
     def __init__(self, kind: Kind, *, same_step: bool, copy: bool) -> None:
         self.kind = kind
-        self.num_envs = n = kind.num_envs
-        self.obs_bytes = kind.obs_bytes
+        facts = kind.facts
+        self.num_envs = n = facts.num_envs
         self.copy = bool(copy)
         #: SAME_STEP autoreset (else NEXT_STEP).
         self.same_step = bool(same_step)
-        lend = self.copy and n * self.obs_bytes >= leases.LEND_MIN_BYTES
         settings = kind.pool_settings()
         settings["autoreset"] = "same_step" if same_step else "next_step"
         sigterm.install()
         try:
             try:
-                self.pool: Any = _native.Pool(json.dumps(settings), list(kind.worker_command))
+                self.pool: Any = _native.Pool(json.dumps(settings), list(facts.worker_command))
             except OSError as err:
                 if not (settings.get("batch_slots") and err.errno == errno.ENOSPC):
                     raise
                 # /dev/shm has no room for the slots asked for: the default two (lending every
                 # other batch of a loop); still too big: the error.
                 settings["batch_slots"] = None
-                self.pool = _native.Pool(json.dumps(settings), list(kind.worker_command))
+                self.pool = _native.Pool(json.dumps(settings), list(facts.worker_command))
         except EnvFailedError as err:
             reraise(err)
         self._finalizer = weakref.finalize(self, _native.Pool.close, self.pool)
@@ -149,6 +148,9 @@ class Core:
         #: The pool's name: the prefix of its shared-memory files.
         self.name: str = self.pool.name()
         self.num_workers: int = int(self.pool.num_workers)
+        #: Bytes of one env's observation in a batch slot.
+        self.obs_bytes: int = int(self.pool.obs_bytes)
+        lend = self.copy and n * self.obs_bytes >= leases.LEND_MIN_BYTES
         #: One env's observation as the workers write it: shape, dtype name, info value names.
         self.obs_shape = tuple(self.pool.obs_shape)
         self.obs_dtype = str(self.pool.obs_dtype)
@@ -166,7 +168,7 @@ class Core:
         #: The envs whose episode ended at their last call (terminated or truncated).
         self.ended = np.zeros(n, bool)
         #: Each env's actions since its episode began (kinds that render by replay).
-        self.log = None if kind.log_steps is None else EpisodeLog(n, kind.log_steps)
+        self.log = None if facts.log_steps is None else EpisodeLog(n, facts.log_steps)
         #: Observation batches handed out: lent, copied, or as views (``stats()``).
         self.lent = self.copied = self.viewed = 0
         kind.bind(self)

@@ -69,14 +69,15 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         copy: bool = False,
     ) -> None:
         self.autoreset_mode = parse_autoreset_mode(autoreset_mode)
-        self.num_envs = kind.num_envs
-        self.single_observation_space = kind.single_observation_space
-        self.single_action_space = kind.single_action_space
+        facts = kind.facts
+        self.num_envs = facts.num_envs
+        self.single_observation_space = facts.single_observation_space
+        self.single_action_space = facts.single_action_space
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self.metadata = {**kind.metadata, "autoreset_mode": self.autoreset_mode}
-        self.render_mode = kind.render_mode
-        self.spec = kind.spec
+        self.metadata = {**facts.metadata, "autoreset_mode": self.autoreset_mode}
+        self.render_mode = facts.render_mode
+        self.spec = facts.spec
         self.copy = bool(copy)
         self._kind = kind
         self._fill = kind.obs_filler()
@@ -87,7 +88,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         self._async_ids: Optional[np.ndarray] = None
         self._last_slot: Optional[int] = None
         #: The actions each env took last (kept for the episode log).
-        self._taken = np.zeros(kind.num_envs, np.int64)
+        self._taken = np.zeros(facts.num_envs, np.int64)
         self._stats_base: Optional[PoolStats] = None
         #: Whether the env was closed (gymnasium's ``close()`` sets it).
         self.closed = False
@@ -165,7 +166,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         options = dict(options or {})
         mask = partial_mask(options.pop("reset_mask", None), self.num_envs, core.started)
         if mask is not None and seed is not None:
-            self._kind.seed_partial(seed, mask, core)
+            self._kind.seeds(seed, mask, core)
         if options:  # for each env's next reset, as AsyncVectorEnv passes them
             self._call_all("set_reset_options", "", (options,))
         if mask is not None:
@@ -178,7 +179,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
             infos = self._infos(res, mask)
             self._pending = Pending("reset", (self._observations(res), infos))
             return
-        schedule = self._kind.seed_schedule(seed, core)
+        schedule = self._kind.seeds(seed, None, core)
         if isinstance(seed, (int, np.integer)):
             super().reset(seed=int(seed))  # the vector env's own np_random
         if schedule is not None:
@@ -318,7 +319,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
             raise ValueError(
                 "the async API (async_reset/send/recv) needs autoreset_mode NEXT_STEP or SAME_STEP"
             )
-        schedule = self._kind.seed_schedule(seed, core)
+        schedule = self._kind.seeds(seed, None, core)
         if schedule is not None:
             core.set_seeds(schedule)
         core.async_reset()
@@ -386,8 +387,9 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         envs = list(range(self.num_envs)) if indices is None else [int(i) for i in indices]
         if len(arguments) != len(envs):
             raise ValueError(f"{len(arguments)} argument sets for {len(envs)} envs")
-        if op not in self._kind.ops:
-            raise refuse_op(self._kind.who, op)
+        facts = self._kind.facts
+        if op not in facts.ops:
+            raise refuse_op(facts.who, op)
         return self._kind.call(self._core, op, name, arguments, envs)
 
     def call_async(self, name: str, *args: Any, **kwargs: Any) -> None:

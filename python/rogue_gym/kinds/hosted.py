@@ -34,6 +34,7 @@ from ..protocol.layout import FIXED_SPACES, SpaceLayout, UnsupportedSpaceError, 
 from ..protocol.ops import SERVED_BY
 from ..protocol.vector_contract import check_vector_env
 from ..settings import PoolOptions
+from .spec import KindFacts
 
 if TYPE_CHECKING:
     from ..front.core import Core, Result
@@ -148,7 +149,6 @@ class HostedKind:
         self.num_envs = len(fns) if hosted is None else int(hosted.num_envs)
         checked = options.checked_pool(self.num_envs)
         self.options = PoolOptions(**{**vars(options), **checked})
-        self.worker_command = checked["worker_command"]
         # Probe one env here for the spaces and metadata, as AsyncVectorEnv does.
         probe: Any
         if hosted is None:
@@ -232,12 +232,18 @@ class HostedKind:
         self._decoder = InfoDecoder()
         #: (SAME_STEP) each ended env's final dynamic leaves and last step info, until read.
         self._finals: dict[int, tuple[list[Any], dict[str, Any]]] = {}
-        #: Hosted envs render in their workers.
-        self.log_steps: Optional[int] = None
-        #: Who serves this kind's env operations (:data:`rogue_gym.protocol.ops.SERVED_BY`).
-        self.who = "a hosted env" if hosted is None else "a hosted vector env"
-        #: The env operations this kind serves.
-        self.ops = SERVED_BY[self.who]
+        who = "a hosted env" if hosted is None else "a hosted vector env"
+        self.facts = KindFacts(
+            num_envs=self.num_envs,
+            single_observation_space=self.single_observation_space,
+            single_action_space=self.single_action_space,
+            metadata=self.metadata,
+            render_mode=self.render_mode,
+            spec=self.spec,
+            worker_command=checked["worker_command"],
+            who=who,
+            ops=SERVED_BY[who],
+        )
 
     # -- the pool --------------------------------------------------------------------------
 
@@ -353,14 +359,18 @@ class HostedKind:
             raise ValueError("seeds must be in [0, 2**63)")
         return {"base": 0, "set": {"list": values}, "policy": "sequential"}
 
-    def seed_schedule(self, seed: Any, core: Core) -> Optional[dict[str, Any]]:
-        """An int seeds env ``i`` with ``seed + i``, a list seeds each env; ``None`` keeps each
-        env's generator (a first reset without a seed reseeds nothing, as gymnasium's)."""
+    def seeds(self, seed: Any, mask: Optional[np.ndarray], core: Core) -> Optional[dict[str, Any]]:
+        """A full reset: an int seeds env ``i`` with ``seed + i``, a list seeds each env;
+        ``None`` keeps each env's generator (a first reset without a seed reseeds nothing, as
+        gymnasium's). A partial reset: see :meth:`_seed_partial`."""
+        if mask is not None:
+            self._seed_partial(seed, mask, core)
+            return None
         if seed is None and core.started:
             return None
         return self._seeds(seed)
 
-    def seed_partial(self, seed: Any, mask: np.ndarray, core: Core) -> None:
+    def _seed_partial(self, seed: Any, mask: np.ndarray, core: Core) -> None:
         """The masked envs' next reset gets ``seed + i`` (an int) or ``seed[i]`` (a list; a
         ``None`` entry: no reseeding), as gymnasium's vector envs seed a partial reset."""
         if isinstance(seed, (int, np.integer)):

@@ -25,6 +25,7 @@ from ..front.core import out_of_range, scalar_actions
 from ..protocol.ops import op_table, run_op
 from ..settings import PoolSettings
 from .seed_sets import seed_set
+from .spec import KindFacts
 
 if TYPE_CHECKING:
     from ..front.core import Core, Result
@@ -68,10 +69,8 @@ class NativeKind:
         self.single_action_space: spaces.Discrete = spaces.Discrete(len(ACTIONS))
         self.metadata: dict[str, Any] = {"render_modes": list(RENDER_MODES)}
         self.render_mode = render_mode
-        self.spec = None
-        self.worker_command = list(st.worker_command or [])
         self.base_seed = int(st.seed or 0)
-        self.seeds: dict[str, Any] = {
+        self._schedule: dict[str, Any] = {
             "base": self.base_seed,
             "set": seed_set(st.seeds, self.config),
             "policy": st.seed_policy,
@@ -84,13 +83,20 @@ class NativeKind:
         self._info_keys: list[str] = []
         self._masks: dict[str, np.ndarray] = {}
         self._actions = np.zeros(self.num_envs, np.int64)
-        #: Frames are rebuilt by replay: the front logs episodes of up to ``max_steps``.
-        self.log_steps: Optional[int] = self.max_steps + 2 if render_mode is not None else None
         self._ops = op_table(self, WHO)
-        #: Who serves this kind's env operations (:data:`rogue_gym.protocol.ops.SERVED_BY`).
-        self.who = WHO
-        #: The env operations this kind serves.
-        self.ops = frozenset(self._ops)
+        self.facts = KindFacts(
+            num_envs=self.num_envs,
+            single_observation_space=self.single_observation_space,
+            single_action_space=self.single_action_space,
+            metadata=self.metadata,
+            render_mode=render_mode,
+            spec=None,
+            worker_command=list(st.worker_command or []),
+            who=WHO,
+            ops=frozenset(self._ops),
+            # Frames are rebuilt by replay: the front logs episodes of up to max_steps.
+            log_steps=self.max_steps + 2 if render_mode is not None else None,
+        )
 
     # -- the pool --------------------------------------------------------------------------
 
@@ -105,7 +111,7 @@ class NativeKind:
                 "stair_reward": self.stair_reward,
                 "obs": self.obs_spec.to_dict(),
             },
-            "seeds": dict(self.seeds),
+            "seeds": dict(self._schedule),
         }
 
     def bind(self, core: Core) -> None:
@@ -183,10 +189,16 @@ class NativeKind:
         np.copyto(out, a, casting="unsafe")
         return out
 
-    def seed_schedule(self, seed: Any, core: Core) -> Optional[dict[str, Any]]:
-        """``reset(seed=s)`` restarts every env's episode schedule from base seed ``s``."""
+    def seeds(self, seed: Any, mask: Optional[np.ndarray], core: Core) -> Optional[dict[str, Any]]:
+        """``reset(seed=s)`` restarts every env's episode schedule from base seed ``s``; with
+        a partial reset's mask it is refused (a seed restarts the whole schedule)."""
         if seed is None:
             return None
+        if mask is not None:
+            raise ValueError(
+                "reset(seed=...) restarts the game's episode-seed schedule and cannot be "
+                "combined with a partial reset_mask; reset with the seed first, then use the mask"
+            )
         if not isinstance(seed, (int, np.integer)):
             raise TypeError(
                 f"seed must be an int (the base of every env's episode-seed schedule), got "
@@ -198,15 +210,8 @@ class NativeKind:
         if not core.started and seed == self.base_seed:
             return None  # the pool just started from this schedule
         self.base_seed = seed
-        self.seeds["base"] = seed
-        return dict(self.seeds)
-
-    def seed_partial(self, seed: Any, mask: np.ndarray, core: Core) -> None:
-        """Refused: a seed restarts the whole episode-seed schedule."""
-        raise ValueError(
-            "reset(seed=...) restarts the game's episode-seed schedule and cannot be combined "
-            "with a partial reset_mask; reset with the seed first, then use the mask"
-        )
+        self._schedule["base"] = seed
+        return dict(self._schedule)
 
     # -- infos -----------------------------------------------------------------------------
 

@@ -13,6 +13,7 @@ the least one needs.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Callable, Optional, Protocol, Sequence
 
 import numpy as np
@@ -21,7 +22,31 @@ from gymnasium import spaces
 if TYPE_CHECKING:
     from ..front.core import Core, Result
 
-__all__ = ["Kind"]
+__all__ = ["Kind", "KindFacts"]
+
+
+@dataclass(frozen=True)
+class KindFacts:
+    """What the front and gymnasium need to know of a kind's envs, given once."""
+
+    #: Envs in the pool.
+    num_envs: int
+    #: One env's spaces.
+    single_observation_space: spaces.Space
+    single_action_space: spaces.Space
+    #: The envs' ``metadata`` (render modes), render mode and ``EnvSpec`` (if any).
+    metadata: dict[str, Any]
+    render_mode: Optional[str]
+    spec: Any
+    #: Program and leading args of a worker process.
+    worker_command: Sequence[str]
+    #: Who serves the env operations (named in refusals), and the operations served
+    #: (:data:`rogue_gym.protocol.ops.ENV_OPS`).
+    who: str
+    ops: frozenset[str]
+    #: Longest episode the front logs for a replay (:attr:`Core.log`); ``None`` for a kind that
+    #: does not render by replay.
+    log_steps: Optional[int] = None
 
 
 class Kind(Protocol):
@@ -29,59 +54,8 @@ class Kind(Protocol):
     :meth:`infos` once per step, never anything per env."""
 
     @property
-    def num_envs(self) -> int:
-        """Envs in the pool."""
-        ...
-
-    @property
-    def single_observation_space(self) -> spaces.Space:
-        """One env's observation space."""
-        ...
-
-    @property
-    def single_action_space(self) -> spaces.Space:
-        """One env's action space."""
-        ...
-
-    @property
-    def metadata(self) -> dict[str, Any]:
-        """The envs' ``metadata`` (render modes)."""
-        ...
-
-    @property
-    def render_mode(self) -> Optional[str]:
-        """The envs' render mode."""
-        ...
-
-    @property
-    def spec(self) -> Any:
-        """The envs' ``EnvSpec``, if any."""
-        ...
-
-    @property
-    def who(self) -> str:
-        """Who serves the env operations (a key of :data:`rogue_gym.protocol.ops.SERVED_BY`)."""
-        ...
-
-    @property
-    def ops(self) -> frozenset[str]:
-        """The env operations the kind serves."""
-        ...
-
-    @property
-    def worker_command(self) -> Sequence[str]:
-        """Program and leading args of a worker process."""
-        ...
-
-    @property
-    def log_steps(self) -> Optional[int]:
-        """Longest episode the front logs for a replay (:attr:`Core.log`), or ``None``
-        for a kind that does not render by replay."""
-        ...
-
-    @property
-    def obs_bytes(self) -> int:
-        """Bytes of one env's observation in a batch slot."""
+    def facts(self) -> KindFacts:
+        """What the front and gymnasium need to know of the envs."""
         ...
 
     def pool_settings(self) -> dict[str, Any]:
@@ -109,15 +83,12 @@ class Kind(Protocol):
         int64 indices or uint8 bytes."""
         ...
 
-    def seed_schedule(self, seed: Any, core: Core) -> Optional[dict[str, Any]]:
-        """The episode-seed schedule for ``reset(seed=seed)``; ``None`` keeps the current one.
-        ``ValueError``/``TypeError`` for a seed the kind cannot take."""
-        ...
-
-    def seed_partial(self, seed: Any, mask: np.ndarray, core: Core) -> None:
-        """Seed the next reset of the envs of ``mask`` (a partial reset with ``seed``: an int
-        ``s`` seeds env ``i`` with ``s + i``, a list gives each env's); a ``ValueError`` for a
-        kind whose seeds cannot be set per env."""
+    def seeds(self, seed: Any, mask: Optional[np.ndarray], core: Core) -> Optional[dict[str, Any]]:
+        """``reset(seed=seed)``: the episode-seed schedule of a full reset (``mask`` is
+        ``None``; ``None`` keeps the current one), or, for a partial reset of the envs of
+        ``mask``, seed their next reset (an int ``s`` seeds env ``i`` with ``s + i``, a list
+        gives each env's) and return ``None``. ``ValueError``/``TypeError`` for a seed the
+        kind cannot take."""
         ...
 
     def infos(self, core: Core, result: Result, only: Optional[np.ndarray]) -> dict[str, Any]:
