@@ -5,7 +5,8 @@
 #   2. the async head-to-head with TorchRL's AsyncEnvPool and gymnasium's AsyncVectorEnv on
 #      TorchRL's two workloads, at every core (benchmarks/async_pools.py);
 #   3. the PPO trainer's frames/s on the GPU (python -m rogue_gym.train), or on the CPU
-#      where there is none.
+#      where there is none;
+#   4. PettingZoo envs as rows beside SuperSuit and a plain loop (benchmarks/multi_agent.py).
 # Results go to benchmarks/results/device/ (DEVICE_OUT overrides). A part whose packages are
 # missing (mujoco, torchrl) is left out with a message; a part that fails fails the script.
 #
@@ -61,4 +62,13 @@ result = {"device": sys.argv[2], "updates": len(rows), "fps_last": fps[-1], "fps
 print(f"trainer on {sys.argv[2]}: {fps[-1]:,.0f} frames/s at the last of {len(rows)} updates")
 json.dump(result, open(f"{sys.argv[3]}/train.json", "w"), indent=1)
 EOF
+echo "== 4. many agents ($((SECONDS - t0)) s)"
+if "$py" -c "import pettingzoo, mpe2" 2>/dev/null; then
+    if ((${#quick[@]})); then ma=(--quick --envs simple_spread); else ma=(--num-envs 64 --reps 1); fi
+    timeout 300 "$py" benchmarks/multi_agent.py --workers "$((cores < 16 ? 2 : 16))" \
+        --out "$out" "${ma[@]}"
+else
+    echo "pettingzoo or mpe2 missing: part 4 left out"
+fi
+
 echo "== done in $((SECONDS - t0)) s; results in $out"

@@ -99,6 +99,10 @@ pub struct PoolConfig {
     /// Replace a worker in a planned way once its resident memory is above this many bytes;
     /// `None`: never.
     pub recycle_above_rss: Option<u64>,
+    /// Envs that stay together on one worker, in groups of this many consecutive envs (the
+    /// agents of one multi-agent env, one env each): `num_envs` must be a multiple of it and
+    /// every worker gets whole groups ([`crate::wire::block_range_of`]). 1: any split.
+    pub block_unit: usize,
     /// Slots of the shared batch buffer the synchronous `*_shared` calls write, 2 to
     /// [`crate::MAX_BATCH_SLOTS`]: 2 is double buffering; more let the caller keep several
     /// batches of observations without copying them (see [`crate::Pool::select_slot`]).
@@ -136,6 +140,7 @@ impl PoolConfig {
             recycle_after_steps: None,
             recycle_above_rss: None,
             batch_slots: crate::BATCH_SLOTS,
+            block_unit: 1,
             worker,
             wait: WaitPolicy {
                 poll_budget: Duration::from_micros(50),

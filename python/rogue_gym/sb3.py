@@ -99,3 +99,16 @@ class PoolVecEnv(FrontVecEnv):
         num_envs=n, num_threads=1, autoreset_mode="SameStep")``. ``set_attr`` is not
         available; reset options reach every env of the block."""
         return cls(VectorEnvFn(vector_env_fn, int(num_envs)), **options)  # type: ignore[arg-type]
+
+    @classmethod
+    def from_pettingzoo(
+        cls, env_fn: Callable[[], Any], num_envs: int, **options: Any
+    ) -> PoolVecEnv:
+        """``num_envs`` PettingZoo envs with one row per (env, agent) (see
+        :meth:`rogue_gym.PoolVectorEnv.from_pettingzoo`), as an SB3 ``VecEnv``: parameter
+        sharing, as SuperSuit's ``concat_vec_envs_v1`` gives it. Each env autoresets as a whole
+        (SAME_STEP); a row whose agent is absent has ``active`` False in its info."""
+        from .multi_agent import hosted_rows
+
+        rows, options = hosted_rows(env_fn, num_envs, AutoresetMode.SAME_STEP, options)
+        return cls(rows, **options)

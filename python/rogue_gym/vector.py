@@ -245,6 +245,25 @@ class PoolVectorEnv(FrontVectorEnv):
         ``options`` are those of :class:`PoolVectorEnv`."""
         return cls(VectorEnvFn(vector_env_fn, int(num_envs)), **options)  # type: ignore[arg-type]
 
+    @classmethod
+    def from_pettingzoo(
+        cls, env_fn: Callable[[], Any], num_envs: int, **options: Any
+    ) -> PoolVectorEnv:
+        """``num_envs`` PettingZoo envs (``env_fn()`` builds a ``ParallelEnv``, or an
+        ``AECEnv`` taken through ``aec_to_parallel``) as one vector env with one row per
+        (env, agent): row ``e * A + j`` is env ``e``'s agent ``possible_agents[j]``, ``A``
+        agents per env, every agent with the same spaces. Each worker hosts whole envs
+        (:class:`rogue_gym.multi_agent.AgentRows` of its block); ``infos["active"]`` marks
+        the rows whose agent is there (absent ones: action ignored, observation zeros, reward
+        0). An env autoresets when all its agents are done. ``num_workers`` is at most
+        ``num_envs``; ``options`` are those of :class:`PoolVectorEnv`. See
+        docs/multi-agent.md."""
+        from .multi_agent import hosted_rows
+
+        mode = parse_autoreset_mode(options.get("autoreset_mode", AutoresetMode.NEXT_STEP))
+        rows, options = hosted_rows(env_fn, num_envs, mode, options)
+        return cls(rows, **options)
+
 
 def make_vec(
     env: Union[int, str, Callable[[], gym.Env], None] = None,

@@ -45,6 +45,9 @@ pub(crate) struct PyPoolSettings {
     /// Slots of the shared batch buffer (`None`: the pool's default, two).
     #[serde(default)]
     batch_slots: Option<usize>,
+    /// Envs that stay together on one worker (see `PoolConfig::block_unit`).
+    #[serde(default)]
+    block_unit: Option<usize>,
     /// The runtime directory (`None`: the default, see `rogue_gym_ipc::default_runtime_dir`).
     #[serde(default)]
     runtime_dir: Option<String>,
@@ -101,6 +104,9 @@ pub(crate) fn pool_config(
     cfg.recycle_above_rss = s.recycle_above_rss;
     if let Some(n) = s.batch_slots {
         cfg.batch_slots = n;
+    }
+    if let Some(u) = s.block_unit {
+        cfg.block_unit = u;
     }
     cfg.runtime_dir = s.runtime_dir.map(Into::into);
     if let Some(us) = s.poll_us {

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import subprocess
 import sys
@@ -101,3 +102,22 @@ def test_the_device_script_runs_every_part_in_its_quick_mode(tmp_path: Path) -> 
         assert any(k.startswith("torchrl") and v and v[0] > 0 for k, v in rows.items()), rows
     train = json.loads((tmp_path / "train.json").read_text())
     assert train["fps_last"] > 0 and train["updates"] >= 1
+
+
+def test_the_multi_agent_benchmark_puts_every_system_side_by_side(tmp_path: Path) -> None:
+    """``benchmarks/multi_agent.py --quick``: the pool, SuperSuit (where installed) and the
+    plain loop each give a figure, and the table their ratios."""
+    pytest.importorskip("mpe2")
+    script = str(ROOT / "benchmarks" / "multi_agent.py")
+    proc = subprocess.run(
+        [sys.executable, script, "--quick", "--envs", "simple_spread", "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    runs = json.loads((tmp_path / "multi_agent.json").read_text())["results"]["simple_spread x 8"]
+    assert runs["pool"][0] > 0 and runs["plain_loop"][0] > 0
+    if importlib.util.find_spec("supersuit") is not None:
+        assert runs["supersuit_1p"][0] > 0
+    assert "pool / plain loop" in (tmp_path / "multi_agent.md").read_text()

@@ -30,7 +30,7 @@ use crate::seeds::SeedSchedule;
 use crate::stats::{StatsBuffer, SupervisorCounts, WorkerStats};
 use crate::wire::layout::BlockLayout;
 use crate::wire::{
-    BATCH_BUFFER, CMD_CLOSE, MAX_BATCH_SLOTS, WorkerConfig, block_range, shm_need, slot_bytes,
+    BATCH_BUFFER, CMD_CLOSE, MAX_BATCH_SLOTS, WorkerConfig, block_range_of, shm_need, slot_bytes,
 };
 
 pub use async_api::RecvWant;
@@ -46,7 +46,7 @@ struct Supervisor {
     spec: EnvSpec,
     /// Block layout of each worker (blocks may differ by one env).
     layouts: Vec<BlockLayout>,
-    /// The envs of each worker ([`block_range`]).
+    /// The envs of each worker ([`block_range_of`]).
     blocks: Vec<Range<usize>>,
     id: PoolId,
     config_path: PathBuf,
@@ -169,8 +169,17 @@ impl Pool {
                 cfg.num_workers, cfg.num_envs
             )));
         }
+        let unit = cfg.block_unit;
+        if unit == 0 || !cfg.num_envs.is_multiple_of(unit) || cfg.num_workers > cfg.num_envs / unit
+        {
+            return Err(PoolError::Config(format!(
+                "envs come in groups of {unit} that stay on one worker (block_unit): num_envs \
+                 ({}) must be a multiple of it and num_workers ({}) at most num_envs / {unit}",
+                cfg.num_envs, cfg.num_workers
+            )));
+        }
         let blocks: Vec<Range<usize>> = (0..cfg.num_workers)
-            .map(|k| block_range(cfg.num_envs, cfg.num_workers, k))
+            .map(|k| block_range_of(cfg.num_envs, cfg.num_workers, k, unit))
             .collect();
         if let Some(b) = cfg.batch_size
             && !(1..=cfg.num_envs).contains(&b)
@@ -239,6 +248,7 @@ impl Pool {
             block_slice_ms: cfg.worker_wait.block_slice.as_millis() as u64,
             poll_yield: cfg.worker_wait.yield_cpu,
             batch_slots: cfg.batch_slots,
+            block_unit: cfg.block_unit,
         };
         let config_path = id.aux_dir().join("worker.json");
         let num_envs = cfg.num_envs;

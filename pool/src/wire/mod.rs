@@ -62,6 +62,19 @@ pub fn block_range(num_envs: usize, num_workers: usize, k: usize) -> std::ops::R
     start..start + q + usize::from(k < r)
 }
 
+/// The envs worker `k` of `num_workers` hosts when envs come in groups of `unit` that must
+/// stay on one worker (the agents of one multi-agent env): [`block_range`] over the groups.
+pub fn block_range_of(
+    num_envs: usize,
+    num_workers: usize,
+    k: usize,
+    unit: usize,
+) -> std::ops::Range<usize> {
+    let unit = unit.max(1);
+    let groups = block_range(num_envs / unit, num_workers, k);
+    groups.start * unit..groups.end * unit
+}
+
 /// Blocks of one worker whose pages a pool counts as taken in `/dev/shm`: the one a worker
 /// writes and the one the supervisor holds.
 const BLOCKS_IN_USE: usize = 2;
@@ -163,6 +176,13 @@ pub struct WorkerConfig {
     /// Slots of the shared batch buffer ([`crate::PoolConfig::batch_slots`]).
     #[serde(default = "default_batch_slots")]
     pub batch_slots: usize,
+    /// Envs that stay together on one worker ([`crate::PoolConfig::block_unit`]).
+    #[serde(default = "default_block_unit")]
+    pub block_unit: usize,
+}
+
+fn default_block_unit() -> usize {
+    1
 }
 
 fn default_batch_slots() -> usize {
@@ -174,9 +194,9 @@ fn default_true() -> bool {
 }
 
 impl WorkerConfig {
-    /// The envs worker `k` hosts ([`block_range`]).
+    /// The envs worker `k` hosts ([`block_range_of`]).
     pub fn envs_of(&self, k: usize) -> std::ops::Range<usize> {
-        block_range(self.num_envs, self.num_workers, k)
+        block_range_of(self.num_envs, self.num_workers, k, self.block_unit)
     }
     /// The channel settings both sides use.
     pub fn channel_settings(&self) -> ChannelSettings {
@@ -198,6 +218,17 @@ mod tests {
                 let blocks: Vec<_> = (0..w).map(|k| block_range(n, w, k)).collect();
                 assert_eq!(blocks[0].start, 0);
                 assert_eq!(blocks[w - 1].end, n);
+                for unit in 1..=3 {
+                    if n.is_multiple_of(unit) && w <= n / unit {
+                        for k in 0..w {
+                            let b = super::block_range_of(n, w, k, unit);
+                            assert!(
+                                b.start.is_multiple_of(unit) && b.end.is_multiple_of(unit),
+                                "{n} {w} {unit}"
+                            );
+                        }
+                    }
+                }
                 assert!(blocks.windows(2).all(|p| p[0].end == p[1].start));
                 let sizes: Vec<usize> = blocks.iter().map(|b| b.len()).collect();
                 assert!(sizes.iter().max().unwrap() - sizes.iter().min().unwrap() <= 1);

@@ -62,6 +62,9 @@ class VectorEnvFn:
 
     fn: Callable[[int], VectorEnv]
     num_envs: int
+    #: Envs that stay together on one worker: every block is a multiple of it (the agents of
+    #: one multi-agent env, :meth:`rogue_gym.PoolVectorEnv.from_pettingzoo`).
+    unit: int = 1
 
     def __post_init__(self) -> None:
         if not callable(self.fn):
@@ -143,6 +146,7 @@ class HostedKind:
         observation_mode: Any = "same",
     ) -> None:
         hosted = env_fns if isinstance(env_fns, VectorEnvFn) else None
+        self._block_unit = 1 if hosted is None else int(hosted.unit)
         fns: list[EnvFn] = [] if hosted is not None else list(env_fns)
         if hosted is None and not fns:
             raise ValueError("env_fns is empty: give one callable per env")
@@ -160,13 +164,13 @@ class HostedKind:
                     "gym.make('CartPole-v1'))"
                 )
         else:
-            probe = hosted.fn(1)
+            probe = hosted.fn(hosted.unit)
         try:
             if hosted is None:
                 self.single_observation_space = probe.observation_space
                 self.single_action_space = probe.action_space
             else:
-                check_vector_env(probe, 1, autoreset_mode)
+                check_vector_env(probe, hosted.unit, autoreset_mode)
                 self.single_observation_space = probe.single_observation_space
                 self.single_action_space = probe.single_action_space
             self.metadata: dict[str, Any] = dict(probe.metadata)
@@ -254,6 +258,7 @@ class HostedKind:
             "env": self._env,
             "spec": self._spec,
             "seeds": self._seeds(None),
+            "block_unit": self._block_unit,
         }
 
     def bind(self, core: Core) -> None:
