@@ -388,3 +388,18 @@ def test_an_aec_env_is_hosted_through_aec_to_parallel(pools) -> None:
     for act in _actions(par, 40, seed=3):
         ra, rb = aec.step(act), par.step(act)
         assert all(np.array_equal(x, y) for x, y in zip(ra[:4], rb[:4]))
+
+
+def test_tune_times_pettingzoo_envs_as_rows() -> None:
+    import io
+
+    import rogue_gym
+
+    out = io.StringIO()
+    result = rogue_gym.tune(spread, 2, seconds=0.05, rounds=1, cpus=1, out=out)
+    assert result.kind == "pettingzoo"
+    modes = {t.candidate.mode for t in result.timings}
+    assert modes == {"pool", "sync"} and all(t.median > 0 for t in result.timings)
+    advice = result.advice()
+    assert "from_pettingzoo(env_fn, 2," in advice or "AgentRows" in advice
+    assert advice in out.getvalue()

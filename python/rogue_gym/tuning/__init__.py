@@ -8,13 +8,15 @@ Command line::
     python -m rogue_gym.tuning RogueGym-v0        # the native game (paper config)
 
 From Python: ``rogue_gym.tune(env, num_envs=64)`` (this package's :func:`tune`) with a
-gymnasium id, an env factory (a callable, or ``"module:callable"``), a list of ``env_fns`` (one per env), or ``"RogueGym-v0"``;
-it returns a :class:`TuneResult`.
+gymnasium id, an env factory (a callable, or ``"module:callable"``), a list of ``env_fns`` (one
+per env), or ``"RogueGym-v0"``; it returns a :class:`TuneResult`. A factory of PettingZoo envs
+is tuned as rows (:meth:`rogue_gym.PoolVectorEnv.from_pettingzoo`: ``num_envs`` envs, every
+worker count up to it, views or copies, against a loop over the envs in this process).
 
 The candidates: ``num_workers`` from 1 to twice the CPU count; observations lent (``copy=True``)
 or as shared-memory views (``copy=False``), and where the batch is large enough to be lent, lent
-from three batch slots (``batch_slots=3``: every batch lent, one more batch of ``/dev/shm``); the EnvPool-style async loop (``send``/``recv``)
-with ``batch_size`` = one worker's envs and half the envs, and with one worker per env (up
+from three batch slots (``batch_slots=3``: every batch lent, one more batch of ``/dev/shm``);
+the EnvPool-style async loop (``send``/``recv``) with ``batch_size`` = one worker's envs and half the envs, and with one worker per env (up
 to :data:`MAX_ONE_PER_ENV` envs); TorchRL's deadline harvest (``harvest``: ``recv(min_batch=1,
 max_batch=num_envs, timeout=1e-3)``, every env received sent at once), which serves envs of
 uneven speed (slow resets) best; and for a

@@ -64,6 +64,18 @@ MAX_ONE_PER_ENV = 64
 HARVEST = {"min_batch": 1, "timeout": 1e-3}
 
 
+def _builds_pettingzoo(env_fn: Callable[[], Any]) -> bool:
+    """Whether ``env_fn()`` is a PettingZoo env (tuned as rows, one per agent); it is built
+    here once to see."""
+    env = env_fn()
+    try:
+        return type(env).__module__.startswith("pettingzoo") or any(
+            c.__module__.startswith("pettingzoo") for c in type(env).__mro__
+        )
+    finally:
+        env.close()
+
+
 def resolve(env: EnvLike) -> tuple[str, Any, Optional[str]]:
     """``(kind, env_fn or env_fns, gym_id)`` of what tune was given."""
     if isinstance(env, (list, tuple)):
@@ -82,7 +94,7 @@ def resolve(env: EnvLike) -> tuple[str, Any, Optional[str]]:
             )
         return "hosted", functools.partial(gym.make, env), env
     if callable(env):
-        return "hosted", env, None
+        return ("pettingzoo" if _builds_pettingzoo(env) else "hosted"), env, None
     raise TypeError(f"tune needs a gymnasium id, an env factory or {ENV_ID!r}, got {env!r}")
 
 
@@ -94,6 +106,15 @@ def candidates(
     batch of ``/dev/shm``) are a candidate too."""
     out: list[Candidate] = []
     workers = [w for w in range(1, 2 * cpus + 1) if w <= num_envs]
+    if kind == "pettingzoo":  # whole envs per worker; the plain loop in this process
+        return [
+            *(
+                Candidate("pool", {"num_workers": w, "copy": c})
+                for w in workers
+                for c in (True, False)
+            ),
+            Candidate("sync"),
+        ]
     for w in workers:
         for copy in (True, False):
             out.append(Candidate("pool", {"num_workers": w, "copy": copy}))

@@ -22,6 +22,8 @@ class TuneResult:
     #: The fastest against each rival within :data:`DUEL_BAND`, side by side, in the
     #: order run; the last winner is ranked first.
     duels: list[Duel] = field(default_factory=list)
+    #: What was tuned: ``"native"``, ``"hosted"`` (gymnasium envs) or ``"pettingzoo"``.
+    kind: str = "hosted"
 
     @property
     def best(self) -> Timing:
@@ -65,12 +67,19 @@ class TuneResult:
                     if (d.first, d.second) == (self.best.candidate.label, pool.candidate.label):
                         x = d.ratio
             ratio = f" ({x:.2f}x the best pool layout)" if pool else ""
+            if self.kind == "pettingzoo":
+                return (
+                    f"a loop over the envs in this process is the fastest here{ratio}: use "
+                    "rogue_gym.multi_agent.AgentRows(env_fns)"
+                )
             return (
                 f"SyncVectorEnv is the fastest here{ratio}: this env is too cheap for worker "
                 "processes at this size on this machine; use gymnasium.vector.SyncVectorEnv"
             )
         c = pool.candidate
         kwargs = ", ".join(f"{k}={v!r}" for k, v in c.kwargs.items())
+        if self.kind == "pettingzoo":
+            return f"best: PoolVectorEnv.from_pettingzoo(env_fn, {self.num_envs}, {kwargs})"
         if c.mode == "vector":
             return f"best: PoolVectorEnv.from_vector_env(vector_env_fn, {self.num_envs}, {kwargs})"
         how = {

@@ -21,7 +21,7 @@ __all__ = ["DUEL_BAND", "KEEP", "LEADERS", "LEADER_BAND", "RIVALS", "estimate_se
 
 #: Seconds a fresh pool takes to start and warm up, for the estimate (hosted envs start a
 #: Python interpreter per worker; the native game's workers start in milliseconds).
-_START_S = {"native": 0.3, "hosted": 1.2, "sync": 0.2}
+_START_S = {"native": 0.3, "hosted": 1.2, "pettingzoo": 1.2, "sync": 0.2}
 
 #: How many of the fastest candidates are timed again (those within :data:`LEADER_BAND`).
 LEADERS = 4
@@ -165,7 +165,7 @@ def tune(
         if d.first == rival.candidate.label:
             champion = rival
     ranked.remove(champion)
-    result = TuneResult([champion, *ranked], int(num_envs), seconds, duels)
+    result = TuneResult([champion, *ranked], int(num_envs), seconds, duels, kind)
     say(result.table())
     say(result.advice())
     return result

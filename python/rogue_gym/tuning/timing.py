@@ -55,10 +55,16 @@ def build(target: Target, c: Candidate) -> Any:
     import rogue_gym
 
     kw = dict(c.kwargs)
-    if target.start_timeout is not None and target.kind == "hosted" and c.mode != "sync":
+    if target.start_timeout is not None and target.kind != "native" and c.mode != "sync":
         kw["start_timeout"] = target.start_timeout
     n, env_fn = target.num_envs, target.env_fn
     fns = env_fn if isinstance(env_fn, list) else [env_fn] * n
+    if target.kind == "pettingzoo":
+        if c.mode == "sync":
+            from ..multi_agent import AgentRows
+
+            return AgentRows(fns)
+        return rogue_gym.PoolVectorEnv.from_pettingzoo(env_fn, n, **kw)
     if c.mode == "sync":
         return gym.vector.SyncVectorEnv(fns)
     if target.kind == "native":
@@ -76,6 +82,14 @@ def obs_bytes(kind: str, env_fn: Any) -> int:
         from ..vector import make_vec
 
         env: Any = make_vec(1, config="paper", num_workers=1)
+    elif kind == "pettingzoo":  # every agent's row
+        from ..multi_agent import AgentRows
+
+        rows = AgentRows([env_fn])
+        try:
+            return rows.num_envs * SpaceLayout(rows.single_observation_space).stride
+        finally:
+            rows.close()
     else:
         env = (env_fn[0] if isinstance(env_fn, list) else env_fn)()
     space = env.single_observation_space if kind == "native" else env.observation_space
