@@ -146,6 +146,10 @@ def test_rows_equal_a_plain_loop_over_the_pettingzoo_envs(name, pools) -> None:
         ends += int((term | trunc).sum())
         deaths += int((~infos["active"]).sum())
     assert ends > 0, "the run crosses episode ends"
+    stats = env.stats()  # the workers count the rows they step
+    assert (
+        len(stats.workers) == 2 and sum(w.env_steps for w in stats.workers) >= steps * env.num_envs
+    )
     if name == "kaz":
         assert deaths > 0, "agents died and their rows went inactive"
 
