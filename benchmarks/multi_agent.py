@@ -43,21 +43,19 @@ def env_fn(name: str) -> Callable[[], Any]:
     return simple_spread_v3.parallel_env
 
 
-class PlainLoop:
-    """The envs stepped one after the other in this process (the same row order and
-    semantics as the pool: :class:`rogue_gym.multi_agent.AgentRows`)."""
+class System:
+    """One vectorizer of ``n`` envs, driven the same way whatever it is."""
 
-    def __init__(self, fn: Callable[[], Any], n: int) -> None:
-        from rogue_gym.multi_agent import AgentRows
-
-        self.env = AgentRows([fn] * n)
-        self.num_envs = self.env.num_envs
-        self.action_space = self.env.action_space
+    def __init__(self, env: Any) -> None:
+        self.env = env
+        self.num_envs = env.num_envs
+        self.action_space = env.action_space
 
     def reset(self, seed: int) -> None:
         self.env.reset(seed=seed)
 
     def sample(self) -> Any:
+        """One batch of random actions, one per row."""
         return self.action_space.sample()
 
     def step(self, actions: np.ndarray) -> None:
@@ -67,64 +65,31 @@ class PlainLoop:
         self.env.close()
 
 
-class Pool:
-    """``PoolVectorEnv.from_pettingzoo``."""
-
-    def __init__(self, fn: Callable[[], Any], n: int, workers: int) -> None:
-        import rogue_gym
-
-        self.env = rogue_gym.PoolVectorEnv.from_pettingzoo(fn, n, num_workers=workers)
-        self.num_envs = self.env.num_envs
-        self.action_space = self.env.action_space
-
-    def reset(self, seed: int) -> None:
-        self.env.reset(seed=seed)
-
-    def sample(self) -> Any:
-        return self.action_space.sample()
-
-    def step(self, actions: np.ndarray) -> None:
-        self.env.step(actions)
-
-    def close(self) -> None:
-        self.env.close()
-
-
-class SuperSuit:
+class SuperSuit(System):
     """``concat_vec_envs_v1(pettingzoo_env_to_vec_env_v1(env), n, num_cpus)``, gymnasium
-    base class (``num_cpus=0``: one process)."""
-
-    def __init__(self, fn: Callable[[], Any], n: int, cpus: int) -> None:
-        import supersuit as ss
-
-        self.env = ss.concat_vec_envs_v1(
-            ss.pettingzoo_env_to_vec_env_v1(fn()), n, num_cpus=cpus, base_class="gymnasium"
-        )
-        self.num_envs = self.env.num_envs
-        self.action_space = self.env.action_space
-
-    def reset(self, seed: int) -> None:
-        self.env.reset(seed=seed)
+    base class (``num_cpus=0``: one process); its action space is one agent's."""
 
     def sample(self) -> Any:
-        """One action per row (SuperSuit's action space is one agent's)."""
         return np.stack([self.action_space.sample() for _ in range(self.num_envs)])
 
-    def step(self, actions: np.ndarray) -> None:
-        self.env.step(actions)
 
-    def close(self) -> None:
-        self.env.close()
-
-
-def build(system: str, fn: Callable[[], Any], n: int, workers: int) -> Any:
+def build(system: str, fn: Callable[[], Any], n: int, workers: int) -> System:
+    """``pool``: ``PoolVectorEnv.from_pettingzoo``; ``supersuit_mp``/``supersuit_1p``:
+    SuperSuit with ``workers`` processes or none; ``plain_loop``: the envs stepped one after
+    the other in this process (the rows the pool hosts, :class:`rogue_gym.multi_agent.AgentRows`)."""
     if system == "pool":
-        return Pool(fn, n, workers)
-    if system == "supersuit_mp":
-        return SuperSuit(fn, n, workers)
-    if system == "supersuit_1p":
-        return SuperSuit(fn, n, 0)
-    return PlainLoop(fn, n)
+        import rogue_gym
+
+        return System(rogue_gym.PoolVectorEnv.from_pettingzoo(fn, n, num_workers=workers))
+    if system.startswith("supersuit"):
+        import supersuit as ss
+
+        cpus = workers if system == "supersuit_mp" else 0
+        vec = ss.pettingzoo_env_to_vec_env_v1(fn())
+        return SuperSuit(ss.concat_vec_envs_v1(vec, n, num_cpus=cpus, base_class="gymnasium"))
+    from rogue_gym.multi_agent import AgentRows
+
+    return System(AgentRows([fn] * n))
 
 
 def run(system: str, fn: Callable[[], Any], n: int, workers: int, seconds: float) -> float:
