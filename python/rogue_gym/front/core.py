@@ -161,8 +161,8 @@ class Core:
         self.final = np.zeros((n, self.obs_bytes), np.uint8) if same_step else None
         #: One column buffer per slot, then ``recv``'s.
         self.cols = self._bind_columns(len(self.slots) + 1)
-        #: The slot written by the last whole-batch call.
-        self.slot = 0
+        #: The slot written by the last whole-batch call (``None`` before the first).
+        self.slot: Optional[int] = None
         #: Whether the envs were reset (a reset, or ``async_reset``) since the pool started.
         self.started = False
         #: The envs whose episode ended at their last call (terminated or truncated).

@@ -86,7 +86,6 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         #: The split call in flight.
         self._pending: Optional[Pending] = None
         self._async_ids: Optional[np.ndarray] = None
-        self._last_slot: Optional[int] = None
         #: The actions each env took last (kept for the episode log).
         self._taken = np.zeros(facts.num_envs, np.int64)
         self._stats_base: Optional[PoolStats] = None
@@ -262,8 +261,6 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         reports (restarted and recycled workers, ``env_id`` for ``recv``). Read before the
         observations: a kind may complete those from its infos."""
         core = self._core
-        if res.slot is not None:
-            self._last_slot = res.slot
         infos = self._kind.infos(core, res, only)
         if self._same_step and res.slot is not None and res.summary & SUMMARY_FINAL:
             for env in np.flatnonzero(res.cols["has_final_obs"]).tolist():
@@ -301,9 +298,10 @@ class FrontVectorEnv(gym.vector.VectorEnv):
     def episode_counters(self) -> tuple[np.ndarray, np.ndarray]:
         """``(episode_return, episode_length)`` of every env after the last call: in SAME_STEP,
         an env whose episode ended on that step shows the ended episode's."""
-        if self._last_slot is None:
+        slot = self._core.slot
+        if slot is None:
             raise RuntimeError("call reset() first")
-        cols = self._core.cols[self._last_slot]
+        cols = self._core.cols[slot]
         return cols["episode_return"].copy(), cols["episode_length"].copy()
 
     # -- EnvPool-style async API -----------------------------------------------------------

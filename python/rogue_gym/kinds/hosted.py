@@ -173,9 +173,8 @@ class HostedKind:
                 check_vector_env(probe, hosted.unit, autoreset_mode)
                 self.single_observation_space = probe.single_observation_space
                 self.single_action_space = probe.single_action_space
-            self.metadata: dict[str, Any] = dict(probe.metadata)
-            self.render_mode = probe.render_mode
-            self.spec = getattr(probe, "spec", None)
+            metadata: dict[str, Any] = dict(probe.metadata)
+            render_mode, env_spec = probe.render_mode, getattr(probe, "spec", None)
         finally:
             probe.close()
         #: The batch observation space when the envs' spaces differ (``None``: batched as one).
@@ -241,9 +240,9 @@ class HostedKind:
             num_envs=self.num_envs,
             single_observation_space=self.single_observation_space,
             single_action_space=self.single_action_space,
-            metadata=self.metadata,
-            render_mode=self.render_mode,
-            spec=self.spec,
+            metadata=metadata,
+            render_mode=render_mode,
+            spec=env_spec,
             worker_command=checked["worker_command"],
             who=who,
             ops=SERVED_BY[who],

@@ -67,8 +67,6 @@ class NativeKind:
             self.obs_spec, self.obs_shape, int(probe.symbols)
         )
         self.single_action_space: spaces.Discrete = spaces.Discrete(len(ACTIONS))
-        self.metadata: dict[str, Any] = {"render_modes": list(RENDER_MODES)}
-        self.render_mode = render_mode
         self.base_seed = int(st.seed or 0)
         self._schedule: dict[str, Any] = {
             "base": self.base_seed,
@@ -88,7 +86,7 @@ class NativeKind:
             num_envs=self.num_envs,
             single_observation_space=self.single_observation_space,
             single_action_space=self.single_action_space,
-            metadata=self.metadata,
+            metadata={"render_modes": list(RENDER_MODES)},
             render_mode=render_mode,
             spec=None,
             worker_command=list(st.worker_command or []),
@@ -244,6 +242,7 @@ class NativeKind:
     def final(self, core: Core, env: int) -> tuple[Any, dict[str, Any]]:
         """(SAME_STEP) env ``env``'s final observation and the info values of its last step
         (the step's row describes the ended episode)."""
+        assert core.slot is not None  # after the step that ended the episode
         template = self._templates[core.slot]
         return core.final_obs(env), {key: template[key][env] for key in self._info_keys}
 
@@ -255,7 +254,7 @@ class NativeKind:
 
     def _attributes(self) -> dict[str, Any]:
         return {
-            "render_mode": self.render_mode,
+            "render_mode": self.facts.render_mode,
             "render_modes": list(RENDER_MODES),
             "config": self.config,
             "max_steps": self.max_steps,
@@ -263,14 +262,16 @@ class NativeKind:
             "observation_space": self.single_observation_space,
             "action_space": self.single_action_space,
             "spec": None,
-            "metadata": self.metadata,
+            "metadata": self.facts.metadata,
         }
 
     def _attribute(self, name: str, env: int) -> Any:
         if name == "episode_seed":
             core = self._core()
             assert core is not None  # bound while the pool lives
-            return int(core.cols[core.slot]["seed"].view(np.uint64)[env]) if core.started else None
+            if core.slot is None:
+                return None
+            return int(core.cols[core.slot]["seed"].view(np.uint64)[env])
         table = self._attributes()
         if name not in table:
             raise AttributeError(
@@ -333,7 +334,7 @@ class NativeKind:
     def frame(self, env: int) -> Any:
         """Env ``env``'s current frame: its screen (text) or, in ``rgb_array`` mode, an image."""
         screen = self.screen(env)
-        return screen_to_rgb(screen) if self.render_mode == "rgb_array" else screen
+        return screen_to_rgb(screen) if self.facts.render_mode == "rgb_array" else screen
 
     def screen(self, env: int) -> str:
         """The current screen of env ``env`` (map rows and status line), rebuilt by replaying
@@ -355,14 +356,14 @@ class NativeKind:
 
     def render(self, core: Core) -> Optional[tuple[Any, ...]]:
         """Every env's frame; ``human`` prints the screens and returns ``None``."""
-        if self.render_mode is None:
+        if self.facts.render_mode is None:
             gym.logger.warn(
                 "render() called without a render_mode; pass render_mode='ansi', 'human' or "
                 "'rgb_array'"
             )
             return None
         frames = tuple(self.frame(i) for i in range(self.num_envs))
-        if self.render_mode == "human":
+        if self.facts.render_mode == "human":
             for i, frame in enumerate(frames):
                 print(f"--- env {i}\n{frame}", flush=True)
             return None
