@@ -1,5 +1,13 @@
 """Multicore scaling: the pool's sync ``step()`` throughput from 1 to N workers, each worker with
-the same envs (weak scaling), as efficiency against linear (``rate(k) / (k * rate(1))``).
+the same envs (weak scaling), as efficiency against linear (``rate(k) / (k * rate(1))``), and
+the model behind it (``--model``).
+
+The model: with k workers stepping in parallel, each taking ``t_w`` per call, a sync step takes
+``t_w + o(k·n)``, where ``o(N)`` is the caller's own time for a batch of N envs (the wall time
+of a call minus the worker's env time, measured with one worker so that the two never
+overlap); efficiency against linear is then ``t_w / (t_w + o(k·n))``. ``--model`` measures
+``o`` and ``t_w`` for each batch size on this machine and prints the projected efficiency at
+2 to 16 workers.
 
 Envs: the native game (``--rogue-envs`` a worker, 256 by default, as the design's target
 says), gymnasium's CartPole-v1 and HalfCheetah-v5 (``--hosted-envs`` a worker; HalfCheetah
@@ -7,10 +15,11 @@ needs mujoco, and is left out without it). Random actions, precomputed; each cel
 ``--seconds`` after a warm-up, ``--reps`` times, cells interleaved.
 
     python benchmarks/scaling.py --workers 1 2 4 8 16
+    python benchmarks/scaling.py --model               # the caller's own time, projected
     python benchmarks/scaling.py --quick               # a smoke run (CI)
 
-Writes ``scaling.json`` and ``scaling.md`` under ``--out``
-(default ``benchmarks/results/scaling``).
+Writes ``scaling.json`` and ``scaling.md`` (``model.json`` and ``model.md`` for ``--model``)
+under ``--out`` (default ``benchmarks/results/scaling``).
 """
 
 from __future__ import annotations
@@ -56,6 +65,98 @@ def rate(env: str, per_worker: int, workers: int, seconds: float) -> float:
         vec.close()
 
 
+def split(env: str, num_envs: int, seconds: float) -> tuple[float, float]:
+    """``(caller's own time, worker's env time)`` per sync ``step()`` in seconds, for one
+    worker with ``num_envs`` envs: the wall time per call minus the worker's env time (from
+    ``stats()``), which it spends while the caller waits."""
+    vec = make(env, num_envs, 1)
+    try:
+        vec.reset(seed=0)
+        rng = np.random.default_rng(0)
+        if env == "rogue":
+            acts = [rng.integers(0, vec.single_action_space.n, num_envs) for _ in range(8)]
+        else:
+            acts = [np.stack([vec.single_action_space.sample() for _ in range(num_envs)])] * 8
+        for a in acts * 4:  # warm-up
+            vec.step(a)
+        vec.stats(reset=True)
+        calls, t0 = 0, time.perf_counter()
+        while time.perf_counter() - t0 < seconds:
+            vec.step(acts[calls % 8])
+            calls += 1
+        wall = time.perf_counter() - t0
+        env_s = vec.stats().workers[0].env_s
+        return (wall - env_s) / calls, env_s / calls
+    finally:
+        vec.close()
+
+
+#: Batch sizes the model measures: a worker's envs at 1 worker, and the whole batch at 2 to 16
+#: workers (native 256 a worker, hosted 8).
+MODEL_BATCHES = {"rogue": (64, 256, 512, 1024, 2048, 4096), "CartPole-v1": (8, 16, 32, 64, 128)}
+MODEL_PER_WORKER = {"rogue": 256, "CartPole-v1": 8}
+
+
+def model(args: argparse.Namespace) -> None:
+    """Measure the caller's own time and the worker's env time per call for each batch size
+    (cells interleaved, medians of ``--reps``), and project the efficiency at k workers."""
+    envs = [e for e in MODEL_BATCHES if e in args.envs or e == "rogue"]
+    cells: dict[tuple[str, int], list[tuple[float, float]]] = {}
+    for rep in range(args.reps):
+        for e in envs:
+            for n in MODEL_BATCHES[e]:
+                o, t = split(e, n, args.seconds)
+                cells.setdefault((e, n), []).append((o, t))
+                print(f"rep {rep + 1}: {e} x {n}: caller {o * 1e6:.1f} us, worker {t * 1e6:.1f} us")
+    med = {
+        key: (statistics.median(v[0] for v in vals), statistics.median(v[1] for v in vals))
+        for key, vals in cells.items()
+    }
+    lines = [
+        f"# The caller's own time per sync step() ({platform.node()}, "
+        f"{len(os.sched_getaffinity(0))} cores, 1 worker, {args.seconds:g} s x {args.reps} runs, "
+        "medians)",
+        "",
+        "| env | envs | caller's own time (us) | ns per env-step | worker's env time (us) |",
+        "|---|---|---|---|---|",
+    ]
+    for (e, n), (o, t) in sorted(med.items()):
+        lines.append(f"| {e} | {n} | {o * 1e6:.1f} | {o * 1e9 / n:.1f} | {t * 1e6:.1f} |")
+    lines += [
+        "",
+        "Projected efficiency against linear, t_w / (t_w + o(k·n)):",
+        "",
+        "| env | envs a worker | workers | t_w (us) | o(k·n) (us) | projected |",
+        "|---|---|---|---|---|---|",
+    ]
+    projected = {}
+    for e in envs:
+        per = MODEL_PER_WORKER[e]
+        t_w = med[(e, per)][1]
+        for k in (1, 2, 4, 8, 16):
+            if (e, k * per) in med:
+                o = med[(e, k * per)][0]
+                eff = t_w / (t_w + o)
+                projected[f"{e}/{k}"] = eff
+                lines.append(f"| {e} | {per} | {k} | {t_w * 1e6:.1f} | {o * 1e6:.1f} | {eff:.0%} |")
+    text = "\n".join(lines)
+    print(text)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "model.md").write_text(text + "\n")
+    (out / "model.json").write_text(
+        json.dumps(
+            {
+                "seconds": args.seconds,
+                "reps": args.reps,
+                "cells": {f"{e}/{n}": v for (e, n), v in cells.items()},
+                "projected": projected,
+            },
+            indent=1,
+        )
+    )
+
+
 def available(env: str) -> bool:
     if env == "rogue":
         return True
@@ -76,12 +177,18 @@ def main(argv: Optional[list[str]] = None) -> None:
     p.add_argument("--seconds", type=float, default=3.0)
     p.add_argument("--reps", type=int, default=1)
     p.add_argument("--quick", action="store_true", help="1 and 2 workers, 1 s, few envs (CI)")
+    p.add_argument(
+        "--model", action="store_true", help="the caller's own time and the projection instead"
+    )
     p.add_argument("--out", default=str(Path(__file__).parent / "results" / "scaling"))
     args = p.parse_args(argv)
     if args.quick:
         args.workers, args.seconds, args.reps = [1, 2], 1.0, 1
         args.rogue_envs, args.hosted_envs = 16, 2
         args.envs = [e for e in args.envs if e != "HalfCheetah-v5"]
+    if args.model:
+        model(args)
+        return
     envs = [e for e in args.envs if available(e)]
     runs: dict[str, dict[int, list[float]]] = {e: {k: [] for k in args.workers} for e in envs}
     for rep in range(args.reps):

@@ -8,9 +8,11 @@ use crate::Svc;
 use crate::error::IpcError;
 use crate::error::ice;
 
-/// How a side waits for the other: yield-poll for `poll_budget`, then block on the event
-/// listener in slices of `block_slice` (between slices the caller's idle hook runs: liveness
-/// checks, timeouts).
+/// How a side waits for the other: block on the event listener for `sleep_first` (an answer
+/// expected no sooner: the CPU is free meanwhile, and an early event still wakes it), then
+/// yield-poll for `poll_budget` (no wake-up latency when the answer comes then), then block
+/// in slices of `block_slice` (between slices the caller's idle hook runs: liveness checks,
+/// timeouts).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WaitPolicy {
     /// How long to poll with `yield_now` before blocking. Keep it at tens of µs.
@@ -20,6 +22,9 @@ pub struct WaitPolicy {
     /// Poll with `sched_yield` between checks (`true`), or spin with a CPU pause hint
     /// (`false`; never gives the CPU away, but is still bounded by `poll_budget`).
     pub yield_cpu: bool,
+    /// How long to block before polling at all (zero: poll first). A side that knows how
+    /// long the other usually takes sleeps through most of it and polls for the rest.
+    pub sleep_first: Duration,
 }
 
 impl Default for WaitPolicy {
@@ -28,6 +33,7 @@ impl Default for WaitPolicy {
             poll_budget: Duration::from_micros(50),
             block_slice: Duration::from_millis(10),
             yield_cpu: true,
+            sleep_first: Duration::ZERO,
         }
     }
 }
@@ -65,6 +71,23 @@ pub fn hybrid_wait<E: From<IpcError>>(
 ) -> Result<WaitOutcome, E> {
     if f(WaitCall::Poll)? {
         return Ok(WaitOutcome::Done);
+    }
+    let asleep = Instant::now();
+    while asleep.elapsed() < policy.sleep_first {
+        let mut slice = policy.sleep_first - asleep.elapsed();
+        if let Some(d) = deadline {
+            slice = slice.min(d.saturating_duration_since(Instant::now()));
+        }
+        if slice.is_zero() {
+            break;
+        }
+        match listener.timed_wait(|_| {}, slice) {
+            Ok(_) | Err(iceoryx2::port::listener::ListenerWaitError::InterruptSignal) => {}
+            Err(e) => return Err(ice("wait on event listener")(e).into()),
+        }
+        if f(WaitCall::Poll)? {
+            return Ok(WaitOutcome::Done);
+        }
     }
     let start = Instant::now();
     while start.elapsed() < policy.poll_budget {

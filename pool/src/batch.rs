@@ -82,6 +82,35 @@ impl BatchOutput {
     }
 }
 
+/// What a whole-batch call (step, reset, partial reset) answers beside the rows the workers
+/// wrote in place in its batch slot ([`crate::wire::slot_layout`]): found out from one word
+/// per worker, never by reading the envs' rows.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SlotAnswer {
+    /// The slot the workers wrote.
+    pub slot: usize,
+    /// Some env's worker was restarted during the call (its rows say `restarted`).
+    pub restarted: bool,
+    /// (SAME_STEP) some env has a final observation in the slot's final area.
+    pub final_obs: bool,
+    /// The envs' extra info.
+    pub extras: SlotExtras,
+}
+
+/// The extra info of a whole-batch call ([`crate::Env::extra_info`]: hosted envs' infos).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub enum SlotExtras {
+    /// No env wrote any.
+    #[default]
+    None,
+    /// Every env wrote this many bytes of one layout (the same first 16 bytes), each in its
+    /// room of the slot's extra area: read them there.
+    Uniform(usize),
+    /// Some envs wrote some, not all of one layout: `(env, bytes)` in env order (collected
+    /// env by env: the irregular case, e.g. infos that are pickled).
+    Rows(Vec<(usize, Vec<u8>)>),
+}
+
 /// One worker's block as received: an owned handle on the shared-memory sample (`Send`).
 ///
 /// Lifetime: the observation bytes stay valid and unchanged for as long as the `Block` lives,

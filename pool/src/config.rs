@@ -146,11 +146,13 @@ impl PoolConfig {
                 poll_budget: Duration::from_micros(50),
                 block_slice: Duration::from_millis(10),
                 yield_cpu: true,
+                sleep_first: Duration::ZERO,
             },
             worker_wait: WaitPolicy {
                 poll_budget: Duration::from_micros(50),
                 block_slice: Duration::from_millis(100),
                 yield_cpu: true,
+                sleep_first: Duration::ZERO,
             },
             runtime_dir: None,
         }

@@ -44,7 +44,7 @@ pub mod supervisor;
 pub mod wire;
 pub mod worker;
 
-pub use batch::{Batch, BatchOutput, Block};
+pub use batch::{Batch, BatchOutput, Block, SlotAnswer, SlotExtras};
 pub use config::{AutoresetMode, FailurePolicy, PoolConfig, WorkerCommand};
 pub use env::{
     Dtype, Env, EnvBlock, EnvError, EnvSpec, MAX_INFO, StepOutcome, action_out_of_range,
@@ -59,6 +59,7 @@ pub use supervisor::{Actions, InterruptCheck, Pool, Received, RecvWant, validate
 pub use wire::layout::{
     EnvRecord, FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED,
 };
+pub use wire::slot_layout::{COLUMNS, Column, ColumnView, RowWriter, SlotLayout};
 pub use wire::{BATCH_SLOTS, EnvFault, MAX_BATCH_SLOTS, WorkerConfig};
 pub use worker::worker_main;
 

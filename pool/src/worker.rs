@@ -16,11 +16,13 @@ use crate::config::AutoresetMode;
 use crate::env::MAX_INFO;
 use crate::registry::{Built, EnvRegistry};
 use crate::stats::{Counter, StatsBuffer, ns_since, stamp};
+use crate::wire::books::Books;
 use crate::wire::layout::BlockLayout;
+use crate::wire::slot_layout::SlotLayout;
 use crate::wire::{
     ACTION_EXTRAS, BATCH_BUFFER, BLOCK_AT_ONCE, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY,
-    CMD_CALL, CMD_CLOSE, CMD_STEP, EnvFault, RELOAD_SEEDS, SUBSET, TARGET_BITS, TARGET_SHIFT,
-    WorkerConfig, calls, env_fault_path, extra_apart_path, slot_bytes, successor_go,
+    CMD_CALL, CMD_CLOSE, CMD_STEP, EnvFault, RELOAD_SEEDS, SLOT_ANSWER_WORDS, SUBSET, TARGET_BITS,
+    TARGET_SHIFT, WorkerConfig, calls, env_fault_path, extra_apart_path, successor_go,
     successor_marker,
 };
 
@@ -30,7 +32,7 @@ mod slot;
 
 use block::BlockHost;
 use envs::{WorkerEnvs, answer_calls, take_action_extras};
-use slot::{BlockOut, Slot, SlotCtx};
+use slot::{BlockOut, Rows, Slot, SlotCtx};
 
 #[derive(Debug, thiserror::Error)]
 enum WorkerError {
@@ -156,6 +158,20 @@ fn wait_for_go(id: &PoolId, a: &Args) -> Result<(), WorkerError> {
     Ok(())
 }
 
+/// The longest a worker polls for a command it expects soon ([`expected_poll`]).
+const MAX_EXPECTED_POLL: Duration = Duration::from_millis(2);
+
+/// How long to poll for the next command: twice the last gap between an answer and the next
+/// command when that was short (a caller in a tight loop: the worker is still polling when
+/// the command comes, and no wake-up is paid), else the configured budget.
+fn expected_poll(budget: Duration, last_gap: Duration) -> Duration {
+    if last_gap <= MAX_EXPECTED_POLL / 2 {
+        budget.max(last_gap * 2)
+    } else {
+        budget
+    }
+}
+
 fn read_config(path: &std::path::Path) -> Result<WorkerConfig, String> {
     let dir = path.parent().unwrap_or(std::path::Path::new("/"));
     let meta = std::fs::symlink_metadata(dir)
@@ -220,6 +236,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         poll_budget: Duration::from_micros(cfg.poll_budget_us),
         block_slice: Duration::from_millis(cfg.block_slice_ms.max(1)),
         yield_cpu: cfg.poll_yield,
+        sleep_first: Duration::ZERO,
     };
     let header = |seq, kind| BlockHeader {
         seq,
@@ -229,9 +246,17 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         ready_ns: 0,
     };
     let ob = layout.obs_bytes;
-    let sb = slot_bytes(cfg.num_envs, ob);
+    let slot_layout = SlotLayout {
+        num_envs: cfg.num_envs,
+        obs_bytes: ob,
+        n_info,
+        final_obs: layout.final_obs,
+        extra_bytes: layout.extra_bytes,
+    };
+    let sb = slot_layout.bytes();
     let batch = rogue_gym_ipc::SharedBuffer::open(&id, BATCH_BUFFER, cfg.batch_slots * sb)?;
     let stats = StatsBuffer::open(&id, cfg.num_workers)?;
+    let books = Books::open(&id, cfg.num_envs)?;
     let me = a.index;
     let first_env = envs.start;
     let mut ready = ports.loan_block(words)?;
@@ -249,11 +274,21 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         ..policy
     };
     let mut block_at_once = false;
+    // How long the last command took to come after the answer before it.
+    let mut last_gap = Duration::MAX;
     loop {
         let mut cmd = None;
         let waiting = stamp();
-        let now = if block_at_once { &blocking } else { &policy };
-        hybrid_wait::<WorkerError>(ports.cmd_listener(), now, None, |call| {
+        let since = std::time::Instant::now();
+        let now = if block_at_once {
+            blocking
+        } else {
+            WaitPolicy {
+                poll_budget: expected_poll(policy.poll_budget, last_gap),
+                ..policy
+            }
+        };
+        hybrid_wait::<WorkerError>(ports.cmd_listener(), &now, None, |call| {
             if call == WaitCall::Idle && nix::unistd::getppid().as_raw() != a.ppid {
                 return Err(WorkerError::ParentGone(a.ppid));
             }
@@ -261,6 +296,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
             Ok(cmd.is_some())
         })?;
         stats.add(me, Counter::WaitNs, ns_since(waiting));
+        last_gap = since.elapsed();
         let Some(cmd) = cmd else { continue };
         let h = *cmd.user_header();
         let n = (h.len as usize).min(cmd.payload().len());
@@ -318,31 +354,50 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         let mut block = ports.loan_block(words)?;
         *block.user_header_mut() = header(h.seq, BLOCK_DATA);
         let areas = layout.split_mut(block.payload_mut());
-        let obs_area: &mut [u8] = if target == 0 {
-            areas.obs
-        } else {
-            // SAFETY: the shared batch buffer holds `cfg.batch_slots` slots of `sb` bytes; this
-            // worker's envs occupy bytes [first_env*ob, (first_env+epw)*ob) of slot
-            // `target - 1`, which the supervisor neither reads nor lends out until this
-            // command is answered, and no other worker writes them.
-            unsafe {
-                std::slice::from_raw_parts_mut(
-                    batch.as_ptr().add((target - 1) * sb + first_env * ob),
-                    epw * ob,
-                )
-            }
-        };
         apart.clear();
-        let mut out = BlockOut {
-            records: areas.records,
-            obs: obs_area,
-            final_obs: areas.final_obs,
-            extra: areas.extra,
-            obs_bytes: ob,
-            final_bytes: if layout.final_obs { ob } else { 0 },
-            extra_bytes: layout.extra_bytes,
-            info: &mut info,
-            apart: &mut apart,
+        let mut out = if target == 0 {
+            BlockOut {
+                records: Rows::Block(areas.records),
+                summary: Default::default(),
+                obs: areas.obs,
+                final_obs: areas.final_obs,
+                extra: areas.extra,
+                obs_bytes: ob,
+                final_bytes: if layout.final_obs { ob } else { 0 },
+                extra_bytes: layout.extra_bytes,
+                info: &mut info,
+                apart: &mut apart,
+            }
+        } else {
+            let rows = first_env..first_env + epw;
+            // SAFETY: the shared batch buffer holds `cfg.batch_slots` slots of `sb` bytes, so
+            // slot `target - 1` is inside it. This worker's envs own rows `rows` of every area
+            // of that slot: the supervisor neither reads nor lends them out until this command
+            // is answered, and no other worker writes them.
+            let (writer, obs, fin, extra) = unsafe {
+                let w = slot_layout.writer(batch.as_ptr().add((target - 1) * sb));
+                let (o, f, x) = (
+                    w.obs_rows(rows.clone()),
+                    w.final_rows(rows.clone()),
+                    w.extra_rows(rows),
+                );
+                (w, o, f, x)
+            };
+            BlockOut {
+                records: Rows::Slot {
+                    writer: Box::new(writer),
+                    first: first_env,
+                },
+                summary: Default::default(),
+                obs,
+                final_obs: fin,
+                extra,
+                obs_bytes: ob,
+                final_bytes: if layout.final_obs { ob } else { 0 },
+                extra_bytes: layout.extra_bytes,
+                info: &mut info,
+                apart: &mut apart,
+            }
         };
         let serving = stamp();
         let extras = if kind == CMD_STEP && h.kind & ACTION_EXTRAS != 0 {
@@ -355,6 +410,13 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
                 Ok(served) => (None, served),
                 Err(f) => (Some(f), 0),
             };
+        if failed.is_none() {
+            hosted.write_books(&books, h.seq, first_env);
+        }
+        let answer = out.summary.words(epw);
+        if target != 0 {
+            block.payload_mut()[..SLOT_ANSWER_WORDS].copy_from_slice(&answer);
+        }
         stats.add(me, Counter::EnvNs, ns_since(serving));
         stats.add(me, Counter::EnvSteps, served as u64);
         stats.add(me, Counter::Commands, 1);

@@ -26,10 +26,13 @@ OBS_SHAPE, NUM_ACTIONS, MAX_STEPS = (6,), 3, 5
 class ToyKind:
     """The least a kind needs: facts, settings, codecs, seeds, infos, operations, render."""
 
-    def __init__(self, num_envs: int) -> None:
+    def __init__(
+        self, num_envs: int, obs_shape: tuple[int, ...] = OBS_SHAPE, num_workers: int = 2
+    ) -> None:
+        self.obs_shape, self.num_workers = obs_shape, num_workers
         self.facts = KindFacts(
             num_envs=num_envs,
-            single_observation_space=spaces.Box(0, 255, OBS_SHAPE, np.uint8),
+            single_observation_space=spaces.Box(0, 255, obs_shape, np.uint8),
             single_action_space=spaces.Discrete(NUM_ACTIONS),
             metadata={"render_modes": []},
             render_mode=None,
@@ -41,9 +44,9 @@ class ToyKind:
         self._base = 0
 
     def pool_settings(self) -> dict[str, Any]:
-        env = {"kind": "test", "obs_shape": list(OBS_SHAPE), "num_actions": NUM_ACTIONS}
+        env = {"kind": "test", "obs_shape": list(self.obs_shape), "num_actions": NUM_ACTIONS}
         return {
-            **PoolOptions(num_workers=2).pool_json(self.facts.num_envs),
+            **PoolOptions(num_workers=self.num_workers).pool_json(self.facts.num_envs),
             "env": {**env, "max_steps": MAX_STEPS},
             "seeds": self._schedule(),
         }
@@ -59,7 +62,7 @@ class ToyKind:
         pass
 
     def batch_views(self, rows: np.ndarray) -> np.ndarray:
-        return rows.reshape((rows.shape[0], *OBS_SHAPE))
+        return rows.reshape((rows.shape[0], *self.obs_shape))
 
     def obs_filler(self) -> Optional[Callable[[Any, Optional[np.ndarray]], Any]]:
         return None
@@ -80,8 +83,7 @@ class ToyKind:
         return {"t": t, "_t": np.ones(result.rows, bool) if only is None else only}
 
     def final(self, core: Core, env: int) -> tuple[Any, dict[str, Any]]:
-        assert core.final is not None  # SAME_STEP
-        return self.batch_views(core.final[env : env + 1])[0].copy(), {}
+        return core.final_obs(env), {}  # SAME_STEP: the slot's final observation
 
     def call(
         self,

@@ -28,9 +28,11 @@ use crate::error::{PoolError, WorkerFailure};
 use crate::registry::EnvRegistry;
 use crate::seeds::SeedSchedule;
 use crate::stats::{StatsBuffer, SupervisorCounts, WorkerStats};
+use crate::wire::books::Books;
 use crate::wire::layout::BlockLayout;
+use crate::wire::slot_layout::SlotLayout;
 use crate::wire::{
-    BATCH_BUFFER, CMD_CLOSE, MAX_BATCH_SLOTS, WorkerConfig, block_range_of, shm_need, slot_bytes,
+    BATCH_BUFFER, CMD_CLOSE, MAX_BATCH_SLOTS, WorkerConfig, block_range_of, shm_need,
 };
 
 pub use async_api::RecvWant;
@@ -57,7 +59,10 @@ struct Supervisor {
     pids: std::sync::Arc<[std::sync::atomic::AtomicU32]>,
     node: Option<rogue_gym_ipc::iceoryx2::node::Node<Svc>>,
     batch: Option<std::sync::Arc<rogue_gym_ipc::SharedBuffer>>,
-    slot_bytes: usize,
+    /// The layout of every slot of the batch buffer.
+    slot_layout: SlotLayout,
+    /// Each env's episode index and seed, as its worker last answered ([`crate::wire::books`]).
+    books: Option<Books>,
     /// Bytes the pool needs in /dev/shm ([`Pool::shm_bytes`]).
     shm_need: u64,
     /// Envs whose worker was replaced by plan during the last call ([`Pool::recycled_envs`]).
@@ -69,14 +74,20 @@ struct Supervisor {
     envs: async_envs::AsyncEnvs,
     /// The async API is in use (from `async_reset` or a `send` to the next reset).
     async_mode: bool,
-    /// As many workers as usable cores, or more: in the async API, workers are told to wait
-    /// for their next command without polling ([`crate::wire::BLOCK_AT_ONCE`]).
-    oversubscribed: bool,
+    /// The machine's usable cores: workers past them are told to wait for their next command
+    /// without polling ([`crate::wire::BLOCK_AT_ONCE`]; in the async API from as many workers
+    /// as cores), and the caller polls for answers only while the workers leave it a core.
+    cores: usize,
+    /// How long the workers took to answer the last whole-batch call they were waited for:
+    /// the next wait sleeps through most of it and polls for the rest.
+    expected_answer: Option<Duration>,
+    /// The wait policy of the wait in progress, when it differs from the pool's.
+    wait_now: Option<rogue_gym_ipc::WaitPolicy>,
+    /// When the whole-batch call in flight was sent.
+    split_sent: Instant,
     /// Workers host a vector env each ([`EnvRegistry::builds_blocks`]): the async API sends
     /// whole worker blocks only.
     whole_blocks: bool,
-    cur_episode: Vec<Option<u64>>,
-    cur_seed: Vec<u64>,
     restarts: u32,
     must_reset: bool,
     closed: bool,
@@ -103,6 +114,8 @@ struct Supervisor {
     /// The shared slot of a sync step or reset that was sent and not yet collected
     /// ([`Pool::send_step_shared`], [`Pool::wait_shared`]).
     split: Option<usize>,
+    /// The answers of that call taken so far.
+    collecting: Option<workers::SlotCollect>,
     /// The workers' counters in shared memory ([`Pool::stats`]), and what this side counts.
     stats: Option<StatsBuffer>,
     counts: Vec<SupervisorCounts>,
@@ -219,13 +232,16 @@ impl Pool {
                 extra_bytes: spec.extra_bytes,
             })
             .collect();
+        let slot_layout = SlotLayout {
+            num_envs: cfg.num_envs,
+            obs_bytes: spec.obs_bytes(),
+            n_info: spec.info_names.len(),
+            final_obs: cfg.autoreset == AutoresetMode::SameStep,
+            extra_bytes: spec.extra_bytes,
+        };
         // Before anything is created: a pool that does not fit /dev/shm fails now, with the
         // fixes, not later with a SIGBUS in a worker.
-        let shm_need = shm_need(
-            cfg.batch_slots,
-            slot_bytes(cfg.num_envs, spec.obs_bytes()),
-            &layouts,
-        );
+        let shm_need = shm_need(cfg.batch_slots, &slot_layout, &layouts);
         rogue_gym_ipc::check_room(shm_need)?;
         let runtime_dir = rogue_gym_ipc::resolve_runtime_dir(cfg.runtime_dir.as_deref())?;
         rogue_gym_ipc::sweep_stale_pools(&runtime_dir);
@@ -270,13 +286,14 @@ impl Pool {
                 ready_order: VecDeque::new(),
                 envs: async_envs::AsyncEnvs::new(num_envs, num_workers, aw),
                 async_mode: false,
-                oversubscribed: std::thread::available_parallelism()
-                    .is_ok_and(|c| num_workers >= c.get()),
+                cores: std::thread::available_parallelism().map_or(1, |c| c.get()),
+                expected_answer: None,
+                wait_now: None,
+                split_sent: Instant::now(),
                 whole_blocks,
-                cur_episode: vec![None; num_envs],
-                cur_seed: vec![0; num_envs],
                 batch: None,
-                slot_bytes: 0,
+                slot_layout,
+                books: None,
                 shm_need,
                 recycled_envs: Vec::new(),
                 next_slot: 0,
@@ -295,6 +312,7 @@ impl Pool {
                 call_started: Instant::now(),
                 call_failed_at: None,
                 split: None,
+                collecting: None,
             },
         };
         // From here on, Drop cleans up whatever was created.
@@ -308,13 +326,13 @@ impl Pool {
         let json = serde_json::to_string(wcfg)
             .map_err(|e| PoolError::Config(format!("cannot serialize worker config: {e}")))?;
         rogue_gym_ipc::private::write_private_file(&c.config_path, json.as_bytes())?;
-        c.slot_bytes = slot_bytes(c.cfg.num_envs, c.spec.obs_bytes());
         c.stats = Some(StatsBuffer::create(&c.id, c.cfg.num_workers)?);
+        c.books = Some(Books::create(&c.id, c.cfg.num_envs)?);
         c.counts = vec![SupervisorCounts::default(); c.cfg.num_workers];
         c.batch = Some(std::sync::Arc::new(rogue_gym_ipc::SharedBuffer::create(
             &c.id,
             BATCH_BUFFER,
-            c.cfg.batch_slots * c.slot_bytes,
+            c.cfg.batch_slots * c.slot_layout.bytes(),
         )?));
         // Right after the pool's first /dev/shm file, before any node: iceoryx2's node counter,
         // private (see rogue_gym_ipc::create_node_counter).
@@ -342,6 +360,8 @@ impl Pool {
                 recycle_pause: None,
                 cut: false,
                 restart_streak: 0,
+                delivered: None,
+                first_episodes: true,
                 stderr_path: PathBuf::new(),
                 target: 0,
                 action_extras: None,
@@ -382,7 +402,7 @@ impl Pool {
         rogue_gym_ipc::private::write_private_file(&c.config_path, json.as_bytes())?;
         c.cfg.seeds = seeds;
         c.worker_config = Some(wcfg);
-        c.cur_episode.iter_mut().for_each(|e| *e = None);
+        c.slots.iter_mut().for_each(|s| s.first_episodes = true);
         c.reload_seeds.iter_mut().for_each(|r| *r = true);
         c.must_reset = true;
         Ok(())
@@ -507,7 +527,7 @@ impl Pool {
         let listener = self.listener.as_ref().ok_or(PoolError::Closed)?;
         let sup = &mut self.sup;
         let interrupt = &mut self.interrupt;
-        let policy = sup.cfg.wait;
+        let policy = sup.wait_now.unwrap_or(sup.cfg.wait);
         let t0 = Instant::now();
         let deadline = match (sup.call_deadline(), until) {
             (Some(d), Some(u)) => Some(d.min(u)),
@@ -574,22 +594,37 @@ impl Pool {
 
     /// Check one action per env of `env_ids` (indices in range, or the right byte count).
     fn check_actions(&self, actions: Actions<'_>, env_ids: &[usize]) -> Result<(), PoolError> {
+        self.check_action_rows(actions, env_ids.len(), |r| env_ids[r])
+    }
+
+    /// Check one action per env of the pool.
+    fn check_all_actions(&self, actions: Actions<'_>) -> Result<(), PoolError> {
+        self.check_action_rows(actions, self.sup.cfg.num_envs, |r| r)
+    }
+
+    /// Check `rows` actions, row `r` for env `env_of(r)`.
+    fn check_action_rows(
+        &self,
+        actions: Actions<'_>,
+        rows: usize,
+        env_of: impl Fn(usize) -> usize,
+    ) -> Result<(), PoolError> {
         let spec = &self.sup.spec;
         match actions {
             Actions::Indices(a) if spec.action_bytes == 0 => {
-                if a.len() != env_ids.len() {
+                if a.len() != rows {
                     return Err(PoolError::BadActionsLength {
-                        expected: env_ids.len(),
+                        expected: rows,
                         got: a.len(),
                     });
                 }
-                validate_actions(a, env_ids.iter().copied(), spec.num_actions)
+                validate_actions(a, (0..rows).map(env_of), spec.num_actions)
             }
             Actions::Bytes(b) if spec.action_bytes > 0 => {
-                if b.len() != env_ids.len() * spec.action_bytes {
+                if b.len() != rows * spec.action_bytes {
                     return Err(PoolError::BadBuffer {
                         what: "action bytes",
-                        expected: env_ids.len() * spec.action_bytes,
+                        expected: rows * spec.action_bytes,
                         got: b.len(),
                     });
                 }
@@ -639,6 +674,7 @@ impl Pool {
     /// env errors of those requests included.
     fn drain(&mut self) -> Result<(), PoolError> {
         self.sup.split = None;
+        self.sup.collecting = None;
         self.sup.faults.clear();
         self.sup.discard_faults = true;
         let drained = self.wait_until(|c| {
@@ -709,6 +745,43 @@ impl Pool {
 }
 
 impl Supervisor {
+    /// Env `i` (of worker `k`)'s episode index and seed as the worker last answered, or
+    /// `None` before its first answer under the current seed schedule.
+    fn book(&self, k: usize, i: usize) -> Option<(u64, u64)> {
+        let s = &self.slots[k];
+        match (&self.books, s.delivered) {
+            (Some(b), Some(seq)) if !s.first_episodes => Some(b.read(seq, i)),
+            _ => None,
+        }
+    }
+
+    /// How to wait for the answers of the whole-batch call in flight, when the last one took
+    /// 1 to 50 ms and the workers leave the caller a core: sleep until three quarters of it
+    /// have passed since the call was sent (less 200 us: the CPU is free meanwhile, and an
+    /// early answer still wakes it), then poll for up to half of it (at most 2 ms), so that the
+    /// answer is seen without a wake-up. `None`: the pool's own policy.
+    fn expected_wait(&self) -> Option<rogue_gym_ipc::WaitPolicy> {
+        let expected = self.expected_answer?;
+        if self.slots.len() > self.cores
+            || expected > Duration::from_millis(50)
+            || expected < Duration::from_millis(1)
+        {
+            // Short calls are polled for anyway; a sleep shorter than the kernel's timer
+            // slack (50 us) would only oversleep.
+            return None;
+        }
+        let wake = self.split_sent + expected * 3 / 4 - Duration::from_micros(200);
+        Some(rogue_gym_ipc::WaitPolicy {
+            sleep_first: wake.saturating_duration_since(Instant::now()),
+            poll_budget: self
+                .cfg
+                .wait
+                .poll_budget
+                .max((expected / 2).min(Duration::from_millis(2))),
+            ..self.cfg.wait
+        })
+    }
+
     /// When the current call must give up (see [`Pool::call_bound`]): a little before its
     /// bound, so that the error is raised within it.
     fn call_deadline(&self) -> Option<Instant> {

@@ -1,11 +1,13 @@
-//! Sync stepping: reset, partial reset and step, with the observations copied into the
-//! caller's buffer or written by the workers straight into the shared batch slots.
+//! Sync stepping: reset, partial reset and step, every per-env output written by the workers
+//! in place into a shared batch slot (copied out only by the Rust API's copying forms).
 
 use std::ops::Range;
 
 use super::Pool;
-use crate::batch::{Batch, BatchOutput, Block};
+use super::workers::SlotCollect;
+use crate::batch::{BatchOutput, SlotAnswer, SlotExtras};
 use crate::error::PoolError;
+use crate::wire::slot_layout::{RowWriter, SlotLayout};
 
 /// The actions of a step, one per env: indices `0..num_actions`, or `EnvSpec::action_bytes`
 /// raw bytes each (envs that decode their own actions, such as hosted gymnasium envs).
@@ -35,6 +37,10 @@ pub fn validate_actions(
     env_ids: impl Iterator<Item = usize>,
     num_actions: usize,
 ) -> Result<(), PoolError> {
+    // The usual case, in one pass the compiler vectorizes; the error path finds the env.
+    if actions.iter().all(|&a| (a as u64) < num_actions as u64) {
+        return Ok(());
+    }
     for (a, env) in actions.iter().zip(env_ids) {
         if *a < 0 || *a as u64 >= num_actions as u64 {
             return Err(PoolError::BadAction {
@@ -49,23 +55,20 @@ pub fn validate_actions(
 
 impl Pool {
     /// Sync reset: start a new episode in every env (episode index 0 at the first reset, then
-    /// the next index of each env), write the observations into `obs_out`
-    /// (`num_envs x obs_bytes`, env-major) and the per-env arrays into `out`. Results of
-    /// outstanding async requests (or of a step interrupted by an error) are discarded.
+    /// the next index of each env), copy the observations into `obs_out` (`num_envs x
+    /// obs_bytes`, env-major) and the per-env values into `out`: [`Pool::reset_slot`], read
+    /// back env by env (a convenience of the Rust API; the Python front reads the slot in
+    /// place). Results of outstanding async requests (or of a step interrupted by an error)
+    /// are discarded.
     pub fn reset(&mut self, obs_out: &mut [u8], out: &mut BatchOutput) -> Result<(), PoolError> {
-        self.begin_call()?;
         self.check_obs_buf(obs_out)?;
-        self.drain()?;
-        for k in 0..self.sup.slots.len() {
-            self.sup.send_reset(k, 0)?;
-        }
-        self.sup.must_reset = false;
-        self.gather_all(Some(obs_out), out)
+        let a = self.reset_slot()?;
+        self.read_slot(&a, Some(obs_out), out);
+        Ok(())
     }
 
-    /// Sync step: `actions[i]` for env `i` (all envs). Writes observations into `obs_out`
-    /// (`num_envs x obs_bytes`, env-major; one memcpy per worker block) and per-env arrays into
-    /// `out`. See [`AutoresetMode`] for what a step after/at an episode end returns.
+    /// Sync step: `actions[i]` for env `i` (all envs), copied out like [`Pool::reset`]. See
+    /// [`AutoresetMode`] for what a step after/at an episode end returns.
     pub fn step(
         &mut self,
         actions: &[i64],
@@ -83,12 +86,12 @@ impl Pool {
         out: &mut BatchOutput,
     ) -> Result<(), PoolError> {
         self.check_obs_buf(obs_out)?;
-        self.prepare_sync_step(actions)?;
-        self.send_steps(actions, 0)?;
-        self.gather_all(Some(obs_out), out)
+        let a = self.step_slot(actions)?;
+        self.read_slot(&a, Some(obs_out), out);
+        Ok(())
     }
 
-    /// Send each worker its block of `actions`.
+    /// Send each worker its block of `actions`, to be answered into slot `target - 1`.
     fn send_steps(&mut self, actions: Actions<'_>, target: u32) -> Result<(), PoolError> {
         let ab = self.sup.spec.action_bytes;
         for k in 0..self.sup.slots.len() {
@@ -98,57 +101,46 @@ impl Pool {
         Ok(())
     }
 
-    /// Like [`Pool::reset`], but the workers write the observations straight into the next
-    /// slot of the pool's shared batch buffer (no copy at all); returns the slot index for
-    /// [`Pool::shared_obs`].
+    /// Like [`Pool::reset`], read back into `out`; returns the slot the workers wrote.
     pub fn reset_shared(&mut self, out: &mut BatchOutput) -> Result<usize, PoolError> {
+        let a = self.reset_slot()?;
+        self.read_slot(&a, None, out);
+        Ok(a.slot)
+    }
+
+    /// A sync reset whose every per-env output the workers write in place, into the next slot
+    /// of the shared batch buffer ([`crate::wire::slot_layout`]): nothing is copied or
+    /// gathered; [`SlotAnswer`] says which slot and what else to read there.
+    pub fn reset_slot(&mut self) -> Result<SlotAnswer, PoolError> {
         // One call, one bound: the collecting half does not start a new call.
         self.send_reset_shared()?;
-        self.collect_split(None, out)?
+        self.collect_split(None)?
             .ok_or_else(|| PoolError::State("a reset without a timeout timed out".into()))
     }
 
-    /// Partial sync reset (gymnasium's `reset(options={"reset_mask": mask})`), into the next
-    /// shared batch slot like [`Pool::reset_shared`]; returns the slot.
+    /// [`Pool::reset_envs_slot`], read back into `out`; returns the slot.
+    pub fn reset_envs(&mut self, mask: &[bool], out: &mut BatchOutput) -> Result<usize, PoolError> {
+        let a = self.reset_envs_slot(mask)?;
+        self.read_slot(&a, None, out);
+        Ok(a.slot)
+    }
+
+    /// Partial sync reset (gymnasium's `reset(options={"reset_mask": mask})`), in place into
+    /// the next shared batch slot like [`Pool::reset_slot`].
     ///
     /// * Envs with `mask[i] == true` start their next scheduled episode (episode index + 1, its
     ///   seed from the schedule), exactly as a full reset would start it for them, so
     ///   trajectories stay independent of the worker count.
     /// * Envs with `mask[i] == false` keep their state (an episode that ended in NEXT_STEP mode
     ///   is still autoreset by the next step); their current observation is re-written into
-    ///   the slot by the worker ([`crate::Env::observe`]), and their row in `out` describes
-    ///   their current episode with reward 0 and no flags.
+    ///   the slot by the worker ([`crate::Env::observe`]), and their row describes their
+    ///   current episode with reward 0 and no flags.
     ///
     /// Needs a full reset first (after creation, [`Pool::set_seeds`] or a worker failure
     /// under [`FailurePolicy::Raise`]) and no outstanding async requests (sync only; there is
     /// no async partial reset). A worker restarted during the call resets all its envs (they
     /// report `restarted`).
-    pub fn reset_envs(&mut self, mask: &[bool], out: &mut BatchOutput) -> Result<usize, PoolError> {
-        let slot = self.sup.next_slot;
-        self.reset_masked(mask, slot as u32 + 1, None, out)?;
-        self.sup.next_slot = (slot + 1) % self.sup.cfg.batch_slots;
-        Ok(slot)
-    }
-
-    /// [`Pool::reset_envs`], with the observations copied into `obs_out` (`num_envs x
-    /// obs_bytes`) like [`Pool::reset`].
-    pub fn reset_envs_into(
-        &mut self,
-        mask: &[bool],
-        obs_out: &mut [u8],
-        out: &mut BatchOutput,
-    ) -> Result<(), PoolError> {
-        self.check_obs_buf(obs_out)?;
-        self.reset_masked(mask, 0, Some(obs_out), out)
-    }
-
-    fn reset_masked(
-        &mut self,
-        mask: &[bool],
-        target: u32,
-        obs_out: Option<&mut [u8]>,
-        out: &mut BatchOutput,
-    ) -> Result<(), PoolError> {
+    pub fn reset_envs_slot(&mut self, mask: &[bool]) -> Result<SlotAnswer, PoolError> {
         self.begin_call()?;
         if mask.len() != self.sup.cfg.num_envs {
             return Err(PoolError::BadBuffer {
@@ -163,53 +155,71 @@ impl Pool {
             ));
         }
         self.all_idle()?;
+        let slot = self.sup.next_slot;
         for k in 0..self.sup.slots.len() {
-            self.sup.send_reset_masked(k, target, Some(mask))?;
+            self.sup.send_reset_masked(k, slot as u32 + 1, Some(mask))?;
         }
-        self.gather_all(obs_out, out)
+        self.sup.split = Some(slot);
+        self.sup.split_sent = std::time::Instant::now();
+        self.sup.collecting = None;
+        self.collect_split(None)?
+            .ok_or_else(|| PoolError::State("a partial reset timed out".into()))
     }
 
-    /// Like [`Pool::step`], but the workers write the observations straight into the next
-    /// slot of the pool's shared batch buffer (zero-copy sync step); returns the slot index
-    /// for [`Pool::shared_obs`]. Slots take turns ([`crate::PoolConfig::batch_slots`] of
-    /// them, two by default): the observations of slot `s` stay unchanged until the call that
-    /// writes `s` again, at the earliest the second `*_shared` call after the one that
-    /// returned `s`. [`Pool::select_slot`] names the slot the next call writes.
+    /// [`Pool::reset_envs`], copied out into `obs_out` (`num_envs x obs_bytes`) and `out`
+    /// like [`Pool::reset`].
+    pub fn reset_envs_into(
+        &mut self,
+        mask: &[bool],
+        obs_out: &mut [u8],
+        out: &mut BatchOutput,
+    ) -> Result<(), PoolError> {
+        self.check_obs_buf(obs_out)?;
+        let a = self.reset_envs_slot(mask)?;
+        self.read_slot(&a, Some(obs_out), out);
+        Ok(())
+    }
+
+    /// Like [`Pool::step`], read back into `out`; returns the slot the workers wrote (its
+    /// observations: [`Pool::shared_obs`]).
     pub fn step_shared(
         &mut self,
         actions: &[i64],
         out: &mut BatchOutput,
     ) -> Result<usize, PoolError> {
-        self.step_shared_actions(Actions::Indices(actions), out)
+        let a = self.step_slot(Actions::Indices(actions))?;
+        self.read_slot(&a, None, out);
+        Ok(a.slot)
     }
 
-    /// [`Pool::step_shared`] with actions of either kind ([`Actions`]).
-    pub fn step_shared_actions(
-        &mut self,
-        actions: Actions<'_>,
-        out: &mut BatchOutput,
-    ) -> Result<usize, PoolError> {
-        self.prepare_sync_step(actions)?;
-        let slot = self.sup.next_slot;
-        self.send_steps(actions, slot as u32 + 1)?;
-        self.gather_all(None, out)?;
-        self.sup.next_slot = (slot + 1) % self.sup.cfg.batch_slots;
-        Ok(slot)
+    /// A sync step whose every per-env output (observations, rewards, flags, episode books,
+    /// info values, final observations, extra info) the workers write in place, into the next
+    /// slot of the shared batch buffer: the caller's work is one command per worker and one
+    /// answer per worker, whatever the number of envs. Slots take turns
+    /// ([`crate::PoolConfig::batch_slots`] of them, two by default): slot `s` stays unchanged
+    /// until the call that writes `s` again, at the earliest the second slot call after the
+    /// one that returned `s`. [`Pool::select_slot`] names the slot the next call writes.
+    pub fn step_slot(&mut self, actions: Actions<'_>) -> Result<SlotAnswer, PoolError> {
+        self.send_step_shared(actions)?;
+        self.collect_split(None)?
+            .ok_or_else(|| PoolError::State("a step without a timeout timed out".into()))
     }
 
-    /// The first half of [`Pool::step_shared_actions`] (gymnasium's `step_async`): check the
-    /// actions and send each worker its block, to be written into the next shared slot, which
-    /// it returns; the workers step while the caller does something else. Collect the answers
+    /// The first half of [`Pool::step_slot`] (gymnasium's `step_async`): check the actions
+    /// and send each worker its block, to be written into the next shared slot, which it
+    /// returns; the workers step while the caller does something else. Collect the answers
     /// with [`Pool::wait_shared`]; a sync call in between fails (a reset abandons the step).
     pub fn send_step_shared(&mut self, actions: Actions<'_>) -> Result<usize, PoolError> {
         self.prepare_sync_step(actions)?;
         let slot = self.sup.next_slot;
         self.send_steps(actions, slot as u32 + 1)?;
         self.sup.split = Some(slot);
+        self.sup.split_sent = std::time::Instant::now();
+        self.sup.collecting = None;
         Ok(slot)
     }
 
-    /// The first half of [`Pool::reset_shared`] (gymnasium's `reset_async`); collect the
+    /// The first half of [`Pool::reset_slot`] (gymnasium's `reset_async`); collect the
     /// answers with [`Pool::wait_shared`].
     pub fn send_reset_shared(&mut self) -> Result<usize, PoolError> {
         self.begin_call()?;
@@ -220,29 +230,29 @@ impl Pool {
         }
         self.sup.must_reset = false;
         self.sup.split = Some(slot);
+        self.sup.split_sent = std::time::Instant::now();
+        self.sup.collecting = None;
         Ok(slot)
     }
 
     /// The second half of a step or reset sent by [`Pool::send_step_shared`] or
     /// [`Pool::send_reset_shared`]: wait for every worker's answer, at most `timeout` (and
-    /// always within the call's bound, [`Pool::call_bound`]). `Some(slot)` with `out` filled
-    /// when all answered; `None` when `timeout` passed first: the request stays pending, so
-    /// wait again. An error abandons it (a reset recovers).
+    /// always within the call's bound, [`Pool::call_bound`]). `Some` answer when all
+    /// answered; `None` when `timeout` passed first: the request stays pending, so wait
+    /// again. An error abandons it (a reset recovers).
     pub fn wait_shared(
         &mut self,
         timeout: Option<std::time::Duration>,
-        out: &mut BatchOutput,
-    ) -> Result<Option<usize>, PoolError> {
+    ) -> Result<Option<SlotAnswer>, PoolError> {
         self.begin_call()?;
-        self.collect_split(timeout, out)
+        self.collect_split(timeout)
     }
 
     /// The body of [`Pool::wait_shared`], within the current call's bound.
     fn collect_split(
         &mut self,
         timeout: Option<std::time::Duration>,
-        out: &mut BatchOutput,
-    ) -> Result<Option<usize>, PoolError> {
+    ) -> Result<Option<SlotAnswer>, PoolError> {
         let Some(slot) = self.sup.split else {
             return Err(PoolError::State(
                 "no step or reset is pending: send_step_shared() or send_reset_shared() first"
@@ -251,8 +261,31 @@ impl Pool {
         };
         let until = timeout.map(|t| std::time::Instant::now() + t);
         let workers = self.sup.slots.len();
-        match self.wait_until_or(|c| c.ready_order.len() == workers, until) {
-            Ok(false) => return Ok(None),
+        let mut acc = self
+            .sup
+            .collecting
+            .take()
+            .unwrap_or_else(|| SlotCollect::new(slot));
+        self.sup.wait_now = self.sup.expected_wait();
+        let mut polls = 0;
+        let done = self.wait_for(
+            |c| {
+                polls += 1;
+                c.take_slot_answers(&mut acc)?;
+                Ok(acc.answered == workers)
+            },
+            until,
+        );
+        self.sup.wait_now = None;
+        if matches!(done, Ok(true)) && polls > 1 {
+            // Waited for: how long the workers took, for the next wait.
+            self.sup.expected_answer = Some(self.sup.split_sent.elapsed());
+        }
+        match done {
+            Ok(false) => {
+                self.sup.collecting = Some(acc);
+                return Ok(None);
+            }
             Ok(true) => {}
             Err(e) => {
                 self.sup.split = None;
@@ -260,9 +293,51 @@ impl Pool {
             }
         }
         self.sup.split = None;
-        self.gather_all(None, out)?;
         self.sup.next_slot = (slot + 1) % self.sup.cfg.batch_slots;
-        Ok(Some(slot))
+        Ok(Some(acc.answer))
+    }
+
+    /// Read a slot's rows back into `out` (and its observations into `obs_out`), env by env:
+    /// the Rust API's copying forms.
+    fn read_slot(&self, a: &SlotAnswer, obs_out: Option<&mut [u8]>, out: &mut BatchOutput) {
+        out.clear();
+        let n = self.sup.cfg.num_envs;
+        let n_info = self.sup.spec.info_names.len();
+        let ob = self.sup.spec.obs_bytes();
+        let Some(w) = self.slot_writer(a.slot) else {
+            return;
+        };
+        // SAFETY: the slot is not being written (no call runs: `&self`); only read here.
+        let (obs, fin) = unsafe { (w.obs_rows(0..n), w.final_rows(0..n)) };
+        if let Some(o) = obs_out {
+            o.copy_from_slice(obs);
+        }
+        for i in 0..n {
+            let r = w.read(i);
+            let f = (!fin.is_empty()).then(|| &fin[i * ob..(i + 1) * ob]);
+            out.push(i, &r, n_info, f);
+        }
+        if let SlotExtras::Rows(rows) = &a.extras {
+            out.extras = rows.clone();
+        } else if let SlotExtras::Uniform(size) = a.extras {
+            let xb = self.sup.spec.extra_bytes;
+            // SAFETY: as above.
+            let x = unsafe { w.extra_rows(0..n) };
+            out.extras = (0..n)
+                .map(|i| (i, x[i * xb..i * xb + size].to_vec()))
+                .collect();
+        }
+    }
+
+    /// A writer (and reader) of slot `slot`'s rows; `None` once closed or for a slot that
+    /// does not exist.
+    pub fn slot_writer(&self, slot: usize) -> Option<RowWriter> {
+        self.sup.writer_of(slot).ok()
+    }
+
+    /// The layout of a shared batch slot.
+    pub fn slot_layout(&self) -> SlotLayout {
+        self.sup.slot_layout
     }
 
     /// Make the next `*_shared` call write slot `slot` (then the turns go on from there): a
@@ -285,16 +360,14 @@ impl Pool {
     }
 
     /// The observations of shared batch slot `slot` (`num_envs x obs_bytes`, env-major,
-    /// 64-byte aligned). See [`Pool::step_shared`] for when they are valid.
+    /// 64-byte aligned). See [`Pool::step_slot`] for when they are valid.
     pub fn shared_obs(&self, slot: usize) -> &[u8] {
-        let n = self.sup.cfg.num_envs * self.sup.spec.obs_bytes();
-        match &self.sup.batch {
-            // SAFETY: the slot lies inside the mapping. Workers write a slot only during a
-            // `*_shared` call, which needs `&mut self`: none runs while this borrow lives.
-            Some(b) if slot < self.sup.cfg.batch_slots => unsafe {
-                std::slice::from_raw_parts(b.as_ptr().add(slot * self.sup.slot_bytes), n)
-            },
-            _ => &[],
+        let n = self.sup.cfg.num_envs;
+        match self.slot_writer(slot) {
+            // SAFETY: workers write a slot only during a slot call, which needs `&mut self`:
+            // none runs while this borrow lives.
+            Some(w) => unsafe { w.obs_rows(0..n) },
+            None => &[],
         }
     }
 
@@ -307,7 +380,7 @@ impl Pool {
 
     /// Distance in bytes between two shared batch slots.
     pub fn shared_slot_bytes(&self) -> usize {
-        self.sup.slot_bytes
+        self.sup.slot_layout.bytes()
     }
 
     /// Raw pointer to shared batch slot `slot` (for zero-copy views in other languages; keep
@@ -316,7 +389,7 @@ impl Pool {
         match &self.sup.batch {
             Some(b) if slot < self.sup.cfg.batch_slots => {
                 // SAFETY: the offset stays inside the mapping.
-                unsafe { b.as_ptr().add(slot * self.sup.slot_bytes) }
+                unsafe { b.as_ptr().add(slot * self.sup.slot_layout.bytes()) }
             }
             _ => std::ptr::null(),
         }
@@ -326,8 +399,7 @@ impl Pool {
     /// per env, and no async request is outstanding.
     fn prepare_sync_step(&mut self, actions: Actions<'_>) -> Result<(), PoolError> {
         self.begin_call()?;
-        let all: Vec<usize> = (0..self.sup.cfg.num_envs).collect();
-        self.check_actions(actions, &all)?;
+        self.check_all_actions(actions)?;
         if self.sup.must_reset {
             return Err(PoolError::State(
                 "call reset() before step() (after creation or after a worker failure)".into(),
@@ -342,37 +414,6 @@ impl Pool {
         if replaced {
             self.all_idle()?;
         }
-        Ok(())
-    }
-
-    fn gather_all(
-        &mut self,
-        mut obs_out: Option<&mut [u8]>,
-        out: &mut BatchOutput,
-    ) -> Result<(), PoolError> {
-        // Copy each block as soon as it arrives, overlapping with the other workers' steps.
-        let w = self.sup.slots.len();
-        let ob = self.sup.spec.obs_bytes();
-        let mut blocks: Vec<Option<Block>> = (0..w).map(|_| None).collect();
-        let mut got = 0;
-        while got < w {
-            self.wait_until(|c| !c.ready_order.is_empty())?;
-            while let Some(k) = self.sup.ready_order.pop_front() {
-                let b = self.sup.take_block(k)?;
-                if let Some(o) = obs_out.as_deref_mut() {
-                    let envs = b.env_ids();
-                    o[envs.start * ob..envs.end * ob].copy_from_slice(b.obs());
-                }
-                blocks[k] = Some(b);
-                got += 1;
-            }
-        }
-        out.clear();
-        let n_info = self.sup.spec.info_names.len();
-        let batch = Batch {
-            blocks: blocks.into_iter().flatten().collect(),
-        };
-        batch.fill_append(n_info, out);
         Ok(())
     }
 }
@@ -403,6 +444,7 @@ mod tests {
 
     #[test]
     fn pool_and_block_are_send() {
+        use crate::batch::{Batch, Block};
         assert_send::<Pool>();
         assert_send::<Block>();
         assert_send::<Batch>();

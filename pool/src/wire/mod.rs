@@ -1,9 +1,12 @@
 //! The wire protocol between the supervisor and its workers, imported by both sides: command
-//! and block kinds, the shared batch buffer, the worker's config file ([`WorkerConfig`]), the
-//! layout of a block ([`layout`]) and the files of env calls ([`calls`]).
+//! and block kinds, the shared batch buffer and the layout of its slots ([`slot_layout`]), the
+//! episode books ([`books`]), the worker's config file ([`WorkerConfig`]), the layout of a
+//! block ([`layout`]) and the files of env calls ([`calls`]).
 
+pub(crate) mod books;
 pub mod calls;
 pub mod layout;
+pub mod slot_layout;
 
 use std::path::PathBuf;
 
@@ -82,29 +85,38 @@ const BLOCKS_IN_USE: usize = 2;
 const SHM_PER_WORKER: usize = 64 * 1024;
 
 /// Bytes a pool needs in `/dev/shm` before it creates anything: the batch buffer (reserved
-/// when created), and per worker the records, final observations and extra infos of the
-/// blocks in use and iceoryx2's own segments. Observations travel in the batch buffer; in the
-/// async API they travel in the blocks too ([`BlockLayout::words`]), which this does not count.
+/// when created: every slot holds the rows of every env, [`slot_layout::SlotLayout::bytes`]),
+/// the episode books, and per worker the records, final observations and extra infos of the
+/// blocks in use and iceoryx2's own segments. In the async API observations travel in the
+/// blocks too ([`layout::BlockLayout::words`]), which this does not count.
 pub(crate) fn shm_need(
     batch_slots: usize,
-    slot_bytes: usize,
+    slot: &slot_layout::SlotLayout,
     layouts: &[layout::BlockLayout],
 ) -> u64 {
     let blocks: usize = layouts
         .iter()
         .map(|l| BLOCKS_IN_USE * l.side_bytes() + SHM_PER_WORKER)
         .sum();
-    (batch_slots * slot_bytes + blocks) as u64
-}
-
-/// Bytes of one slot of the shared batch buffer (64-byte aligned).
-pub(crate) fn slot_bytes(num_envs: usize, obs_bytes: usize) -> usize {
-    (num_envs * obs_bytes).div_ceil(64) * 64
+    (batch_slots * slot.bytes() + books::books_bytes(slot.num_envs) + blocks) as u64
 }
 /// Block: the worker is up (no payload meaning).
 pub(crate) const BLOCK_READY: u32 = 1;
-/// Block: records and observations.
+/// Block: records and observations (in the block, or in place in a batch slot: then the
+/// block's first word holds the `SLOT_*` bits of the answer).
 pub(crate) const BLOCK_DATA: u32 = 2;
+/// Answer bit (first block word of an answer written into a slot): some env has a final
+/// observation (SAME_STEP).
+pub(crate) const SLOT_FINAL: u64 = 1;
+/// Answer bit: some env's extra info did not fit its room and travels beside the block.
+pub(crate) const SLOT_EXTRA_APART: u64 = 1 << 1;
+/// Answer bit: every env of the block wrote extra info of the same size (the block's second
+/// word) and the same first 16 bytes (its third and fourth words): one typed layout.
+pub(crate) const SLOT_EXTRA_UNIFORM: u64 = 1 << 2;
+/// Answer bit: some env of the block wrote extra info.
+pub(crate) const SLOT_EXTRA_ANY: u64 = 1 << 3;
+/// Words at the head of an answer written into a slot (bits, extra size, extra head).
+pub(crate) const SLOT_ANSWER_WORDS: usize = 4;
 /// Block: an env failed on the command (no data); the report is in the worker's fault file
 /// ([`env_fault_path`]).
 pub(crate) const BLOCK_ERROR: u32 = 3;

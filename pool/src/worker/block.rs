@@ -42,6 +42,11 @@ impl BlockHost {
         self.books.len()
     }
 
+    /// Each env's episode bookkeeping.
+    pub(crate) fn books(&self) -> &[Slot<()>] {
+        &self.books
+    }
+
     /// The envs' spec.
     pub(crate) fn spec(&self) -> EnvSpec {
         self.block.spec()
@@ -292,7 +297,8 @@ mod tests {
         let areas = layout.split_mut(&mut block);
         let (mut info, mut apart) = (Vec::new(), Vec::new());
         let mut out = BlockOut {
-            records: areas.records,
+            records: crate::worker::slot::Rows::Block(areas.records),
+            summary: Default::default(),
             obs: areas.obs,
             final_obs: areas.final_obs,
             extra: areas.extra,

@@ -5,6 +5,7 @@ use rogue_gym_ipc::PoolId;
 
 use super::block::BlockHost;
 use super::slot::{BlockOut, Slot, SlotCtx, apply};
+use crate::wire::books::Books;
 use crate::wire::{EnvFault, calls};
 
 /// A worker's envs: one [`Env`] each, or one [`crate::EnvBlock`] for them all.
@@ -18,6 +19,24 @@ impl WorkerEnvs {
         match self {
             WorkerEnvs::Each(slots) => slots.len(),
             WorkerEnvs::Block(host) => host.len(),
+        }
+    }
+
+    /// Write every env's episode index and seed into copy `seq` of the books (`first`: the
+    /// block's first env id), as the answer to command `seq` leaves them.
+    pub(super) fn write_books(&self, books: &Books, seq: u64, first: usize) {
+        let write = |j: usize, episode: u64, seed: u64| books.write(seq, first + j, episode, seed);
+        match self {
+            WorkerEnvs::Each(slots) => {
+                for (j, s) in slots.iter().enumerate() {
+                    write(j, s.episode, s.seed);
+                }
+            }
+            WorkerEnvs::Block(host) => {
+                for (j, s) in host.books().iter().enumerate() {
+                    write(j, s.episode, s.seed);
+                }
+            }
         }
     }
 

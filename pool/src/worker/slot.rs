@@ -8,7 +8,11 @@ use crate::wire::layout::{
     EnvRecord, FLAG_EXTRA_APART, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED,
     write_record_words,
 };
-use crate::wire::{CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE};
+use crate::wire::slot_layout::RowWriter;
+use crate::wire::{
+    CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE, SLOT_EXTRA_ANY, SLOT_EXTRA_APART,
+    SLOT_EXTRA_UNIFORM, SLOT_FINAL,
+};
 
 /// One env of a worker with its episode bookkeeping (`E = ()` for the envs of an
 /// [`crate::EnvBlock`], which owns them).
@@ -214,9 +218,76 @@ pub(crate) fn place_extra(
     Ok(())
 }
 
-/// Where one command's answers go: the parts of the worker's block being filled.
+/// Where the records of one command's answers go.
+pub(crate) enum Rows<'a> {
+    /// The block's own records area (the async API's answers).
+    Block(&'a mut [u64]),
+    /// In place, in the columns of a batch slot, the block's envs from row `first` (whole-batch
+    /// calls: the caller reads them there).
+    Slot {
+        writer: Box<RowWriter>,
+        first: usize,
+    },
+}
+
+/// What the supervisor needs of an answer written into a slot, summed up over the block (it
+/// goes in the block's first words: [`crate::wire::SLOT_ANSWER_WORDS`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(crate) struct AnswerSummary {
+    /// `SLOT_*` bits.
+    pub(crate) bits: u64,
+    /// Envs that wrote extra info.
+    pub(crate) extras: usize,
+    /// The size of every env's extra info, while all are the same.
+    pub(crate) size: usize,
+    /// The first 16 bytes of every env's extra info, while all are the same.
+    pub(crate) head: [u8; 16],
+}
+
+impl AnswerSummary {
+    fn add(&mut self, rec: &EnvRecord, extra: &[u8]) {
+        if rec.has_final_obs() {
+            self.bits |= SLOT_FINAL;
+        }
+        if rec.extra_apart() {
+            self.bits |= SLOT_EXTRA_APART;
+        }
+        let n = rec.extra_len as usize;
+        if n == 0 {
+            return;
+        }
+        let mut head = [0u8; 16];
+        let k = n.min(16).min(extra.len());
+        head[..k].copy_from_slice(&extra[..k]);
+        if self.extras == 0 {
+            self.size = n;
+            self.head = head;
+        } else if self.size != n || self.head != head || rec.extra_apart() {
+            self.size = 0;
+        }
+        self.extras += 1;
+        self.bits |= SLOT_EXTRA_ANY;
+    }
+
+    /// The block's first words: bits (with [`SLOT_EXTRA_UNIFORM`] when all `envs` wrote one
+    /// layout), size, head.
+    pub(crate) fn words(&self, envs: usize) -> [u64; crate::wire::SLOT_ANSWER_WORDS] {
+        let uniform = self.extras == envs && self.size > 0 && self.bits & SLOT_EXTRA_APART == 0;
+        let mut h = [0u64; 2];
+        for (w, c) in h.iter_mut().zip(self.head.chunks_exact(8)) {
+            *w = u64::from_le_bytes(c.try_into().unwrap_or([0; 8]));
+        }
+        let bits = self.bits | if uniform { SLOT_EXTRA_UNIFORM } else { 0 };
+        [bits, self.size as u64, h[0], h[1]]
+    }
+}
+
+/// Where one command's answers go: the parts of the worker's block being filled, or of the
+/// batch slot it writes in place.
 pub(crate) struct BlockOut<'a> {
-    pub(crate) records: &'a mut [u64],
+    pub(crate) records: Rows<'a>,
+    /// What an answer in place says of itself.
+    pub(crate) summary: AnswerSummary,
     pub(crate) obs: &'a mut [u8],
     pub(crate) final_obs: &'a mut [u8],
     pub(crate) extra: &'a mut [u8],
@@ -243,7 +314,14 @@ impl BlockOut<'_> {
 
     /// Write env `j`'s record; keep its info apart if the record says it did not fit.
     pub(crate) fn finish(&mut self, j: usize, rec: &EnvRecord) {
-        write_record_words(self.records, j, rec);
+        match &mut self.records {
+            Rows::Block(words) => write_record_words(words, j, rec),
+            Rows::Slot { writer, first } => {
+                writer.record(*first + j, rec);
+                let xb = self.extra_bytes;
+                self.summary.add(rec, &self.extra[j * xb..(j + 1) * xb]);
+            }
+        }
         if rec.extra_apart() {
             self.apart.push((j as u32, std::mem::take(self.info)));
         }

@@ -1,9 +1,10 @@
 """The pool under every vector env class, whatever env kind it hosts.
 
 :class:`Core` owns the native pool (supervisor and worker processes) and what the caller side
-keeps of it: the shared-memory batch slots the workers write observations into, one column
-buffer per slot and one for ``recv`` (the per-env rewards, flags, counters and info values of
-the call that wrote them), the SAME_STEP final-observation buffer, the lending of slots
+keeps of it: views of the shared-memory batch slots, where the workers write every per-env
+output of a whole-batch call in place (observations, the columns of rewards, flags, counters
+and info values, SAME_STEP final observations, extra info), the column buffer of ``recv``,
+the lending of slots
 (:mod:`rogue_gym.front.leases`), and the call lifecycle every kind shares: whether the envs
 were reset (:attr:`Core.started`), which episodes ended at the last call (:attr:`Core.ended`)
 and, for kinds that render by replay, each env's actions since its episode began
@@ -52,9 +53,11 @@ SUMMARY_RESTARTED: int = _native.SUMMARY_RESTARTED
 #: Bit of a result's summary: some env has a final observation (SAME_STEP).
 SUMMARY_FINAL: int = _native.SUMMARY_FINAL
 
-#: A call's extra info as the native pool joins it: ``(rows, data, size, ends)`` (see
-#: :func:`rogue_gym.protocol.infos.split_joined`), or ``None`` when no env wrote any.
-Extras = Optional[tuple[Optional[list[int]], bytes, int, list[int]]]
+#: A call's extra info: ``(rows, data, size, ends)`` (see
+#: :func:`rogue_gym.protocol.infos.split_joined`), ``data`` being the joined bytes or, when
+#: every env wrote ``size`` bytes of one layout, the slot's extra-info room (``num_envs x
+#: extra_bytes``, read in place); or ``None`` when no env wrote any.
+Extras = Optional[tuple[Optional[list[int]], Any, int, list[int]]]
 
 
 class Result:
@@ -155,12 +158,25 @@ class Core:
         self.obs_shape = tuple(self.pool.obs_shape)
         self.obs_dtype = str(self.pool.obs_dtype)
         self.info_names: list[str] = list(self.pool.info_names)
-        self.slots = [np.asarray(v).reshape(n, self.obs_bytes) for v in self.pool.shared_views()]
+        areas = self.pool.slot_views()
+        #: Each batch slot's observations as the workers write them (``num_envs x obs_bytes``).
+        self.slots = [np.asarray(a[0]).reshape(n, self.obs_bytes) for a in areas]
         self.views = [kind.batch_views(s) for s in self.slots]
         self.lender = leases.SlotLender(self.slots, kind.batch_views) if lend else None
-        self.final = np.zeros((n, self.obs_bytes), np.uint8) if same_step else None
-        #: One column buffer per slot, then ``recv``'s.
-        self.cols = self._bind_columns(len(self.slots) + 1)
+        #: (SAME_STEP) each slot's final observations, written in place by the workers.
+        self.finals = [
+            None if a[2] is None else np.asarray(a[2]).reshape(n, self.obs_bytes) for a in areas
+        ]
+        #: Each slot's extra-info room (``num_envs x extra_bytes``), or ``None``.
+        self.extra_rooms = [
+            None if a[3] is None else np.asarray(a[3]).reshape(n, -1) for a in areas
+        ]
+        layout, total = self.pool.column_layout()
+        #: Each slot's columns (the per-env values the workers wrote in place), then ``recv``'s.
+        self.cols = [self._columns(np.asarray(a[1]), layout) for a in areas]
+        recv = np.zeros(total, np.uint8)
+        self.pool.bind_recv_columns(recv, HEAD)
+        self.cols.append(self._columns(recv, layout))
         #: The slot written by the last whole-batch call (``None`` before the first).
         self.slot: Optional[int] = None
         #: Whether the envs were reset (a reset, or ``async_reset``) since the pool started.
@@ -173,24 +189,24 @@ class Core:
         self.lent = self.copied = self.viewed = 0
         kind.bind(self)
 
-    def _bind_columns(self, count: int) -> list[dict[str, np.ndarray]]:
-        """``count`` column buffers, bound in the native pool: per-env rewards, flags,
-        counters and info rows of the call that wrote them."""
+    def _columns(
+        self, area: np.ndarray, layout: list[tuple[str, str, int, int, int]]
+    ) -> dict[str, Any]:
+        """Views of the columns in ``area`` (a slot's columns area, or the ``recv`` buffer):
+        per-env rewards, flags, counters and info rows of the call that wrote them."""
         n = self.num_envs
-        layout, total = self.pool.column_layout()
-        buffers, out = [], []
-        for _ in range(count):
-            buf = np.zeros(total, np.uint8)
-            cols: dict[str, np.ndarray] = {}
-            for name, dt, off, rows in layout:
-                col = buf[off : off + rows * n * np.dtype(dt).itemsize].view(dt)
-                cols[name] = col.reshape(rows, n) if name.startswith("info_") else col
-            # Seeds cross as int64 (torch has no uint64): seeds >= 2**63 read as seed - 2**64.
-            cols["seed"] = cols["seed"].view(np.int64)
-            buffers.append(buf)
-            out.append(cols)
-        self.pool.bind_columns(buffers, HEAD)
-        return out
+        cols: dict[str, np.ndarray] = {}
+        for name, dt, off, rows, stride in layout:
+            dtype = np.dtype(dt)
+            if name.startswith("info_"):  # one row per info value, rows apart in memory
+                cols[name] = np.ndarray(
+                    (rows, n), dtype, buffer=area, offset=off, strides=(stride, dtype.itemsize)
+                )
+            else:
+                cols[name] = area[off : off + n * dtype.itemsize].view(dtype)
+        # Seeds cross as int64 (torch has no uint64): seeds >= 2**63 read as seed - 2**64.
+        cols["seed"] = cols["seed"].view(np.int64)
+        return cols
 
     # -- calls -----------------------------------------------------------------------------
 
@@ -214,15 +230,20 @@ class Core:
                 self.call(self.pool.select_slot, free)
 
     def _took(self, r: tuple[int, int, Extras]) -> Result:
-        """The result of a whole-batch call, from the native ``(slot, summary, extras)``."""
+        """The result of a whole-batch call, from the native ``(slot, summary, extras)``
+        (extras of one layout are read in place, in the slot's extra-info room)."""
         slot, summary, extras = r
         self.slot = slot
+        if extras is not None and extras[1] is None:
+            room = self.extra_rooms[slot]
+            assert room is not None
+            extras = (None, room, extras[2], [])
         return Result(self.cols[slot], summary, extras, slot)
 
     def step(self, actions: np.ndarray) -> Result:
         """A whole sync step."""
         self._steer()
-        return self._took(self.call(self.pool.step, actions, self.final))
+        return self._took(self.call(self.pool.step, actions))
 
     def send_step(self, actions: np.ndarray) -> None:
         """The first half of :meth:`step`: the workers step while the caller goes on."""
@@ -237,7 +258,7 @@ class Core:
     def wait(self, timeout: Optional[float]) -> Optional[Result]:
         """The second half of :meth:`send_step` or :meth:`send_reset`, or ``None`` when
         ``timeout`` seconds passed first (the call stays pending)."""
-        r = self.call(self.pool.wait, timeout, self.final)
+        r = self.call(self.pool.wait, timeout)
         return None if r is None else self._took(r)
 
     def reset_envs(self, mask: np.ndarray) -> Result:
@@ -267,8 +288,9 @@ class Core:
 
     def final_obs(self, env: int) -> Any:
         """(SAME_STEP) env ``env``'s final observation of the last call, a fresh copy."""
-        assert self.final is not None
-        return copy_tree(row_of(self.kind.batch_views(self.final[env : env + 1]), 0))
+        final = None if self.slot is None else self.finals[self.slot]
+        assert final is not None
+        return copy_tree(row_of(self.kind.batch_views(final[env : env + 1]), 0))
 
     def stage_action_extras(self, extras: list[tuple[int, bytes]]) -> None:
         """Stage the pickled parts of no fixed size of the next step's actions, ``(env id,

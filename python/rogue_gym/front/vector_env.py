@@ -69,7 +69,13 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         copy: bool = False,
     ) -> None:
         self.autoreset_mode = parse_autoreset_mode(autoreset_mode)
+        #: Whether the env was closed (gymnasium's ``close()`` sets it).
+        self.closed = False
         facts = kind.facts
+        self._same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
+        # The pool first: one that cannot fit /dev/shm fails at once, before the batched
+        # spaces (num_envs times the bounds of one observation) are built.
+        self._core = Core(kind, same_step=self._same_step, copy=bool(copy))
         self.num_envs = facts.num_envs
         self.single_observation_space = facts.single_observation_space
         self.single_action_space = facts.single_action_space
@@ -81,7 +87,6 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         self.copy = bool(copy)
         self._kind = kind
         self._fill = kind.obs_filler()
-        self._same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
         self._disabled = self.autoreset_mode == AutoresetMode.DISABLED
         #: The split call in flight.
         self._pending: Optional[Pending] = None
@@ -89,9 +94,6 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         #: The actions each env took last (kept for the episode log).
         self._taken = np.zeros(facts.num_envs, np.int64)
         self._stats_base: Optional[PoolStats] = None
-        #: Whether the env was closed (gymnasium's ``close()`` sets it).
-        self.closed = False
-        self._core = Core(kind, same_step=self._same_step, copy=self.copy)
 
     # -- the pool --------------------------------------------------------------------------
 

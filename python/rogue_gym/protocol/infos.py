@@ -399,18 +399,26 @@ class InfoDecoder:
     def put_uniform(
         self,
         infos: dict[str, Any],
-        data: bytes,
+        data: Any,
         rows: Optional[Sequence[int]],
         n: int,
     ) -> bool:
         """Add rows that share one tag and structure (so one size), joined in ``data``, to
         vector infos of ``n`` rows: those of ``rows``, or all ``n`` in order for ``None``, in
-        one go; ``False`` (nothing added) if they are not typed."""
-        if data[:4] != MAGIC:
+        one go; ``False`` (nothing added) if they are not typed. ``data`` may also be a slot's
+        extra-info room (one row per env, each starting with its info), read in place."""
+        room = isinstance(data, np.ndarray)
+        head = data[0, :HEADER_BYTES].tobytes() if room else data[:HEADER_BYTES]
+        if head[:4] != MAGIC:
             return False
-        layout = self._layout(data)
+        layout = self._layout(data[0].tobytes() if room else data)
         at = None if rows is None else np.array(rows, np.intp)
-        records = np.frombuffer(data, layout.dtype)
+        if room:
+            records = np.ndarray(
+                (len(data),), layout.dtype, buffer=data, strides=(data.strides[0],)
+            )
+        else:
+            records = np.frombuffer(data, layout.dtype)
         layout.put(infos, records, at, n)
         self.typed_rows += len(records)
         return True
@@ -442,10 +450,13 @@ class InfoDecoder:
 
 
 def split_joined(
-    rows: Optional[Sequence[int]], data: bytes, size: int, ends: Sequence[int], n: int
+    rows: Optional[Sequence[int]], data: Any, size: int, ends: Sequence[int], n: int
 ) -> list[tuple[int, bytes]]:
     """The ``(row, bytes)`` of joined extras (a result's ``extras``): ``rows`` (``None``:
-    all ``n`` in order), each ``size`` bytes of ``data``, or ending at ``ends``."""
+    all ``n`` in order), each ``size`` bytes of ``data``, or ending at ``ends``; ``data`` may
+    also be a slot's extra-info room (``n x room`` bytes, each row's first ``size`` its own)."""
+    if isinstance(data, np.ndarray):
+        return [(row, data[row, :size].tobytes()) for row in range(n)]
     if size:
         ends = range(size, len(data) + 1, size)
     starts = [0, *ends[:-1]]

@@ -63,8 +63,7 @@ impl PyPool {
             let mut out = lock_gil_free(py, &self.out)?;
             got.fill(self.n_info, &mut out);
             out.extras.clear();
-            let recv_buffer = self.columns_bound()?.saturating_sub(1);
-            self.decode_into(&out, recv_buffer, true)?
+            self.decode_recv(&out)?
         };
         let head = self.extras_head.load(std::sync::atomic::Ordering::Relaxed);
         let extras = join_extras(py, &got.extras, rows, head)?;

@@ -39,9 +39,9 @@ pub struct PyPool {
     obs_shape: Vec<usize>,
     dtype: &'static str,
     info_names: Vec<String>,
-    /// Column buffers bound by `bind_columns` (one per shared batch slot, then one for
-    /// `recv`): the arrays (kept alive here) and their data pointers.
-    columns: Mutex<Vec<(Py<PyAny>, usize)>>,
+    /// The `recv` column buffer bound by `bind_recv_columns`: the array (kept alive here) and
+    /// its data pointer.
+    columns: Mutex<Option<(Py<PyAny>, usize)>>,
     /// Leading bytes that extra infos of one layout share (see `results::join_extras`).
     extras_head: AtomicUsize,
     /// The exception raised by a signal handler during a wait (see `interrupt_check`).
@@ -120,7 +120,7 @@ impl PyPool {
             obs_shape: spec.obs_shape.clone(),
             dtype: spec.dtype.numpy_name(),
             info_names: spec.info_names.clone(),
-            columns: Mutex::new(Vec::new()),
+            columns: Mutex::new(None),
             extras_head: AtomicUsize::new(0),
             interrupted,
             clock: CallClock::new(),

@@ -1,8 +1,9 @@
 //! The whole-batch API (gymnasium's `step`/`reset` and their split halves): every env at once,
-//! observations straight into the next shared batch slot, results as [`SyncResult`]s.
+//! every per-env output written by the workers in place into the next shared batch slot,
+//! results as [`SyncResult`]s.
 
 use numpy::ndarray::ArrayView1;
-use numpy::{PyArray1, PyReadonlyArray1, PyUntypedArray};
+use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyList;
@@ -17,22 +18,13 @@ use crate::settings;
 #[pymethods]
 impl PyPool {
     /// A sync step of every env: `actions` (int64, one per env, range-checked here; or raw
-    /// uint8 bytes for hosted envs whose actions travel so), observations into the next shared
-    /// batch slot, (SAME_STEP) final observations into `final_out`. Returns `(slot, summary,
-    /// extras)`; the slot's column buffer holds the per-env values (rewards as float64, flags
-    /// as bool, info values as int64 and bool).
-    #[pyo3(signature = (actions, final_out = None))]
-    fn step<'py>(
-        &self,
-        py: Python<'py>,
-        actions: &Bound<'_, PyAny>,
-        final_out: Option<&Bound<'_, PyUntypedArray>>,
-    ) -> PyResult<SyncResult<'py>> {
+    /// uint8 bytes for hosted envs whose actions travel so). The workers write every per-env
+    /// output in place into the next batch slot (see `slot_views`). Returns `(slot, summary,
+    /// extras)`.
+    fn step<'py>(&self, py: Python<'py>, actions: &Bound<'_, PyAny>) -> PyResult<SyncResult<'py>> {
         let acts = self.owned_actions(actions, self.num_envs)?;
-        let slot = self.with_pool(py, move |p, out| {
-            p.step_shared_actions(acts.as_actions(), out)
-        })?;
-        self.sync_result(py, slot, final_out)
+        let answer = self.with_pool(py, move |p, _| p.step_slot(acts.as_actions()))?;
+        self.sync_result(py, answer)
     }
 
     /// The first half of a sync step (gymnasium's `step_async`): check `actions` and send
@@ -50,18 +42,17 @@ impl PyPool {
     /// The second half of `step_send`/`reset_send`: wait at most `timeout` seconds (`None`:
     /// the call's own bound) for every worker; the result as `step` returns it, or `None` when
     /// `timeout` passed first (the request stays pending: wait again).
-    #[pyo3(signature = (timeout = None, final_out = None))]
+    #[pyo3(signature = (timeout = None))]
     fn wait<'py>(
         &self,
         py: Python<'py>,
         timeout: Option<f64>,
-        final_out: Option<&Bound<'_, PyUntypedArray>>,
     ) -> PyResult<Option<SyncResult<'py>>> {
         let timeout = timeout
             .map(|t| settings::duration("timeout", t))
             .transpose()?;
-        match self.with_pool(py, move |p, out| p.wait_shared(timeout, out))? {
-            Some(slot) => self.sync_result(py, slot, final_out).map(Some),
+        match self.with_pool(py, move |p, _| p.wait_shared(timeout))? {
+            Some(answer) => self.sync_result(py, answer).map(Some),
             None => Ok(None),
         }
     }
@@ -89,13 +80,17 @@ impl PyPool {
                 m.len()
             )));
         }
-        let slot = self.with_pool(py, move |p, out| p.reset_envs(&m, out))?;
-        self.sync_result(py, slot, None)
+        let answer = self.with_pool(py, move |p, _| p.reset_envs_slot(&m))?;
+        self.sync_result(py, answer)
     }
 
-    /// Zero-copy uint8 views of the shared batch slots (`num_envs x obs_bytes` bytes each), in
-    /// slot order. Their base owns the mapping, so they stay valid after `close()`.
-    fn shared_views<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+    /// Zero-copy uint8 views of every batch slot's areas, in slot order: `(obs, columns,
+    /// final, extra)` each (`num_envs x obs_bytes` observations; the columns area, see
+    /// `column_layout`; the SAME_STEP final observations or `None`; the extra-info room,
+    /// `num_envs x extra_bytes`, or `None`). Their base owns the mapping, so they stay valid
+    /// after `close()`. The workers write a slot's rows during the whole-batch call that
+    /// names it, and only then.
+    fn slot_views<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let guard = lock_gil_free(py, &self.pool)?;
         let pool = guard
             .as_ref()
@@ -103,26 +98,38 @@ impl PyPool {
         let buffer = pool
             .shared_buffer()
             .ok_or_else(|| PyRuntimeError::new_err("the pool has no shared batch buffer"))?;
-        let len = self.num_envs * self.obs_bytes;
-        let list = PyList::empty(py);
-        let mut slot = 0;
-        loop {
-            let ptr = pool.shared_obs_ptr(slot);
-            if ptr.is_null() {
-                break;
-            }
+        let layout = pool.slot_layout();
+        let n = layout.num_envs;
+        let view = |ptr: *const u8, len: usize| -> PyResult<Bound<'py, PyAny>> {
             let holder = Bound::new(
                 py,
                 SharedBatchHolder {
                     _buffer: buffer.clone(),
                 },
             )?;
-            // SAFETY: the slot lies inside the mapping owned (via the Arc) by `holder`, the
-            // array's base; workers write it only during a whole-batch call.
-            let view = unsafe { ArrayView1::from_shape_ptr(len, ptr) };
-            let arr = unsafe { PyArray1::<u8>::borrow_from_array(&view, holder.into_any()) };
-            list.append(arr)?;
-            slot += 1;
+            // SAFETY: the area lies inside the mapping owned (via the Arc) by `holder`, the
+            // array's base.
+            let v = unsafe { ArrayView1::from_shape_ptr(len, ptr) };
+            Ok(unsafe { PyArray1::<u8>::borrow_from_array(&v, holder.into_any()) }.into_any())
+        };
+        let list = PyList::empty(py);
+        for slot in 0..pool.batch_slots() {
+            let base = pool.shared_obs_ptr(slot);
+            // SAFETY: every offset below stays inside the slot (see `SlotLayout`).
+            let at = |off: usize| unsafe { base.add(off) };
+            let obs = view(base, n * layout.obs_bytes)?;
+            let cols = view(at(layout.columns_offset()), layout.columns_bytes())?;
+            let fin = if layout.final_obs {
+                Some(view(at(layout.final_offset()), n * layout.obs_bytes)?)
+            } else {
+                None
+            };
+            let extra = if layout.extra_bytes > 0 {
+                Some(view(at(layout.extra_offset()), n * layout.extra_bytes)?)
+            } else {
+                None
+            };
+            list.append((obs, cols, fin, extra))?;
         }
         Ok(list)
     }
