@@ -9,6 +9,7 @@ mod async_api;
 mod async_envs;
 mod calls;
 mod recycling;
+mod slot_answers;
 mod stepping;
 mod workers;
 
@@ -115,7 +116,7 @@ struct Supervisor {
     /// ([`Pool::send_step_shared`], [`Pool::wait_shared`]).
     split: Option<usize>,
     /// The answers of that call taken so far.
-    collecting: Option<workers::SlotCollect>,
+    collecting: Option<slot_answers::SlotCollect>,
     /// The workers' counters in shared memory ([`Pool::stats`]), and what this side counts.
     stats: Option<StatsBuffer>,
     counts: Vec<SupervisorCounts>,
@@ -592,55 +593,6 @@ impl Pool {
         Ok(())
     }
 
-    /// Check one action per env of `env_ids` (indices in range, or the right byte count).
-    fn check_actions(&self, actions: Actions<'_>, env_ids: &[usize]) -> Result<(), PoolError> {
-        self.check_action_rows(actions, env_ids.len(), |r| env_ids[r])
-    }
-
-    /// Check one action per env of the pool.
-    fn check_all_actions(&self, actions: Actions<'_>) -> Result<(), PoolError> {
-        self.check_action_rows(actions, self.sup.cfg.num_envs, |r| r)
-    }
-
-    /// Check `rows` actions, row `r` for env `env_of(r)`.
-    fn check_action_rows(
-        &self,
-        actions: Actions<'_>,
-        rows: usize,
-        env_of: impl Fn(usize) -> usize,
-    ) -> Result<(), PoolError> {
-        let spec = &self.sup.spec;
-        match actions {
-            Actions::Indices(a) if spec.action_bytes == 0 => {
-                if a.len() != rows {
-                    return Err(PoolError::BadActionsLength {
-                        expected: rows,
-                        got: a.len(),
-                    });
-                }
-                validate_actions(a, (0..rows).map(env_of), spec.num_actions)
-            }
-            Actions::Bytes(b) if spec.action_bytes > 0 => {
-                if b.len() != rows * spec.action_bytes {
-                    return Err(PoolError::BadBuffer {
-                        what: "action bytes",
-                        expected: rows * spec.action_bytes,
-                        got: b.len(),
-                    });
-                }
-                Ok(())
-            }
-            Actions::Indices(_) => Err(PoolError::Config(format!(
-                "this env takes actions as {} raw bytes each, not indices",
-                spec.action_bytes
-            ))),
-            Actions::Bytes(_) => Err(PoolError::Config(format!(
-                "this env takes action indices 0..{}, not raw bytes",
-                spec.num_actions
-            ))),
-        }
-    }
-
     fn check_obs_buf(&self, obs_out: &[u8]) -> Result<(), PoolError> {
         let expected = self.sup.cfg.num_envs * self.sup.spec.obs_bytes();
         if obs_out.len() != expected {
@@ -753,33 +705,6 @@ impl Supervisor {
             (Some(b), Some(seq)) if !s.first_episodes => Some(b.read(seq, i)),
             _ => None,
         }
-    }
-
-    /// How to wait for the answers of the whole-batch call in flight, when the last one took
-    /// 1 to 50 ms and the workers leave the caller a core: sleep until three quarters of it
-    /// have passed since the call was sent (less 200 us: the CPU is free meanwhile, and an
-    /// early answer still wakes it), then poll for up to half of it (at most 2 ms), so that the
-    /// answer is seen without a wake-up. `None`: the pool's own policy.
-    fn expected_wait(&self) -> Option<rogue_gym_ipc::WaitPolicy> {
-        let expected = self.expected_answer?;
-        if self.slots.len() > self.cores
-            || expected > Duration::from_millis(50)
-            || expected < Duration::from_millis(1)
-        {
-            // Short calls are polled for anyway; a sleep shorter than the kernel's timer
-            // slack (50 us) would only oversleep.
-            return None;
-        }
-        let wake = self.split_sent + expected * 3 / 4 - Duration::from_micros(200);
-        Some(rogue_gym_ipc::WaitPolicy {
-            sleep_first: wake.saturating_duration_since(Instant::now()),
-            poll_budget: self
-                .cfg
-                .wait
-                .poll_budget
-                .max((expected / 2).min(Duration::from_millis(2))),
-            ..self.cfg.wait
-        })
     }
 
     /// When the current call must give up (see [`Pool::call_bound`]): a little before its

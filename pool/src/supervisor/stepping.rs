@@ -4,7 +4,7 @@
 use std::ops::Range;
 
 use super::Pool;
-use super::workers::SlotCollect;
+use super::slot_answers::SlotCollect;
 use crate::batch::{BatchOutput, SlotAnswer, SlotExtras};
 use crate::error::PoolError;
 use crate::wire::slot_layout::{RowWriter, SlotLayout};
@@ -392,6 +392,59 @@ impl Pool {
                 unsafe { b.as_ptr().add(slot * self.sup.slot_layout.bytes()) }
             }
             _ => std::ptr::null(),
+        }
+    }
+
+    /// Check one action per env of `env_ids` (indices in range, or the right byte count).
+    pub(super) fn check_actions(
+        &self,
+        actions: Actions<'_>,
+        env_ids: &[usize],
+    ) -> Result<(), PoolError> {
+        self.check_action_rows(actions, env_ids.len(), |r| env_ids[r])
+    }
+
+    /// Check one action per env of the pool.
+    fn check_all_actions(&self, actions: Actions<'_>) -> Result<(), PoolError> {
+        self.check_action_rows(actions, self.sup.cfg.num_envs, |r| r)
+    }
+
+    /// Check `rows` actions, row `r` for env `env_of(r)`.
+    fn check_action_rows(
+        &self,
+        actions: Actions<'_>,
+        rows: usize,
+        env_of: impl Fn(usize) -> usize,
+    ) -> Result<(), PoolError> {
+        let spec = &self.sup.spec;
+        match actions {
+            Actions::Indices(a) if spec.action_bytes == 0 => {
+                if a.len() != rows {
+                    return Err(PoolError::BadActionsLength {
+                        expected: rows,
+                        got: a.len(),
+                    });
+                }
+                validate_actions(a, (0..rows).map(env_of), spec.num_actions)
+            }
+            Actions::Bytes(b) if spec.action_bytes > 0 => {
+                if b.len() != rows * spec.action_bytes {
+                    return Err(PoolError::BadBuffer {
+                        what: "action bytes",
+                        expected: rows * spec.action_bytes,
+                        got: b.len(),
+                    });
+                }
+                Ok(())
+            }
+            Actions::Indices(_) => Err(PoolError::Config(format!(
+                "this env takes actions as {} raw bytes each, not indices",
+                spec.action_bytes
+            ))),
+            Actions::Bytes(_) => Err(PoolError::Config(format!(
+                "this env takes action indices 0..{}, not raw bytes",
+                spec.num_actions
+            ))),
         }
     }
 
