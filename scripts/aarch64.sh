@@ -5,7 +5,8 @@
 # a Debian-like x86-64 machine; installs qemu-user-static, binfmt-support and debootstrap with
 # apt-get where they are missing. Downloads only from the registries: Debian's arm64 packages
 # (the root, about 90 MB, once), PyPI's aarch64 wheels of numpy, gymnasium and pytest (about
-# 20 MB, once), and the aarch64 standard library for cargo (rustup, once).
+# 20 MB, once, fetched by this machine's pip), and the aarch64 standard library for cargo
+# (rustup, once).
 #
 #   bash scripts/aarch64.sh build          # cross-build the wheel (target/wheels-aarch64)
 #   bash scripts/aarch64.sh root           # make the arm64 root with its Python venv
@@ -29,6 +30,9 @@ SUITE=bookworm
 MIRROR="${DEBIAN_MIRROR:-http://deb.debian.org/debian}"
 # The Python packages of the emulated venv (aarch64 wheels from PyPI).
 PY_PKGS=("numpy>=1.24" "gymnasium>=1.1,<2" "cloudpickle>=2" "pytest>=7" "pytest-timeout")
+# The Python that fetches them (with pip): the checkout's venv, else the system's.
+HOST_PY="${PYTHON:-python3}"
+[ -x "$ROOT/.venv/bin/python" ] && HOST_PY="$ROOT/.venv/bin/python"
 
 die() { echo "error: $*" >&2; exit 1; }
 [ "$(id -u)" = 0 ] || die "needs root (chroot, mounts): run it as root"
@@ -92,10 +96,20 @@ make_root() {
                 --include=python3,python3-venv,ca-certificates,util-linux \
                 "$SUITE" "$ARM_ROOT" "$MIRROR"
         fi
-        echo "== the emulated venv (/opt/venv): ${PY_PKGS[*]}"
+        # The aarch64 wheels are fetched here, by this machine's pip (its proxy and
+        # certificates), for the root's CPython, then installed there from the folder.
+        local pyver
+        pyver=$(in_root /usr/bin/python3 -c 'import sys; print(f"{sys.version_info[0]}.{sys.version_info[1]}")')
+        echo "== aarch64 wheels for CPython $pyver: ${PY_PKGS[*]}"
+        "$HOST_PY" -m pip download -q --disable-pip-version-check --retries 10 --timeout 60 \
+            --only-binary=:all: --implementation cp --python-version "$pyver" \
+            --platform manylinux_2_17_aarch64 --platform manylinux2014_aarch64 \
+            --platform manylinux_2_28_aarch64 --platform any \
+            -d "$ARM_ROOT/opt/wheels" "${PY_PKGS[@]}"
+        echo "== the emulated venv (/opt/venv)"
         in_root /usr/bin/python3 -m venv /opt/venv
-        in_root /opt/venv/bin/python -m pip install -q --disable-pip-version-check \
-            --retries 10 --timeout 60 "${PY_PKGS[@]}"
+        in_root /opt/venv/bin/python -m pip install -q --disable-pip-version-check --no-index \
+            --find-links /opt/wheels "${PY_PKGS[@]}"
     fi
     in_root /opt/venv/bin/python -c \
         "import platform, numpy; print('== root ok:', platform.machine(), platform.python_version(), 'numpy', numpy.__version__)"

@@ -74,7 +74,7 @@ pub fn hybrid_wait<E: From<IpcError>>(
     }
     let asleep = Instant::now();
     while asleep.elapsed() < policy.sleep_first {
-        let mut slice = policy.sleep_first - asleep.elapsed();
+        let mut slice = policy.sleep_first.saturating_sub(asleep.elapsed());
         if let Some(d) = deadline {
             slice = slice.min(d.saturating_duration_since(Instant::now()));
         }
