@@ -46,7 +46,7 @@ if part 1; then
     echo "== 1. scaling ($((SECONDS - t0)) s)"
     timeout 300 "$py" benchmarks/scaling.py --workers "${workers[@]}" --seconds 3 --out "$out" \
         ${quick[@]+"${quick[@]}"}
-    if ((${#quick[@]})); then model=(--seconds 0.3); else model=(--seconds 1 --reps 2); fi
+    if ((${#quick[@]})); then model=(--quick); else model=(--seconds 1 --reps 2); fi
     timeout 300 "$py" benchmarks/scaling.py --model "${model[@]}" --out "$out"
 fi
 

@@ -95,16 +95,22 @@ def split(env: str, num_envs: int, seconds: float) -> tuple[float, float]:
 #: workers (native 256 a worker, hosted 8).
 MODEL_BATCHES = {"rogue": (64, 256, 512, 1024, 2048, 4096), "CartPole-v1": (8, 16, 32, 64, 128)}
 MODEL_PER_WORKER = {"rogue": 256, "CartPole-v1": 8}
+#: The same, a sixteenth of the size (``--quick``).
+QUICK_BATCHES = {"rogue": (16, 32, 64, 128, 256), "CartPole-v1": (2, 4, 8, 16, 32)}
+QUICK_PER_WORKER = {"rogue": 16, "CartPole-v1": 2}
 
 
 def model(args: argparse.Namespace) -> None:
     """Measure the caller's own time and the worker's env time per call for each batch size
     (cells interleaved, medians of ``--reps``), and project the efficiency at k workers."""
-    envs = [e for e in MODEL_BATCHES if e in args.envs or e == "rogue"]
+    batches, per_worker = (
+        (QUICK_BATCHES, QUICK_PER_WORKER) if args.quick else (MODEL_BATCHES, MODEL_PER_WORKER)
+    )
+    envs = [e for e in batches if e in args.envs or e == "rogue"]
     cells: dict[tuple[str, int], list[tuple[float, float]]] = {}
     for rep in range(args.reps):
         for e in envs:
-            for n in MODEL_BATCHES[e]:
+            for n in batches[e]:
                 o, t = split(e, n, args.seconds)
                 cells.setdefault((e, n), []).append((o, t))
                 print(f"rep {rep + 1}: {e} x {n}: caller {o * 1e6:.1f} us, worker {t * 1e6:.1f} us")
@@ -131,7 +137,7 @@ def model(args: argparse.Namespace) -> None:
     ]
     projected = {}
     for e in envs:
-        per = MODEL_PER_WORKER[e]
+        per = per_worker[e]
         t_w = med[(e, per)][1]
         for k in (1, 2, 4, 8, 16):
             if (e, k * per) in med:
@@ -182,7 +188,9 @@ def main(argv: Optional[list[str]] = None) -> None:
     )
     p.add_argument("--out", default=str(Path(__file__).parent / "results" / "scaling"))
     args = p.parse_args(argv)
-    if args.quick:
+    if args.quick and args.model:
+        args.seconds, args.reps = min(args.seconds, 0.3), 1
+    elif args.quick:
         args.workers, args.seconds, args.reps = [1, 2], 1.0, 1
         args.rogue_envs, args.hosted_envs = 16, 2
         args.envs = [e for e in args.envs if e != "HalfCheetah-v5"]

@@ -8,6 +8,9 @@ cd "$(dirname "$0")/.."
 
 echo "== cargo test (workspace)"
 cargo test --workspace --exclude rogue-gym-python
+# The model-checked handshake between worker and supervisor (loom: every interleaving and
+# every reordering the C11 memory model allows; docs/platforms.md).
+cargo test -p rogue-gym-pool --features loom --lib loom
 
 echo "== Python package (setup, types, stubs, pytest, ruff)"
 bash scripts/setup-python.sh

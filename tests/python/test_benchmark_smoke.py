@@ -82,8 +82,8 @@ def test_a_cell_past_its_time_limit_is_skipped_not_hung(tmp_path: Path) -> None:
 
 
 def test_the_device_script_runs_every_part_in_its_quick_mode(tmp_path: Path) -> None:
-    """``benchmarks/device.sh --quick``: scaling, the async head-to-head (this pool beside
-    TorchRL where installed) and the trainer, each writing its results."""
+    """``benchmarks/device.sh --quick``: scaling and its model, the async head-to-head (this
+    pool beside TorchRL where installed) and the trainer, each writing its results."""
     env = {**__import__("os").environ, "PYTHON": sys.executable, "DEVICE_OUT": str(tmp_path)}
     proc = subprocess.run(
         ["bash", str(ROOT / "benchmarks" / "device.sh"), "--quick"],
@@ -95,6 +95,11 @@ def test_the_device_script_runs_every_part_in_its_quick_mode(tmp_path: Path) -> 
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     scaling = json.loads((tmp_path / "scaling.json").read_text())
     assert all(v[0] > 0 for t in scaling["runs"].values() for v in t.values())
+    # The model: the caller's own time and the worker's env time for each batch size, and
+    # the efficiency it projects (a fraction) for the native game at 1 to 16 workers.
+    model = json.loads((tmp_path / "model.json").read_text())
+    assert all(o >= 0 and t > 0 for cells in model["cells"].values() for o, t in cells)
+    assert 0 < model["projected"]["rogue/16"] < 1
     pools = json.loads((tmp_path / "async_pools.json").read_text())
     rows = pools["runs"]["dispatch"]
     assert any(k.startswith("rogue_gym async") and v and v[0] > 0 for k, v in rows.items())

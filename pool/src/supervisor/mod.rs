@@ -84,8 +84,10 @@ struct Supervisor {
     expected_answer: Option<Duration>,
     /// The wait policy of the wait in progress, when it differs from the pool's.
     wait_now: Option<rogue_gym_ipc::WaitPolicy>,
-    /// When the whole-batch call in flight was sent.
+    /// When the whole-batch call in flight was sent, and the same on the clock the workers
+    /// stamp their answers with (`CLOCK_MONOTONIC`, ns).
     split_sent: Instant,
+    split_sent_ns: u64,
     /// Workers host a vector env each ([`EnvRegistry::builds_blocks`]): the async API sends
     /// whole worker blocks only.
     whole_blocks: bool,
@@ -291,6 +293,7 @@ impl Pool {
                 expected_answer: None,
                 wait_now: None,
                 split_sent: Instant::now(),
+                split_sent_ns: 0,
                 whole_blocks,
                 batch: None,
                 slot_layout,

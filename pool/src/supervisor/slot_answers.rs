@@ -21,6 +21,8 @@ pub(super) struct SlotCollect {
     pub(super) answer: SlotAnswer,
     /// Workers whose answer was taken.
     pub(super) answered: usize,
+    /// When the last answer so far was published (the workers' stamp, `CLOCK_MONOTONIC`).
+    pub(super) ready_ns: u64,
     /// Workers whose envs wrote extra info.
     irregular: Vec<usize>,
     /// Extra info that travelled beside the answers.
@@ -43,6 +45,10 @@ impl SlotCollect {
         }
     }
 }
+
+/// Calls shorter than this are polled for from start to end (when the caller has a core of
+/// its own); longer ones are slept through for three quarters first.
+const FULL_POLL: Duration = Duration::from_millis(20);
 
 impl Supervisor {
     /// Take the answers that have arrived for the whole-batch call into slot `acc.slot`, as
@@ -71,6 +77,7 @@ impl Supervisor {
             let mut words = [0u64; SLOT_ANSWER_WORDS];
             words.copy_from_slice(&sample.payload()[..SLOT_ANSWER_WORDS]);
             let (bits, seq) = (words[0], sample.user_header().seq);
+            acc.ready_ns = acc.ready_ns.max(sample.user_header().ready_ns);
             drop(sample);
             if restarted {
                 acc.answer.restarted = true;
@@ -158,20 +165,24 @@ impl Supervisor {
         }
     }
 
-    /// How to wait for the answers of the whole-batch call in flight, when the last one took
-    /// 1 to 50 ms and the workers leave the caller a core: sleep until three quarters of it
+    /// How to wait for the answers of the whole-batch call in flight, when the workers leave
+    /// the caller a core (fewer workers than cores) and the last call took at most 50 ms: poll
+    /// through a call of under [`FULL_POLL`] (for up to twice its time); for a longer one, sleep until three quarters of it
     /// have passed since the call was sent (less 200 us: the CPU is free meanwhile, and an
     /// early answer still wakes it), then poll for up to half of it (at most 2 ms), so that the
     /// answer is seen without a wake-up. `None`: the pool's own policy.
     pub(super) fn expected_wait(&self) -> Option<rogue_gym_ipc::WaitPolicy> {
         let expected = self.expected_answer?;
-        if self.slots.len() > self.cores
-            || expected > Duration::from_millis(50)
-            || expected < Duration::from_millis(1)
-        {
-            // Short calls are polled for anyway; a sleep shorter than the kernel's timer
-            // slack (50 us) would only oversleep.
+        if self.slots.len() >= self.cores || expected > Duration::from_millis(50) {
             return None;
+        }
+        if expected < FULL_POLL {
+            // Poll through a short call: a sleep shorter than the kernel's timer slack (50 us)
+            // would only oversleep, and a wake-up costs tens of microseconds.
+            return Some(rogue_gym_ipc::WaitPolicy {
+                poll_budget: self.cfg.wait.poll_budget.max(expected * 2),
+                ..self.cfg.wait
+            });
         }
         let wake = self.split_sent + expected * 3 / 4 - Duration::from_micros(200);
         Some(rogue_gym_ipc::WaitPolicy {

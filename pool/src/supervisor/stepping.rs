@@ -161,6 +161,7 @@ impl Pool {
         }
         self.sup.split = Some(slot);
         self.sup.split_sent = std::time::Instant::now();
+        self.sup.split_sent_ns = rogue_gym_ipc::monotonic_ns();
         self.sup.collecting = None;
         self.collect_split(None)?
             .ok_or_else(|| PoolError::State("a partial reset timed out".into()))
@@ -215,6 +216,7 @@ impl Pool {
         self.send_steps(actions, slot as u32 + 1)?;
         self.sup.split = Some(slot);
         self.sup.split_sent = std::time::Instant::now();
+        self.sup.split_sent_ns = rogue_gym_ipc::monotonic_ns();
         self.sup.collecting = None;
         Ok(slot)
     }
@@ -231,6 +233,7 @@ impl Pool {
         self.sup.must_reset = false;
         self.sup.split = Some(slot);
         self.sup.split_sent = std::time::Instant::now();
+        self.sup.split_sent_ns = rogue_gym_ipc::monotonic_ns();
         self.sup.collecting = None;
         Ok(slot)
     }
@@ -278,8 +281,10 @@ impl Pool {
         );
         self.sup.wait_now = None;
         if matches!(done, Ok(true)) && polls > 1 {
-            // Waited for: how long the workers took, for the next wait.
-            self.sup.expected_answer = Some(self.sup.split_sent.elapsed());
+            // Waited for: how long the workers took (by their own stamps, not by when this side
+            // saw the answers: a late look must not lengthen the next wait), for the next wait.
+            let took = acc.ready_ns.saturating_sub(self.sup.split_sent_ns);
+            self.sup.expected_answer = Some(std::time::Duration::from_nanos(took));
         }
         match done {
             Ok(false) => {
