@@ -60,10 +60,10 @@ fn owner_alive(id: &PoolId) -> Option<bool> {
     })
 }
 
-/// A pool whose owner file is not written yet but whose directory is only seconds old is being
-/// created by a live process: leave it alone.
+/// A pool whose owner file is not written yet (missing, or created and not yet filled in) but
+/// whose directory is only seconds old is being created by a live process: leave it alone.
 fn young_without_owner(id: &PoolId) -> bool {
-    if id.aux_dir().join("owner").exists() {
+    if owner_alive(id).is_some() {
         return false;
     }
     let dir = if id.aux_dir().exists() {

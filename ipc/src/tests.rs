@@ -150,11 +150,20 @@ fn sweep_removes_pools_of_dead_owners_only() {
     dead.create_dirs().unwrap();
     // Fake a dead owner.
     fs::write(dead.aux_dir().join("owner"), "4294967294 1\n").unwrap();
+    // A pool being created: its owner file exists but is not written yet.
+    let starting = PoolId::new_unique(&base).unwrap();
+    starting.create_dirs().unwrap();
+    fs::write(starting.aux_dir().join("owner"), "").unwrap();
     let removed = sweep_stale_pools(&base);
     assert!(removed.contains(&dead.name().to_string()));
     assert!(!dead.aux_dir().exists());
     assert!(live.aux_dir().exists());
+    assert!(
+        starting.aux_dir().exists(),
+        "a young pool with an empty owner file is left alone"
+    );
     remove_pool_files(&live).unwrap();
+    remove_pool_files(&starting).unwrap();
     let _ = fs::remove_dir(&base);
 }
 
