@@ -103,6 +103,10 @@ pub struct PoolConfig {
     /// agents of one multi-agent env, one env each): `num_envs` must be a multiple of it and
     /// every worker gets whole groups ([`crate::wire::block_range_of`]). 1: any split.
     pub block_unit: usize,
+    /// Pin the workers to cores (opt-in): worker `k` runs on the `(offset + k)`-th core the
+    /// pool's process may use (wrapping around), as EnvPool's `thread_affinity_offset` does.
+    /// `None` (the default): the kernel places them.
+    pub cpu_affinity: Option<usize>,
     /// Slots of the shared batch buffer the synchronous `*_shared` calls write, 2 to
     /// [`crate::MAX_BATCH_SLOTS`]: 2 is double buffering; more let the caller keep several
     /// batches of observations without copying them (see [`crate::Pool::select_slot`]).
@@ -141,6 +145,7 @@ impl PoolConfig {
             recycle_above_rss: None,
             batch_slots: crate::BATCH_SLOTS,
             block_unit: 1,
+            cpu_affinity: None,
             worker,
             wait: WaitPolicy {
                 poll_budget: Duration::from_micros(50),

@@ -125,6 +125,15 @@ pub fn worker_main(args: &[String], registry: &EnvRegistry) -> i32 {
             return 2;
         }
     };
+    if let Some(offset) = cfg.cpu_affinity
+        && let Err(e) = pin_to_core(offset + a.index)
+    {
+        // Not fatal: the worker runs where the kernel puts it.
+        eprintln!(
+            "rogue-gym worker {}: cpu_affinity not applied: {e}",
+            a.index
+        );
+    }
     match run(&a, &cfg, registry) {
         Ok(()) => 0,
         Err(WorkerError::ParentGone(p)) => {
@@ -156,6 +165,23 @@ fn wait_for_go(id: &PoolId, a: &Args) -> Result<(), WorkerError> {
     }
     let _ = std::fs::remove_file(&go);
     Ok(())
+}
+
+/// Pin this process to the `n`-th core (wrapping around) of those it may run on.
+fn pin_to_core(n: usize) -> Result<usize, nix::Error> {
+    use nix::sched::{CpuSet, sched_getaffinity, sched_setaffinity};
+    use nix::unistd::Pid;
+    let allowed = sched_getaffinity(Pid::from_raw(0))?;
+    let cores: Vec<usize> = (0..CpuSet::count())
+        .filter(|&c| allowed.is_set(c).unwrap_or(false))
+        .collect();
+    let Some(&core) = cores.get(n % cores.len().max(1)) else {
+        return Err(nix::Error::EINVAL);
+    };
+    let mut one = CpuSet::new();
+    one.set(core)?;
+    sched_setaffinity(Pid::from_raw(0), &one)?;
+    Ok(core)
 }
 
 /// The longest a worker polls for a command it expects soon ([`expected_poll`]).

@@ -1,6 +1,6 @@
 """Type stubs of the native extension (``rogue_gym._native``), built from ``python/src``."""
 
-from typing import Any, Optional, Sequence, final
+from typing import Any, Optional, Sequence, Union, final
 
 import numpy as np
 from typing_extensions import Self, TypeAlias
@@ -93,7 +93,7 @@ class Pool:
     def select_slot(self, slot: int) -> None: ...
     def set_seeds(self, seeds_json: str) -> None: ...
     def async_reset(self) -> None: ...
-    def send(self, actions: np.ndarray, env_ids: Sequence[int]) -> None: ...
+    def send(self, actions: np.ndarray, env_ids: Union[np.ndarray, Sequence[int]]) -> None: ...
     def recv(
         self,
         min_batch: int | None = None,

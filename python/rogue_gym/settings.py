@@ -53,6 +53,7 @@ class PoolOptions:
     recycle_after_steps: Optional[int] = None
     recycle_above_rss: Optional[int] = None
     batch_slots: Optional[int] = None
+    cpu_affinity: Optional[int] = None
 
     @classmethod
     def from_kwargs(cls, options: Mapping[str, Any]) -> Any:
@@ -87,6 +88,13 @@ class PoolOptions:
             value = getattr(self, name)
             if value is not None and int(value) < 0:
                 raise ValueError(f"{name} must be a number of microseconds >= 0, got {value}")
+        if self.cpu_affinity is not None and (
+            isinstance(self.cpu_affinity, bool) or int(self.cpu_affinity) < 0
+        ):
+            raise ValueError(
+                f"cpu_affinity must be a core offset >= 0 (or None: no pinning), got "
+                f"{self.cpu_affinity!r}"
+            )
         for name in ("recycle_after_steps", "recycle_above_rss"):
             value = getattr(self, name)
             if value is not None and int(value) < 1:
@@ -105,6 +113,7 @@ class PoolOptions:
             "recycle_after_steps": _optional_int(self.recycle_after_steps),
             "recycle_above_rss": _optional_int(self.recycle_above_rss),
             "batch_slots": _optional_int(self.batch_slots),
+            "cpu_affinity": _optional_int(self.cpu_affinity),
         }
 
     def pool_json(self, num_envs: int, worker_poll_us: Optional[int] = None) -> dict[str, Any]:
@@ -125,6 +134,7 @@ class PoolOptions:
             "recycle_after_steps": self.recycle_after_steps,
             "recycle_above_rss": self.recycle_above_rss,
             "batch_slots": self.batch_slots,
+            "cpu_affinity": self.cpu_affinity,
             "runtime_dir": None if self.runtime_dir is None else os.fspath(self.runtime_dir),
         }
 
@@ -182,6 +192,10 @@ class PoolSettings(PoolOptions):
             worker serves on, then takes over between two calls; the worker's envs start new
             episodes there (``truncated``, info ``worker_recycled``). Counted in ``stats()``
             as ``recycles``, apart from crash restarts and outside the restart budget.
+        cpu_affinity: pin the workers to cores (opt-in): worker ``k`` runs on the
+            ``(cpu_affinity + k)``-th core this process may use, wrapping around (EnvPool's
+            ``thread_affinity_offset``). ``None`` (the default): the kernel places them. On a
+            machine of several NUMA nodes run one pool per node (docs/performance.md).
     """
 
     num_envs: int = 8

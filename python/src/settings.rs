@@ -57,6 +57,9 @@ pub(crate) struct PyPoolSettings {
     /// The workers' yield-poll budget before they block, µs.
     #[serde(default)]
     worker_poll_us: Option<u64>,
+    /// Pin worker `k` to the `(offset + k)`-th usable core (`PoolConfig::cpu_affinity`).
+    #[serde(default)]
+    cpu_affinity: Option<usize>,
 }
 
 pub(crate) fn duration(what: &str, secs: f64) -> PyResult<Duration> {
@@ -115,5 +118,6 @@ pub(crate) fn pool_config(
     if let Some(us) = s.worker_poll_us {
         cfg.worker_wait.poll_budget = Duration::from_micros(us);
     }
+    cfg.cpu_affinity = s.cpu_affinity;
     Ok(cfg)
 }

@@ -77,8 +77,22 @@ def test_a_deadline_returns_what_is_ready_or_times_out_losing_nothing() -> None:
         obs, *_, info = env.recv(min_batch=2, timeout=5.0)  # the results were kept
         assert sorted(info["env_id"].tolist()) == [0, 1]
         env.send(np.zeros(2, np.int64), [0, 1])
+        # recv's arguments are checked as strictly as send's: nothing is taken by a bad call.
+        for bad, match in (
+            ({"min_batch": 2, "max_batch": 1}, "must not exceed max_batch"),
+            ({"max_batch": 3}, "between 1 and num_envs"),
+            ({"min_batch": 0}, "between 1 and num_envs"),
+            ({"timeout": -1.0}, "non-negative"),
+        ):
+            with pytest.raises(ValueError, match=match):
+                env.recv(**bad)
         obs, r, *_ = env.recv(min_batch=2, max_batch=2, timeout=5.0)
         assert r.tolist() == [1.0, 1.0]
+        env.send(np.zeros(1, np.int64), np.array([1], np.int32))  # any integer array of ids
+        with pytest.raises(TypeError, match="env_id must be integers"):
+            env.send(np.zeros(1, np.int64), np.array([0.0]))
+        _, _, _, _, info = env.recv(min_batch=1, max_batch=1, timeout=5.0)
+        assert info["env_id"].tolist() == [1]
     finally:
         env.close()
 

@@ -13,7 +13,7 @@ import pytest
 from gymnasium import spaces
 from rogue_gym.front.core import Core, Result
 from rogue_gym.front.vector_env import FrontVectorEnv
-from rogue_gym.kinds.spec import Kind, KindFacts
+from rogue_gym.kinds.spec import EnvIds, Kind, KindFacts
 from rogue_gym.protocol.ops import run_op
 from rogue_gym.settings import PoolOptions
 
@@ -67,7 +67,7 @@ class ToyKind:
     def obs_filler(self) -> Optional[Callable[[Any, Optional[np.ndarray]], Any]]:
         return None
 
-    def actions(self, actions: Any, env_ids: Optional[Sequence[int]]) -> np.ndarray:
+    def actions(self, actions: Any, env_ids: Optional[EnvIds]) -> np.ndarray:
         return np.asarray(actions, np.int64)
 
     def seeds(self, seed: Any, mask: Optional[np.ndarray], core: Core) -> Optional[dict[str, Any]]:

@@ -17,6 +17,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+import pytest
 import rogue_gym
 
 from conftest import pid_alive, pool_files, wait_until
@@ -98,6 +99,8 @@ def test_a_worker_killed_mid_step_is_restarted_and_its_envs_flagged() -> None:
     try:
         env.reset()
         victim = env.worker_pids[1]
+        # Stopped first, so that the step is surely in its hands when it dies.
+        os.kill(victim, signal.SIGSTOP)
         env.step_async(np.zeros(4, np.int64))
         os.kill(victim, signal.SIGKILL)
         _, rew, _, trunc, infos = env.step_wait()
@@ -186,3 +189,31 @@ def test_rows_stay_whole_through_many_steps_and_kills() -> None:
         assert kills == 24 and env.restarts >= kills and stepped > 3000
     finally:
         _closed(env)
+
+
+def _cores_of(pid: int) -> set[int]:
+    with open(f"/proc/{pid}/status") as f:
+        line = next(x for x in f if x.startswith("Cpus_allowed_list:"))
+    cores: set[int] = set()
+    for part in line.split(":", 1)[1].strip().split(","):
+        lo, _, hi = part.partition("-")
+        cores.update(range(int(lo), int(hi or lo) + 1))
+    return cores
+
+
+def test_cpu_affinity_pins_each_worker_to_its_core_and_is_off_by_default() -> None:
+    usable = sorted(os.sched_getaffinity(0))
+    pinned = _native(4, 2, cpu_affinity=1)
+    free = _native(4, 2)
+    try:
+        for k, pid in enumerate(pinned.worker_pids):
+            assert _cores_of(pid) == {usable[(1 + k) % len(usable)]}, k
+        for pid in free.worker_pids:
+            assert _cores_of(pid) == set(usable)
+        pinned.reset()
+        pinned.step(np.ones(4, np.int64))
+    finally:
+        _closed(pinned)
+        _closed(free)
+    with pytest.raises(ValueError, match="cpu_affinity"):
+        _native(4, 2, cpu_affinity=-1)

@@ -268,6 +268,7 @@ impl Pool {
             poll_yield: cfg.worker_wait.yield_cpu,
             batch_slots: cfg.batch_slots,
             block_unit: cfg.block_unit,
+            cpu_affinity: cfg.cpu_affinity,
         };
         let config_path = id.aux_dir().join("worker.json");
         let num_envs = cfg.num_envs;

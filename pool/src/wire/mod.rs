@@ -191,6 +191,9 @@ pub struct WorkerConfig {
     /// Envs that stay together on one worker ([`crate::PoolConfig::block_unit`]).
     #[serde(default = "default_block_unit")]
     pub block_unit: usize,
+    /// Pin worker `k` to the `(offset + k)`-th usable core ([`crate::PoolConfig::cpu_affinity`]).
+    #[serde(default)]
+    pub cpu_affinity: Option<usize>,
 }
 
 fn default_block_unit() -> usize {

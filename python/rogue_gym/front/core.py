@@ -319,9 +319,10 @@ class Core:
         """Start resetting every env; collect with :meth:`recv`."""
         self.call(self.pool.async_reset)
 
-    def send(self, actions: np.ndarray, env_ids: Sequence[int]) -> None:
-        """Send actions to any envs (each at most once until received)."""
-        self.call(self.pool.send, actions, list(env_ids))
+    def send(self, actions: np.ndarray, env_ids: Any) -> None:
+        """Send actions to any envs (``env_ids``: an int64 array or a sequence of ints, each
+        env at most once until received)."""
+        self.call(self.pool.send, actions, env_ids)
 
     def recv(
         self,

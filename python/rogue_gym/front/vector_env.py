@@ -331,10 +331,14 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         last :meth:`recv`): any envs, each at most once until it is received. An env whose
         worker is busy with others of its envs goes with the worker's next command."""
         self._core.check_open()
-        ids = self._async_ids if env_id is None else np.asarray(env_id, np.int64)
+        ids = self._async_ids if env_id is None else np.asarray(env_id)
         if ids is None:
             raise RuntimeError("send() needs env_id, or a previous recv() whose envs it answers")
-        env_ids = [int(i) for i in np.atleast_1d(ids)]
+        env_ids = np.atleast_1d(ids)
+        if env_ids.dtype != np.int64:
+            if env_ids.dtype.kind not in "iu" and env_ids.size:
+                raise TypeError(f"env_id must be integers, got dtype {env_ids.dtype}")
+            env_ids = env_ids.astype(np.int64)
         acts = self._kind.actions(actions, env_ids)
         self._core.send(acts, env_ids)
         if self._core.log is not None:

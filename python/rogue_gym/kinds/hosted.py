@@ -34,7 +34,7 @@ from ..protocol.layout import FIXED_SPACES, SpaceLayout, UnsupportedSpaceError, 
 from ..protocol.ops import SERVED_BY
 from ..protocol.vector_contract import check_vector_env
 from ..settings import PoolOptions
-from .spec import KindFacts
+from .spec import EnvIds, KindFacts
 
 if TYPE_CHECKING:
     from ..front.core import Core, Result
@@ -283,7 +283,7 @@ class HostedKind:
 
     # -- actions and seeds -----------------------------------------------------------------
 
-    def actions(self, actions: Any, env_ids: Optional[Sequence[int]]) -> np.ndarray:
+    def actions(self, actions: Any, env_ids: Optional[EnvIds]) -> np.ndarray:
         """Discrete actions as indices from 0 (checked in the space's terms, ``start``
         included); others as their raw bytes, leaf by leaf."""
         n = self.num_envs if env_ids is None else len(env_ids)
@@ -298,7 +298,7 @@ class HostedKind:
         return flat
 
     def _stage_dynamic_actions(
-        self, actions: Any, env_ids: Optional[Sequence[int]], n: int
+        self, actions: Any, env_ids: Optional[EnvIds], n: int
     ) -> None:
         """Stage each env's values of its action's dynamic leaves (pickled) with the pool:
         the step command to its worker carries them."""
@@ -319,7 +319,7 @@ class HostedKind:
         core.stage_action_extras(extras)
 
     def _discrete_indices(
-        self, actions: Any, env_ids: Optional[Sequence[int]], n: int
+        self, actions: Any, env_ids: Optional[EnvIds], n: int
     ) -> np.ndarray:
         a = np.asarray(actions)
         if a.shape != (n,) or a.dtype.kind not in "iu":

@@ -25,7 +25,7 @@ from ..front.core import out_of_range, scalar_actions
 from ..protocol.ops import op_table, run_op
 from ..settings import PoolSettings
 from .seed_sets import seed_set
-from .spec import KindFacts
+from .spec import EnvIds, KindFacts
 
 if TYPE_CHECKING:
     from ..front.core import Core, Result
@@ -147,7 +147,7 @@ class NativeKind:
 
     # -- actions and seeds -----------------------------------------------------------------
 
-    def actions(self, actions: Any, env_ids: Optional[Sequence[int]]) -> np.ndarray:
+    def actions(self, actions: Any, env_ids: Optional[EnvIds]) -> np.ndarray:
         """Integer actions, one per env (an array, or a string with one key per env); the
         range is checked by the pool, which names the env and the value."""
         n = self.num_envs if env_ids is None else len(env_ids)

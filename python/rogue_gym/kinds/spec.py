@@ -14,7 +14,7 @@ the least one needs.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, Optional, Protocol, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Optional, Protocol, Sequence, Union
 
 import numpy as np
 from gymnasium import spaces
@@ -22,7 +22,10 @@ from gymnasium import spaces
 if TYPE_CHECKING:
     from ..front.core import Core, Result
 
-__all__ = ["Kind", "KindFacts"]
+#: The env ids of a batch of rows: an int64 array (as ``send`` passes them) or a sequence.
+EnvIds = Union[np.ndarray, Sequence[int]]
+
+__all__ = ["EnvIds", "Kind", "KindFacts"]
 
 
 @dataclass(frozen=True)
@@ -78,7 +81,7 @@ class Kind(Protocol):
         construction: a kind without such leaves costs the hot path nothing."""
         ...
 
-    def actions(self, actions: Any, env_ids: Optional[Sequence[int]]) -> np.ndarray:
+    def actions(self, actions: Any, env_ids: Optional[EnvIds]) -> np.ndarray:
         """A batch of actions (for every env, or ``env_ids``) checked, as the pool takes them:
         int64 indices or uint8 bytes."""
         ...

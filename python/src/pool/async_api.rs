@@ -2,6 +2,8 @@
 //! the first envs ready, whose result is decoded into the `recv` column buffer row by row.
 
 use numpy::PyArray1;
+use numpy::PyReadonlyArray1;
+use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 use rogue_gym_pool::{Received, RecvWant};
@@ -19,13 +21,31 @@ impl PyPool {
     }
 
     /// Async: send `actions` (int64 indices, or raw uint8 bytes for hosted envs whose actions
-    /// travel so) to `env_ids` (any envs, each at most once until received).
+    /// travel so) to `env_ids` (a 1-D int64 array, or a sequence of ints: any envs, each at
+    /// most once until received).
     fn send(
         &self,
         py: Python<'_>,
         actions: &Bound<'_, PyAny>,
-        env_ids: Vec<usize>,
+        env_ids: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
+        let env_ids: Vec<usize> = match env_ids.extract::<PyReadonlyArray1<'_, i64>>() {
+            Ok(a) => a
+                .as_array()
+                .iter()
+                .map(|&i| {
+                    usize::try_from(i).map_err(|_| {
+                        PyValueError::new_err(format!(
+                            "env_id {i} is negative: env ids are 0 to {}",
+                            self.num_envs - 1
+                        ))
+                    })
+                })
+                .collect::<PyResult<_>>()?,
+            Err(_) => env_ids.extract().map_err(|_| {
+                PyTypeError::new_err("env_id must be a 1-D int64 array or a sequence of ints")
+            })?,
+        };
         let acts = self.owned_actions(actions, env_ids.len())?;
         self.with_pool(py, move |p, _| p.send_actions(acts.as_actions(), &env_ids))
     }
@@ -48,9 +68,27 @@ impl PyPool {
         let timeout = timeout
             .map(|t| settings::duration("timeout", t))
             .transpose()?;
+        for (name, v) in [("min_batch", min_batch), ("max_batch", max_batch)] {
+            if let Some(v) = v
+                && !(1..=self.num_envs).contains(&v)
+            {
+                return Err(PyValueError::new_err(format!(
+                    "recv(): {name} must be between 1 and num_envs ({}), got {v}",
+                    self.num_envs
+                )));
+            }
+        }
+        if let (Some(lo), Some(hi)) = (min_batch, max_batch)
+            && lo > hi
+        {
+            return Err(PyValueError::new_err(format!(
+                "recv(): min_batch ({lo}) must not exceed max_batch ({hi})"
+            )));
+        }
         let got: Received = self.with_pool(py, move |p, _| {
             let b = p.batch_size();
-            let max = max_batch.unwrap_or(b).max(min_batch.unwrap_or(1));
+            // Without max_batch: batch_size, or min_batch where that asks for more.
+            let max = max_batch.unwrap_or_else(|| b.max(min_batch.unwrap_or(1)));
             let min = min_batch.unwrap_or(max.min(b));
             p.recv_want(RecvWant {
                 min_batch: min,
