@@ -297,9 +297,7 @@ class HostedKind:
             self._stage_dynamic_actions(actions, env_ids, n)
         return flat
 
-    def _stage_dynamic_actions(
-        self, actions: Any, env_ids: Optional[EnvIds], n: int
-    ) -> None:
+    def _stage_dynamic_actions(self, actions: Any, env_ids: Optional[EnvIds], n: int) -> None:
         """Stage each env's values of its action's dynamic leaves (pickled) with the pool:
         the step command to its worker carries them."""
         columns = self._act_layout.dynamic_values(actions)
@@ -318,9 +316,7 @@ class HostedKind:
         ]
         core.stage_action_extras(extras)
 
-    def _discrete_indices(
-        self, actions: Any, env_ids: Optional[EnvIds], n: int
-    ) -> np.ndarray:
+    def _discrete_indices(self, actions: Any, env_ids: Optional[EnvIds], n: int) -> np.ndarray:
         a = np.asarray(actions)
         if a.shape != (n,) or a.dtype.kind not in "iu":
             raise ValueError(f"expected integer actions of shape ({n},), got {a.dtype} {a.shape}")
