@@ -35,6 +35,7 @@ an episode ends returns the next episode's first observation (``elapsed_step`` 0
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 import os
@@ -45,7 +46,13 @@ from typing import Any, Optional
 import gymnasium as gym
 import numpy as np
 
-from .vector import PoolVectorEnv
+from . import _native
+from . import xla as _xla
+from .front.vector_env import FrontVectorEnv
+from .kinds.native import NativeKind
+from .registration import ENV_ID
+from .settings import PoolSettings
+from .vector import PoolVectorEnv, RogueVectorEnv
 
 __all__ = [
     "EnvPoolEnv",
@@ -76,6 +83,8 @@ ATARI_DEFAULTS: dict[str, Any] = {
 THREAD_OPTIONS = ("thread_affinity_offset",)
 #: Info keys of the pool's own that an EnvPool script does not expect.
 _POOL_INFO_KEYS = ("worker_restarted",)
+#: The native game's info values that are flags.
+_BOOL_INFOS = frozenset(_native.BOOL_INFO_NAMES)
 
 
 @dataclass(frozen=True)
@@ -208,19 +217,28 @@ def _resolve(task_id: str, kwargs: dict[str, Any]) -> tuple[EnvSpec, Any, int, i
         if max_steps is not None:
             make_kwargs["max_episode_steps"] = int(max_steps)
         gspec = gym.spec(task_id)
-        probe_env = gym.make(task_id, **make_kwargs)
-        obs_space, act_space = probe_env.observation_space, probe_env.action_space
-        probe_env.close()
+        if task_id == ENV_ID:  # the game's own spaces, as its native pool makes them
+            settings = PoolSettings.from_kwargs({"num_envs": num_envs, **make_kwargs})
+            facts = NativeKind(settings, None).facts
+            obs_space, act_space = facts.single_observation_space, facts.single_action_space
+        else:
+            probe_env = gym.make(task_id, **make_kwargs)
+            obs_space, act_space = probe_env.observation_space, probe_env.action_space
+            probe_env.close()
         config["max_episode_steps"] = (
             max_steps if max_steps is not None else gspec.max_episode_steps
         )
         config["reward_threshold"] = gspec.reward_threshold
         config.update(opts)
-        source = [functools.partial(gym.make, task_id, **make_kwargs)] * num_envs
+        if task_id == ENV_ID:  # the game itself: the pool's native kind, no Python env
+            source = functools.partial(RogueVectorEnv, num_envs, **make_kwargs)
+        else:
+            source = [functools.partial(gym.make, task_id, **make_kwargs)] * num_envs
         gym_id, threshold = task_id, gspec.reward_threshold
     Config = namedtuple("Config", list(config))  # type: ignore[misc]  # EnvPool's spec.config
     spec = EnvSpec(Config(**config), obs_space, act_space, gym_id, threshold, dict(kwargs))
-    workers = _layout(num_envs, batch_size, num_threads, whole_blocks=not isinstance(source, list))
+    whole_blocks = game is not None
+    workers = _layout(num_envs, batch_size, num_threads, whole_blocks=whole_blocks)
     return spec, source, workers, batch_size
 
 
@@ -250,18 +268,21 @@ class EnvPoolEnv(gym.Env):
         self.action_space = self.single_action_space = spec.action_space
         self._atari = "task" in spec.config._fields
         self._clip = bool(self._atari and spec.config.reward_clip)
+        self._pool: FrontVectorEnv
         if self._atari:
             self._pool = PoolVectorEnv.from_vector_env(
                 source, self.num_envs, num_workers=workers, batch_size=batch_size
             )
+        elif isinstance(source, functools.partial):  # the native game
+            self._pool = source(num_workers=workers, batch_size=batch_size, copy=True)
         else:
             self._pool = PoolVectorEnv(source, num_workers=workers, batch_size=batch_size)
-        self._elapsed = np.zeros(self.num_envs, np.int32)
         self._ended = np.zeros(self.num_envs, bool)
         self._seeded = False
         self._started = False
         self._actions: Optional[np.ndarray] = None
         self._last_ids: Optional[np.ndarray] = None
+        self._xla_used = False
 
     # -- EnvPool's properties --------------------------------------------------------------
 
@@ -284,8 +305,10 @@ class EnvPoolEnv(gym.Env):
         return int(self.num_envs)
 
     @property
-    def pool(self) -> PoolVectorEnv:
-        """The pool underneath (``stats()``, ``worker_pids``, ...)."""
+    def pool(self) -> FrontVectorEnv:
+        """The pool underneath (``stats()``, ``worker_pids``, ...): a
+        :class:`rogue_gym.PoolVectorEnv`, or for ``RogueGym-v0`` the game's native
+        :class:`rogue_gym.RogueVectorEnv`."""
         return self._pool
 
     # -- the calls -------------------------------------------------------------------------
@@ -327,7 +350,6 @@ class EnvPoolEnv(gym.Env):
             full[ids] = True
             obs, infos = self._pool.reset(options={"reset_mask": full})
         self._started = True
-        self._elapsed[ids] = 0
         self._ended[ids] = False
         rows = self.all_env_ids
         info = self._info(infos, rows, np.zeros(self.num_envs, np.float64))
@@ -345,7 +367,6 @@ class EnvPoolEnv(gym.Env):
         """Start resetting every env; collect the first batches with :meth:`recv`."""
         self._pool.async_reset(seed=self._seed())
         self._started = True
-        self._elapsed[:] = 0
         self._ended[:] = False
         self._last_ids = None
 
@@ -392,7 +413,6 @@ class EnvPoolEnv(gym.Env):
             obs, rewards, terminated, truncated, infos = self._pool.recv()
             ids = np.asarray(infos["env_id"], np.int32)
             self._last_ids = ids.astype(np.int64)
-        self._elapsed[ids] = np.where(self._ended[ids], 0, self._elapsed[ids] + 1)
         self._ended[ids] = terminated | truncated
         info = self._info(infos, ids, rewards)
         reward = np.asarray(rewards, np.float32)
@@ -416,16 +436,68 @@ class EnvPoolEnv(gym.Env):
         env_id = np.asarray(ids, np.int32)
         info["env_id"] = env_id
         info["players"] = {"env_id": env_id.copy()}
-        info["elapsed_step"] = self._elapsed[ids].copy()
+        info["elapsed_step"] = self._elapsed_steps(len(ids))
         return info
 
-    def xla(self) -> Any:
-        """EnvPool's XLA functions are not offered (the pool's envs run in other processes)."""
-        raise NotImplementedError("rogue_gym.envpool has no XLA interface")
+    def _elapsed_steps(self, rows: int) -> np.ndarray:
+        """``elapsed_step`` of the last call's rows: the steps of each env's episode so far,
+        as the workers count them (0 at a reset and at an autoreset step), int32. The same
+        count the ``xla()`` functions return, so that Python and jitted calls may be mixed."""
+        core = self._pool._core
+        cols = core.cols[-1] if core.slot is None or self.is_async else core.cols[core.slot]
+        return np.asarray(cols["episode_length"][:rows], np.int32)
+
+    def xla(self) -> _xla.XlaFunctions:
+        """EnvPool's ``handle, recv, send, step = envs.xla()``: functions usable inside
+        ``jax.jit``, ``lax.scan`` and ``lax.fori_loop`` that step this pool through native XLA
+        FFI handlers (see :mod:`rogue_gym.xla`); ``recv`` returns what :meth:`recv` does, as
+        jax arrays. Needs jax (``pip install 'rogue_gym[jax]'``)."""
+        core = self._pool._core
+        core.check_open()
+        # A jitted step may write any batch slot: hand out copies, never lent slots.
+        core.lender = None
+        self._xla_used = True
+        space = self.spec.observation_space  # type: ignore[union-attr]
+        if not isinstance(space, gym.spaces.Box):
+            raise TypeError(f"xla() takes envs whose observation space is a Box, not {space}")
+        if int(np.prod(space.shape)) * space.dtype.itemsize > core.obs_bytes:
+            raise TypeError(f"xla(): the observations of {space} do not match the pool's rows")
+        act = self.spec.action_space  # type: ignore[union-attr]
+        return _xla.build(core.pool, tuple(space.shape), space.dtype, act, self._xla_outputs)
+
+    def _xla_outputs(self, raw: _xla.Raw) -> tuple[Any, ...]:
+        """``recv``'s outputs in this facade's form, from the handler's arrays (traced once)."""
+        import jax.numpy as jnp
+
+        info: dict[str, Any] = {}
+        if raw.info is not None:
+            for j, name in enumerate(self._pool._core.info_names):
+                value = raw.info[:, j]
+                info[name] = value.astype(bool) if name in _BOOL_INFOS else value.astype(jnp.int32)
+        reward = raw.reward
+        if self._atari:
+            info["reward"] = raw.reward
+            info["terminated"] = raw.terminated.astype(jnp.int32)
+            if self._clip:
+                reward = jnp.sign(raw.reward)
+        info["env_id"] = raw.env_id
+        info["players"] = {"env_id": raw.env_id}
+        info["elapsed_step"] = raw.elapsed_step
+        if self.env_type == "gym":
+            info["TimeLimit.truncated"] = raw.truncated
+            return raw.obs, reward, raw.terminated | raw.truncated, info
+        return raw.obs, reward, raw.terminated, raw.truncated, info
 
     def close(self, **kwargs: Any) -> None:
-        """Stop the workers (idempotent)."""
+        """Stop the workers (idempotent), once every jitted call already dispatched on them
+        (``xla()``) has run: jax dispatches asynchronously."""
         del kwargs
+        if self._xla_used:
+            import jax
+
+            # A failed call raises where its result is read; close anyway.
+            with contextlib.suppress(Exception):
+                jax.effects_barrier()
         self._pool.close()
 
     def __repr__(self) -> str:

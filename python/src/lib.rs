@@ -21,6 +21,7 @@ mod pool;
 mod settings;
 mod spec;
 mod summary;
+mod xla;
 
 /// Run a pool worker with the given arguments (everything after `python -m rogue_gym.worker`)
 /// and return its exit code. The GIL is released for the worker's whole life.
@@ -71,6 +72,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(block_range, m)?)?;
     m.add_function(wrap_pyfunction!(default_runtime_dir, m)?)?;
     m.add_function(wrap_pyfunction!(summary::floor_summary, m)?)?;
+    m.add_function(wrap_pyfunction!(xla::xla_handlers, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("ACTION_KEYS", rogue_gym_engine::ACTION_KEYS)?;
     m.add(

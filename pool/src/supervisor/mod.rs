@@ -504,8 +504,10 @@ impl Pool {
     /// call fails with [`PoolError::Interrupted`] and the pool needs a reset (outstanding
     /// requests are abandoned and drained by the reset). Bindings use it to deliver Ctrl-C
     /// during a long wait (e.g. Python's `check_signals` with the GIL re-acquired briefly).
-    pub fn set_interrupt_check(&mut self, check: Option<InterruptCheck>) {
-        self.interrupt = check;
+    /// Returns the check it replaces, so that a caller on a thread that must not run it (an
+    /// XLA handler) can put it back afterwards.
+    pub fn set_interrupt_check(&mut self, check: Option<InterruptCheck>) -> Option<InterruptCheck> {
+        std::mem::replace(&mut self.interrupt, check)
     }
 
     fn wait_until(&mut self, done: impl Fn(&Supervisor) -> bool) -> Result<(), PoolError> {

@@ -25,7 +25,10 @@ mod sync_api;
 
 #[pyclass(module = "rogue_gym._native", name = "Pool")]
 pub struct PyPool {
-    pool: Mutex<Option<Pool>>,
+    /// Shared (weakly) with the XLA handlers once `xla_key()` registered the pool.
+    pool: Arc<Mutex<Option<Pool>>>,
+    /// The pool's key among the XLA targets (`xla_key()`), once registered.
+    xla_key: Mutex<Option<i32>>,
     out: Mutex<BatchOutput>,
     /// The workers' pids, readable without the pool's lock (during a call too).
     pids: Arc<[AtomicU32]>,
@@ -124,7 +127,8 @@ impl PyPool {
             extras_head: AtomicUsize::new(0),
             interrupted,
             clock: CallClock::new(),
-            pool: Mutex::new(Some(pool)),
+            pool: Arc::new(Mutex::new(Some(pool))),
+            xla_key: Mutex::new(None),
             out: Mutex::new(BatchOutput::default()),
         })
     }
@@ -202,8 +206,34 @@ impl PyPool {
         self.peek(py, |p| p.shm_bytes())
     }
 
+    /// Register the pool with the XLA handlers (once) and return its key: the `handle` of
+    /// `rogue_gym.xla`'s jitted functions. The handlers hold the pool weakly: after `close()`
+    /// a compiled call fails with an error that says so.
+    fn xla_key(&self, py: Python<'_>) -> PyResult<i32> {
+        let mut key = lock_gil_free(py, &self.xla_key)?;
+        if let Some(k) = *key {
+            return Ok(k);
+        }
+        if self.closed(py) {
+            return Err(pool_error(py, PoolError::Closed));
+        }
+        let k = crate::xla::register(crate::xla::XlaTarget::new(
+            Arc::downgrade(&self.pool),
+            self.num_envs,
+            self.batch_size,
+            self.obs_bytes,
+            self.action_bytes,
+            self.n_info,
+        ));
+        *key = Some(k);
+        Ok(k)
+    }
+
     /// Stop the workers and remove the pool's files (idempotent; GIL released).
     fn close(&self, py: Python<'_>) -> PyResult<()> {
+        if let Some(k) = lock_gil_free(py, &self.xla_key)?.take() {
+            crate::xla::unregister(k);
+        }
         let taken = {
             let mut guard = lock_gil_free(py, &self.pool)?;
             guard.take()
