@@ -134,7 +134,14 @@ pub fn run_async(pool: &mut Pool, steps: u64) -> Result<Digests, PoolError> {
     while got.iter().any(|&g| g < steps + 1) {
         let got_now = pool.recv()?;
         got_now.fill(n_info, &mut out);
-        let obs = got_now.obs;
+        let obs = match got_now.view {
+            // Rows in place (`set_async_in_place`): envs `first..` of the slot.
+            Some((slot, first)) => {
+                let rows = got_now.env_ids.len();
+                pool.shared_obs(slot)[first * ob..(first + rows) * ob].to_vec()
+            }
+            None => got_now.obs,
+        };
         for (row, &e) in out.env_ids.iter().enumerate() {
             if got[e] < steps + 1 {
                 d.add(e, &obs[row * ob..(row + 1) * ob], &out, row);

@@ -35,15 +35,55 @@ fn trajectories_identical_for_any_worker_count_even_or_not_and_sync_async() {
         );
     }
     for (workers, batch) in [(4, 4), (2, 4), (4, 8), (8, 1), (8, 4), (3, 8), (5, 8)] {
-        let mut c = config(EXE, test_env(), 8, workers);
-        c.batch_size = Some(batch);
-        let mut p = pool(c);
-        let d = run_async(&mut p, steps).unwrap();
-        assert_eq!(
-            d, reference,
-            "async with {workers} workers, batch {batch} differs"
-        );
+        for in_place in [false, true] {
+            let mut c = config(EXE, test_env(), 8, workers);
+            c.batch_size = Some(batch);
+            let mut p = pool(c);
+            p.set_async_in_place(in_place);
+            let d = run_async(&mut p, steps).unwrap();
+            assert_eq!(
+                d, reference,
+                "async with {workers} workers, batch {batch} (rows in place: {in_place}) differs"
+            );
+        }
     }
+}
+
+#[test]
+fn async_rows_in_place_are_views_that_stay_put_until_the_next_recv() {
+    // Two halves of 8 envs on 2 workers: each recv is one worker's block, written in place.
+    let mut c = config(EXE, test_env(), 8, 2);
+    c.batch_size = Some(4);
+    let mut p = pool(c);
+    p.set_async_in_place(true);
+    let ob = p.obs_bytes();
+    p.async_reset().unwrap();
+    let mut views = 0;
+    let mut held: Option<(usize, usize, Vec<u8>)> = None;
+    for t in 0..40 {
+        let got = p.recv().unwrap();
+        if let Some((slot, first)) = got.view {
+            views += 1;
+            assert_eq!(got.env_ids, (first..first + 4).collect::<Vec<_>>());
+            assert_eq!(got.records.len(), 4, "the records come with a view");
+            held = Some((
+                slot,
+                first,
+                p.shared_obs(slot)[first * ob..(first + 4) * ob].to_vec(),
+            ));
+        }
+        let ids = got.env_ids.clone();
+        p.send(&vec![(t % 3) as i64; ids.len()], &ids).unwrap();
+        // The view is unchanged after the send, while the worker steps those envs again.
+        if let Some((slot, first, snapshot)) = &held {
+            std::thread::sleep(std::time::Duration::from_millis(1));
+            assert!(p.shared_obs(*slot)[first * ob..(first + 4) * ob] == snapshot[..]);
+        }
+    }
+    assert!(
+        views >= 36,
+        "{views} of 40 recvs were views (all but the reset's)"
+    );
 }
 
 #[test]

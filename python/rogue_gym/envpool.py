@@ -443,9 +443,9 @@ class EnvPoolEnv(gym.Env):
         """``elapsed_step`` of the last call's rows: the steps of each env's episode so far,
         as the workers count them (0 at a reset and at an autoreset step), int32. The same
         count the ``xla()`` functions return, so that Python and jitted calls may be mixed."""
-        core = self._pool._core
-        cols = core.cols[-1] if core.slot is None or self.is_async else core.cols[core.slot]
-        return np.asarray(cols["episode_length"][:rows], np.int32)
+        last = self._pool._core.last
+        assert last is not None  # after a call
+        return np.asarray(last.cols["episode_length"][:rows], np.int32)
 
     def xla(self) -> _xla.XlaFunctions:
         """EnvPool's ``handle, recv, send, step = envs.xla()``: functions usable inside
@@ -455,7 +455,9 @@ class EnvPoolEnv(gym.Env):
         core = self._pool._core
         core.check_open()
         # A jitted step may write any batch slot: hand out copies, never lent slots.
-        core.lender = None
+        if core.lender is not None:
+            core.lender = None
+            core.pool.async_in_place(True)
         self._xla_used = True
         space = self.spec.observation_space  # type: ignore[union-attr]
         if not isinstance(space, gym.spaces.Box):

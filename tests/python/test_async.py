@@ -7,6 +7,7 @@ import subprocess
 import sys
 import time
 from collections import Counter
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -206,3 +207,47 @@ def test_render_after_send_and_recv_shows_the_envs_as_they_are(mode: str) -> Non
     finally:
         env.close()
         twin.close()
+
+
+def test_recv_hands_out_rows_in_place_until_the_next_recv() -> None:
+    """Two halves on one worker: each recv is a view of the rows the worker wrote in place
+    (observations and infos), unchanged while the worker steps those envs again after the
+    send, until the next recv; with copy=True they are the caller's own."""
+    env = _pool(8, 1, 4)
+    kept = _pool(8, 1, 4, copy=True)
+    try:
+        for pool in (env, kept):
+            pool.async_reset(seed=3)
+        views = 0
+        for t in range(30):
+            obs, reward, _te, _tr, infos = env.recv()
+            obs2, reward2, *_rest, infos2 = kept.recv()
+            assert np.array_equal(obs, obs2) and np.array_equal(reward, reward2), t
+            assert np.array_equal(infos["env_id"], infos2["env_id"])
+            shared = any(np.shares_memory(obs, s) for s in env._core.slots)
+            views += shared
+            assert not any(np.shares_memory(obs2, s) for s in kept._core.slots)
+            snapshot, length = obs.copy(), infos["episode_length"].copy()
+            acts = np.full(len(infos["env_id"]), t % 11, np.int64)
+            env.send(acts, infos["env_id"])
+            kept.send(acts, infos2["env_id"])
+            time.sleep(0.002)  # the worker steps those envs meanwhile
+            assert np.array_equal(obs, snapshot), "a view changed before the next recv"
+            assert np.array_equal(infos["episode_length"], length)
+        assert views >= 26, f"{views} of 30 recvs were views (all but the reset's two)"
+    finally:
+        env.close()
+        kept.close()
+
+
+def test_the_double_buffering_example_runs() -> None:
+    """python/examples/double_buffer.py (the CleanRL-shaped loop of two halves) runs."""
+    script = Path(__file__).resolve().parents[2] / "python" / "examples" / "double_buffer.py"
+    out = subprocess.run(
+        [sys.executable, str(script), "--num-envs", "8", "--total-steps", "4000"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+    ).stdout
+    assert "4000 steps" in out and "steps/s" in out, out

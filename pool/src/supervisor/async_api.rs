@@ -9,6 +9,7 @@ use super::stepping::Actions;
 use super::workers::SlotState;
 use super::{Pool, Supervisor};
 use crate::error::PoolError;
+use crate::wire::{SLOT_ANSWER_WORDS, SLOT_EXTRA_APART, calls, extra_apart_path};
 
 /// How many envs an async [`Pool::recv_want`] hands over, and how long it may wait for them:
 /// it returns as soon as `max_batch` envs are ready, or at the deadline with every ready env
@@ -92,6 +93,19 @@ impl Pool {
         self.sup.dispatch_staged()
     }
 
+    /// Async: have step answers written in place in the batch slots (`true`), where
+    /// [`Pool::recv`] hands rows that are one run of envs in one slot over as a view
+    /// ([`Received::view`]) rather than copied. The caller then reads a view until its next
+    /// call, and must not hold on to other views of the slots: a binding that lends slots out
+    /// keeps this off. Off by default.
+    pub fn set_async_in_place(&mut self, on: bool) {
+        self.sup.envs.in_place = if on && self.sup.batch.is_some() {
+            self.sup.cfg.batch_slots
+        } else {
+            0
+        };
+    }
+
     /// Async: wait for the next `batch_size` envs and hand them over, first ready first.
     pub fn recv(&mut self) -> Result<Received, PoolError> {
         self.recv_want(RecvWant::exactly(self.batch_size()))
@@ -136,7 +150,10 @@ impl Pool {
                 timeout: want.timeout.unwrap_or_default(),
             });
         }
-        let got = self.sup.envs.take(max, self.sup.spec.obs_bytes());
+        let writers = (0..self.sup.cfg.batch_slots)
+            .map(|slot| self.sup.writer_of(slot))
+            .collect::<Result<Vec<_>, _>>()?;
+        let got = self.sup.envs.take(max, self.sup.spec.obs_bytes(), &writers);
         // The rows' own replacements by plan, whenever their worker was replaced.
         self.sup.recycled_envs.clone_from(&got.recycled);
         Ok(got)
@@ -214,6 +231,12 @@ impl Supervisor {
             // Keep one sample of each worker for the next answer and one for the caller's.
             let keep = self.cfg.max_borrowed.saturating_sub(2);
             for (_, k) in arrived {
+                let target = self.slots[k].target;
+                if target != 0 && !self.slots[k].restarted {
+                    let apart = self.take_in_place(k)?;
+                    self.envs.arrive_in_slot(k, target as usize - 1, apart);
+                    continue;
+                }
                 let recycled = self.slots[k].recycled && self.slots[k].restarted;
                 let block = self.take_block(k)?;
                 self.envs.arrive(k, block, keep, recycled);
@@ -222,14 +245,45 @@ impl Supervisor {
         self.dispatch_staged()
     }
 
+    /// Take worker `k`'s answer written in place (its summary words), with the extra info
+    /// that travelled beside it as `(env, bytes)`.
+    fn take_in_place(&mut self, k: usize) -> Result<Vec<(usize, Vec<u8>)>, PoolError> {
+        let s = &mut self.slots[k];
+        let sample = match std::mem::replace(&mut s.state, SlotState::Idle) {
+            SlotState::Ready(sample) => sample,
+            other => {
+                s.state = other;
+                return Err(PoolError::State(format!("worker {k} has no answer ready")));
+            }
+        };
+        s.recycled = false;
+        let bits = sample.payload()[..SLOT_ANSWER_WORDS][0];
+        let seq = sample.user_header().seq;
+        drop(sample);
+        if bits & SLOT_EXTRA_APART == 0 {
+            return Ok(Vec::new());
+        }
+        let path = extra_apart_path(&self.id, k, self.slots[k].generation, seq);
+        let entries = calls::take(&path).map_err(|e| {
+            PoolError::Io(format!(
+                "worker {k}: the extra info beside answer {seq}: {e}"
+            ))
+        })?;
+        self.counts[k].spilled_bytes += entries.iter().map(|(_, b)| b.len() as u64).sum::<u64>();
+        let first = self.blocks[k].start;
+        Ok(entries
+            .into_iter()
+            .map(|(j, b)| (first + j as usize, b))
+            .collect())
+    }
+
     /// Send each free worker the envs staged for it.
     pub(super) fn dispatch_staged(&mut self) -> Result<(), PoolError> {
         if self.envs.num_staged == 0 {
             return Ok(());
         }
         for k in 0..self.slots.len() {
-            let envs = self.blocks[k].clone();
-            if !envs.clone().any(|e| self.envs.turn[e] == Turn::Staged) {
+            if !self.envs.has_staged(k) {
                 continue;
             }
             // Planned replacements happen here, between two commands (see `recycling`); a
@@ -237,11 +291,16 @@ impl Supervisor {
             if self.recycle_if_due(k)? || !matches!(self.slots[k].state, SlotState::Idle) {
                 continue;
             }
-            let Some((words, only)) = self.envs.dispatch(k, envs) else {
+            let envs = self.blocks[k].clone();
+            let Some((words, only)) = self.envs.dispatch(k, envs.clone()) else {
                 continue;
             };
             let whole = only.iter().all(|&w| w != 0);
-            self.send_words(k, &words, (!whole).then_some(&only[..]))?;
+            let target = self
+                .envs
+                .target_for(envs, &only)
+                .map_or(0, |t| t as u32 + 1);
+            self.send_words(k, &words, (!whole).then_some(&only[..]), target)?;
         }
         Ok(())
     }

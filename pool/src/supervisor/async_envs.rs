@@ -7,11 +7,18 @@
 //! A block that arrives is held until the caller has received each of its ready envs; a worker
 //! with many blocks held has the oldest copied out, so that its shared-memory samples never
 //! run out.
+//!
+//! Rows in place: where the caller reads batches as views ([`AsyncEnvs::in_place`]), a step
+//! command has its worker write each env's row at the env's row of a batch slot, one the
+//! caller holds none of those envs' rows in ([`AsyncEnvs::target_for`]); a `recv` whose rows
+//! are one run of envs in one slot hands them over as a view ([`Received::view`]), any other
+//! is gathered. Resets and restarts answer by block (a restart resets envs the caller holds).
 
 use std::collections::VecDeque;
 
 use crate::batch::Block;
 use crate::wire::layout::EnvRecord;
+use crate::wire::slot_layout::RowWriter;
 
 /// Where an env stands in the async API.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -39,6 +46,9 @@ enum Row {
     Held { b: usize, j: usize },
     /// A copy (its block was let go, or it answers a restart of an env the caller held).
     Copied(Box<Copied>),
+    /// Written in place at the env's row of batch slot `slot`, with the extra info that did
+    /// not fit its room (if any).
+    InSlot { slot: usize, apart: Option<Vec<u8>> },
 }
 
 struct HeldBlock {
@@ -60,6 +70,11 @@ pub struct Received {
     pub extras: Vec<(usize, Vec<u8>)>,
     /// The envs of rows whose worker was replaced by plan ([`crate::Pool::recycled_envs`]).
     pub recycled: Vec<usize>,
+    /// `Some((slot, first))`: the rows are envs `first..first + rows` in order, written in
+    /// place in batch slot `slot`, where the caller reads them (observations, columns and
+    /// extra room) until its next call; `obs` is then empty (`records` are copies of the
+    /// rows' records). `None`: the rows are in `obs` and `records`.
+    pub view: Option<(usize, usize)>,
 }
 
 impl Received {
@@ -97,11 +112,31 @@ pub(super) struct AsyncEnvs {
     free: Vec<usize>,
     /// Each worker's held blocks, oldest first.
     held_of: Vec<VecDeque<usize>>,
+    /// The worker of each env.
+    owner: Vec<usize>,
+    /// Staged envs of each worker.
+    staged_of: Vec<usize>,
+    /// The batch slot of each env's row the caller received last, while it may still read it
+    /// there (`None`: it was handed over as a copy).
+    caller_slot: Vec<Option<usize>>,
+    /// Batch slots step answers may be written in place in (0: none; they come by block).
+    pub(super) in_place: usize,
 }
 
 impl AsyncEnvs {
-    pub(super) fn new(num_envs: usize, num_workers: usize, aw: usize) -> Self {
+    /// The state of `num_envs` envs in `blocks` (one per worker), `aw` action words each.
+    pub(super) fn new(blocks: &[std::ops::Range<usize>], aw: usize) -> Self {
+        let num_envs = blocks.last().map_or(0, |b| b.end);
+        let num_workers = blocks.len();
+        let mut owner = vec![0; num_envs];
+        for (k, b) in blocks.iter().enumerate() {
+            owner[b.clone()].fill(k);
+        }
         AsyncEnvs {
+            owner,
+            staged_of: vec![0; num_workers],
+            caller_slot: vec![None; num_envs],
+            in_place: 0,
             turn: vec![Turn::Caller; num_envs],
             staged: vec![0; num_envs * aw],
             aw,
@@ -129,6 +164,8 @@ impl AsyncEnvs {
         self.blocks.clear();
         self.free.clear();
         self.held_of.iter_mut().for_each(VecDeque::clear);
+        self.staged_of.fill(0);
+        self.caller_slot.fill(None);
     }
 
     /// Envs whose result is ready.
@@ -162,7 +199,31 @@ impl AsyncEnvs {
         self.staged[e * self.aw..(e + 1) * self.aw].copy_from_slice(words);
         self.turn[e] = Turn::Staged;
         self.num_staged += 1;
+        self.staged_of[self.owner[e]] += 1;
         true
+    }
+
+    /// Whether worker `k` has staged envs.
+    pub(super) fn has_staged(&self, k: usize) -> bool {
+        self.staged_of[k] > 0
+    }
+
+    /// The batch slot (0-based) worker `k`'s next step of `envs` may write its rows in: one
+    /// where the caller holds none of the rows of the envs it steps, or `None` (answer by
+    /// block) when step answers do not go in place or no slot is free of them.
+    pub(super) fn target_for(&self, envs: std::ops::Range<usize>, only: &[u64]) -> Option<usize> {
+        if self.in_place == 0 {
+            return None;
+        }
+        let mut busy = 0u64;
+        for (j, e) in envs.enumerate() {
+            if only.get(j).is_none_or(|&w| w != 0)
+                && let Some(s) = self.caller_slot[e]
+            {
+                busy |= 1 << s.min(63);
+            }
+        }
+        (0..self.in_place.min(64)).find(|s| busy & (1 << s) == 0)
     }
 
     /// Take the staged envs of `envs` (worker `k`'s) for its next command: they are in flight
@@ -174,9 +235,10 @@ impl AsyncEnvs {
         envs: std::ops::Range<usize>,
     ) -> Option<(Vec<u64>, Vec<u64>)> {
         let aw = self.aw;
-        if !envs.clone().any(|e| self.turn[e] == Turn::Staged) {
+        if self.staged_of[k] == 0 {
             return None;
         }
+        self.staged_of[k] = 0;
         let mut words = vec![0u64; envs.len() * aw];
         let mut only = vec![0u64; envs.len()];
         for (j, e) in envs.clone().enumerate() {
@@ -215,6 +277,7 @@ impl AsyncEnvs {
                     Turn::InFlight => self.make_ready(e, b, j),
                     Turn::Staged => {
                         self.num_staged -= 1;
+                        self.staged_of[k] -= 1;
                         self.make_ready(e, b, j);
                     }
                     Turn::Ready => {
@@ -242,15 +305,36 @@ impl AsyncEnvs {
         }
     }
 
-    /// Hand over up to `n` ready envs, first ready first.
-    pub(super) fn take(&mut self, n: usize, obs_bytes: usize) -> Received {
+    /// Worker `k`'s answer to its outstanding step, written in place in batch slot `slot`: the
+    /// envs it stepped become ready, in row order. `apart`: `(env, bytes)` of the extra info
+    /// that did not fit the envs' rooms.
+    pub(super) fn arrive_in_slot(&mut self, k: usize, slot: usize, apart: Vec<(usize, Vec<u8>)>) {
+        let sent = std::mem::take(&mut self.sent[k]);
+        let mut apart = apart.into_iter().peekable();
+        for e in sent {
+            self.recycled[e] = false;
+            let mine = apart.next_if(|(a, _)| *a == e).map(|(_, b)| b);
+            self.rows[e] = Some(Row::InSlot { slot, apart: mine });
+            self.turn[e] = Turn::Ready;
+            self.ready.push_back(e);
+        }
+    }
+
+    /// Hand over up to `n` ready envs, first ready first. `writers`: each batch slot's, to read
+    /// the rows written in place; rows that are one run of envs in one slot are handed over
+    /// as a view of it (see [`Received::view`]).
+    pub(super) fn take(&mut self, n: usize, obs_bytes: usize, writers: &[RowWriter]) -> Received {
         let n = n.min(self.ready.len());
+        if let Some(got) = self.take_view(n, writers) {
+            return got;
+        }
         let mut out = Received {
             env_ids: Vec::with_capacity(n),
             records: Vec::with_capacity(n),
             obs: Vec::with_capacity(n * obs_bytes),
             extras: Vec::new(),
             recycled: Vec::new(),
+            view: None,
         };
         for r in 0..n {
             let Some(e) = self.ready.pop_front() else {
@@ -279,15 +363,67 @@ impl AsyncEnvs {
                     }
                     out.records.push(c.rec);
                 }
+                Some(Row::InSlot { slot, apart }) => {
+                    let w = &writers[*slot];
+                    let rec = w.read(e);
+                    // SAFETY: env `e`'s rows of the slot: its worker answered, and no command
+                    // writes them again until the caller sends to `e`.
+                    out.obs.extend_from_slice(unsafe { w.obs_rows(e..e + 1) });
+                    if let Some(extra) = in_slot_extra(w, e, &rec, apart.as_deref()) {
+                        out.extras.push((r, extra));
+                    }
+                    out.records.push(rec);
+                }
                 None => {
                     out.obs.resize(out.obs.len() + obs_bytes, 0);
                     out.records.push(EnvRecord::default());
                 }
             }
             out.env_ids.push(e);
+            self.caller_slot[e] = None;
             self.release(row);
         }
         out
+    }
+
+    /// The next `n` ready envs as a view, when they are one run of envs `first..first + n` in
+    /// order, written in place in one slot, with no extra info apart (else `None`, nothing
+    /// taken). Extra info in the rows' rooms is copied out (`extras`).
+    fn take_view(&mut self, n: usize, writers: &[RowWriter]) -> Option<Received> {
+        let first = *self.ready.front()?;
+        let slot = match self.rows[first] {
+            Some(Row::InSlot { slot, apart: None }) => slot,
+            _ => return None,
+        };
+        let run = self.ready.iter().take(n).enumerate().all(|(i, &e)| {
+            e == first + i
+                && !self.recycled[e]
+                && matches!(self.rows[e], Some(Row::InSlot { slot: s, apart: None }) if s == slot)
+        });
+        if !run || n == 0 {
+            return None;
+        }
+        let w = writers.get(slot)?;
+        let env_ids: Vec<usize> = self.ready.drain(..n).collect();
+        let mut extras = Vec::new();
+        let mut records = Vec::with_capacity(n);
+        for (r, &e) in env_ids.iter().enumerate() {
+            self.turn[e] = Turn::Caller;
+            self.rows[e] = None;
+            self.caller_slot[e] = Some(slot);
+            let rec = w.read(e);
+            if let Some(x) = in_slot_extra(w, e, &rec, None) {
+                extras.push((r, x));
+            }
+            records.push(rec);
+        }
+        Some(Received {
+            env_ids,
+            records,
+            extras,
+            view: Some((slot, first)),
+            ..Default::default()
+        })
     }
 
     fn block(&self, b: usize) -> &Block {
@@ -368,4 +504,23 @@ impl AsyncEnvs {
         self.blocks[b] = None;
         self.free.push(b);
     }
+}
+
+/// Env `e`'s extra info of a row written in place: in its room of the slot, or `apart`.
+fn in_slot_extra(
+    w: &RowWriter,
+    e: usize,
+    rec: &EnvRecord,
+    apart: Option<&[u8]>,
+) -> Option<Vec<u8>> {
+    if let Some(b) = apart {
+        return Some(b.to_vec());
+    }
+    let len = rec.extra_len as usize;
+    if len == 0 {
+        return None;
+    }
+    // SAFETY: env `e`'s extra room of the slot, as its obs rows above.
+    let room = unsafe { w.extra_rows(e..e + 1) };
+    Some(room[..len.min(room.len())].to_vec())
 }

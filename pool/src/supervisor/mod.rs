@@ -271,8 +271,8 @@ impl Pool {
             cpu_affinity: cfg.cpu_affinity,
         };
         let config_path = id.aux_dir().join("worker.json");
-        let num_envs = cfg.num_envs;
         let num_workers = cfg.num_workers;
+        let envs = async_envs::AsyncEnvs::new(&blocks, aw);
         let mut pool = Pool {
             listener: None,
             interrupt,
@@ -288,7 +288,7 @@ impl Pool {
                 pids: (0..num_workers).map(|_| Default::default()).collect(),
                 node: None,
                 ready_order: VecDeque::new(),
-                envs: async_envs::AsyncEnvs::new(num_envs, num_workers, aw),
+                envs,
                 async_mode: false,
                 cores: std::thread::available_parallelism().map_or(1, |c| c.get()),
                 expected_answer: None,

@@ -289,19 +289,21 @@ impl Supervisor {
     }
 
     /// Step command to worker `k` from action words (`aw` per env of its block); with `only`
-    /// (one word per env, 0 = left alone), a [`SUBSET`] step of the envs it names. A replaced
+    /// (one word per env, 0 = left alone), a [`SUBSET`] step of the envs it names; answered
+    /// into batch slot `target - 1` in place, or by block (`target` 0). A replaced
     /// worker ([`WorkerSlot::cut`]) resets all its envs instead, which report `restarted`.
     pub(super) fn send_words(
         &mut self,
         k: usize,
         words: &[u64],
         only: Option<&[u64]>,
+        target: u32,
     ) -> Result<(), PoolError> {
         if self.slots[k].cut {
             self.slots[k].restarted = true;
             return self.send_reset(k, 0);
         }
-        let mut kind = CMD_STEP | self.pace();
+        let mut kind = CMD_STEP | (target << TARGET_SHIFT) | self.pace();
         if let Some(extras) = self.slots[k].action_extras.take() {
             let path = calls::action_extras_path(&self.id, k, self.slots[k].generation);
             calls::write(&path, &extras).map_err(PoolError::Io)?;
@@ -316,7 +318,7 @@ impl Supervisor {
         }
         let s = &mut self.slots[k];
         s.seq = next_seq(s.seq, s.delivered);
-        s.target = 0;
+        s.target = target;
         s.served += served as u64;
         s.ports
             .send_cmd(s.seq, kind, words.len() + only.len(), |p| {
@@ -392,8 +394,9 @@ impl Supervisor {
                     (SlotState::Starting { then_reset, .. }, BLOCK_READY) => {
                         if *then_reset {
                             drop(sample);
-                            // Same observation target as the interrupted command.
-                            let target = s.target;
+                            // Same observation target as the interrupted command; in the
+                            // async API by block (the reset covers envs the caller holds).
+                            let target = if self.async_mode { 0 } else { s.target };
                             self.send_reset(k, target)?;
                         } else {
                             s.state = SlotState::Idle;

@@ -177,8 +177,14 @@ class Core:
         recv = np.zeros(total, np.uint8)
         self.pool.bind_recv_columns(recv, HEAD)
         self.cols.append(self._columns(recv, layout))
+        # Async step answers are written in place in the slots (``recv`` hands out views)
+        # unless slots are lent out: a lent slot must not be written while it is lent.
+        self.pool.async_in_place(self.lender is None)
         #: The slot written by the last whole-batch call (``None`` before the first).
         self.slot: Optional[int] = None
+        #: The last call's result (``None`` before the first).
+        self.last: Optional[Result] = None
+        self._views: dict[tuple[int, int, int], tuple[dict[str, np.ndarray], Any]] = {}
         #: Whether the envs were reset (a reset, or ``async_reset``) since the pool started.
         self.started = False
         #: The envs whose episode ended at their last call (terminated or truncated).
@@ -238,7 +244,8 @@ class Core:
             room = self.extra_rooms[slot]
             assert room is not None
             extras = (None, room, extras[2], [])
-        return Result(self.cols[slot], summary, extras, slot)
+        self.last = Result(self.cols[slot], summary, extras, slot)
+        return self.last
 
     def step(self, actions: np.ndarray) -> Result:
         """A whole sync step."""
@@ -330,11 +337,35 @@ class Core:
         max_batch: Optional[int] = None,
         timeout: Optional[float] = None,
     ) -> Result:
-        """The first envs ready (their columns are views of the ``recv`` buffer, valid until
-        the next ``recv``; their observations a fresh copy)."""
-        rows, summary, extras, ids, raw = self.call(self.pool.recv, min_batch, max_batch, timeout)
-        cols = {k: v[..., :rows] for k, v in self.cols[-1].items()}
-        return Result(cols, summary, extras, None, ids, raw.reshape(-1, self.obs_bytes))
+        """The first envs ready. Rows the workers wrote in place as one run of envs (see
+        :meth:`__init__`) are views of their batch slot, columns and observations (the
+        observations copied with ``copy``), valid until the next call; other rows are
+        gathered: columns in the ``recv`` buffer (valid until the next ``recv``), observations
+        a fresh copy."""
+        got = self.call(self.pool.recv, min_batch, max_batch, timeout)
+        rows, summary, extras, ids, raw, view = got
+        if view is not None:
+            # Written in place as one run of envs: views of the slot (a copy with ``copy``).
+            cols, obs = self._view(view[0], view[1], rows)
+            self.last = Result(cols, summary, extras, None, ids, obs.copy() if self.copy else obs)
+        else:
+            cols = {k: v[..., :rows] for k, v in self.cols[-1].items()}
+            obs = raw.reshape(-1, self.obs_bytes)
+            self.last = Result(cols, summary, extras, None, ids, obs)
+        return self.last
+
+    def _view(self, slot: int, first: int, rows: int) -> tuple[dict[str, np.ndarray], Any]:
+        """The columns and observation rows of envs ``first..first + rows`` of ``slot`` (views,
+        made once per run: a loop of halves asks for the same few again and again)."""
+        key = (slot, first, rows)
+        got = self._views.get(key)
+        if got is None:
+            span = slice(first, first + rows)
+            got = ({k: v[..., span] for k, v in self.cols[slot].items()}, self.slots[slot][span])
+            if len(self._views) >= 64:
+                self._views.clear()
+            self._views[key] = got
+        return got
 
     def mark_recycled(self, infos: dict[str, Any], env_ids: Optional[np.ndarray]) -> None:
         """Flag the restarted envs whose worker was replaced by plan during the last call

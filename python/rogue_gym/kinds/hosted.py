@@ -191,6 +191,7 @@ class HostedKind:
         self.obs_bytes = self._obs_layout.stride
         act = self.single_action_space
         self._discrete = act if isinstance(act, spaces.Discrete) else None
+        self._discrete_range = (0, 0) if self._discrete is None else (int(act.start), int(act.n))
         self._act_layout = SpaceLayout(act)
         _check_dynamic(self._obs_layout, self._act_layout, hosted is not None, static_only)
         #: Each env's dynamic observation leaves, as its last info brought them.
@@ -322,14 +323,16 @@ class HostedKind:
             raise ValueError(f"expected integer actions of shape ({n},), got {a.dtype} {a.shape}")
         space = self._discrete
         assert space is not None
-        start, size = int(space.start), int(space.n)
+        start, size = self._discrete_range
         wide = a.astype(object) if a.dtype.kind == "u" and a.dtype.itemsize >= 8 else a
-        bad = (wide < start) | (wide >= start + size)
-        if bad.any():
-            j = int(np.flatnonzero(bad)[0])
+        if n and (wide.min() < start or wide.max() >= start + size):
+            j = int(np.flatnonzero((wide < start) | (wide >= start + size))[0])
             env = j if env_ids is None else env_ids[j]
             raise ValueError(out_of_range(env, a[j], start, start + size - 1, space))
-        return a.astype(np.int64) - start
+        out = a.astype(np.int64)
+        if start:
+            out -= start
+        return out
 
     def _seeds(self, seed: Any) -> dict[str, Any]:
         """The schedule for ``reset(seed=...)``: env ``i``'s next episode gets ``seed + i`` (or

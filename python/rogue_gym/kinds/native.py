@@ -122,20 +122,23 @@ class NativeKind:
                 f"{self.obs_dtype}{self.obs_shape}"
             )
         self.info_names = core.info_names
-        self._templates = []
-        for cols in core.cols:
-            values: dict[str, np.ndarray] = {
-                "seed": cols["seed"],
-                "episode_index": cols["episode_index"],
-                "episode_return": cols["episode_return"],
-                "episode_length": cols["episode_length"],
-            }
-            for k, name in enumerate(self.info_names):
-                values[name] = cols["info_bool" if name in _BOOL_INFO else "info_int"][k]
-            self._templates.append(values)
-        self._info_keys = list(values)
+        self._templates = [self._info_values(cols) for cols in core.cols]
+        self._info_keys = list(self._templates[0])
         ones = np.ones(self.num_envs, bool)
         self._masks = {f"_{k}": ones for k in self._info_keys}
+
+    def _info_values(self, cols: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """The infos as views of a result's columns: the episode counters, then one row of
+        the info columns per info value."""
+        values: dict[str, np.ndarray] = {
+            "seed": cols["seed"],
+            "episode_index": cols["episode_index"],
+            "episode_return": cols["episode_return"],
+            "episode_length": cols["episode_length"],
+        }
+        for k, name in enumerate(self.info_names):
+            values[name] = cols["info_bool" if name in _BOOL_INFO else "info_int"][k]
+        return values
 
     def batch_views(self, rows: np.ndarray) -> np.ndarray:
         """Slot rows as observations of the engine's dtype and shape (a view)."""
@@ -224,7 +227,9 @@ class NativeKind:
                 for key in self._info_keys:
                     infos[key] = infos[key].copy()
             return infos
-        template = self._templates[-1 if result.slot is None else result.slot]
+        # A recv's rows: in the recv buffer, or (written in place) in a slot.
+        slot = result.slot
+        template = self._info_values(result.cols) if slot is None else self._templates[slot]
         rows = result.rows
         shown = np.ones(rows, bool)
         if only is not None:

@@ -294,6 +294,13 @@ class SpaceLayout:
         result has the structure of the space with one ``(n, *shape)`` array per fixed leaf
         (and ``None`` for each dynamic one, until :meth:`fill`)."""
         n = rows.shape[0]
+        if self.single and not self.dynamic:  # one array leaf: one view, no tree to build
+            leaf = self.leaves[0]
+            return (
+                rows[:, leaf.offset : leaf.offset + leaf.nbytes]
+                .view(leaf.dtype)
+                .reshape((n, *leaf.shape))
+            )
         views = [
             rows[:, leaf.offset : leaf.offset + leaf.nbytes]
             .view(leaf.dtype)

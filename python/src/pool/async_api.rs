@@ -15,6 +15,15 @@ use crate::settings;
 
 #[pymethods]
 impl PyPool {
+    /// Async: have step answers written in place in the batch slots, so that `recv` hands
+    /// out views (see `recv`). Only for a caller that lends no slot out.
+    fn async_in_place(&self, py: Python<'_>, on: bool) -> PyResult<()> {
+        self.with_pool(py, move |p, _| {
+            p.set_async_in_place(on);
+            Ok(())
+        })
+    }
+
     /// Async: reset every env; collect the results with `recv()`.
     fn async_reset(&self, py: Python<'_>) -> PyResult<()> {
         self.with_pool(py, |p, _| p.async_reset())
@@ -50,11 +59,14 @@ impl PyPool {
         self.with_pool(py, move |p, _| p.send_actions(acts.as_actions(), &env_ids))
     }
 
-    /// Async: the first envs ready, `(rows, summary, extras, env_ids, obs)`: their per-env
-    /// values decoded into the `recv` column buffer (its first `rows` entries), the
+    /// Async: the first envs ready, `(rows, summary, extras, env_ids, obs, view)`: their
+    /// per-env values decoded into the `recv` column buffer (its first `rows` entries), the
     /// `SUMMARY_*` bits, the joined extras of the rows that wrote some (see `Joined`), the
     /// int64 env id of each row, and their observations as one uint8 array (`rows x
-    /// obs_bytes`, a fresh copy). `min_batch`, `max_batch` (default both `batch_size`) and
+    /// obs_bytes`, a fresh copy); or, where the rows were written in place as one run of envs
+    /// (`async_in_place`), `obs` is `None` and `view` is `(slot, first)`: the rows are envs
+    /// `first..first + rows` of batch slot `slot` (its observations and columns, see
+    /// `slot_views`), valid until the next call. `min_batch`, `max_batch` (default both `batch_size`) and
     /// `timeout` (seconds) as `RecvWant`: return once `max_batch` are ready, or at the
     /// deadline with at least `min_batch` (else `TimeoutError`, nothing lost).
     #[pyo3(signature = (min_batch=None, max_batch=None, timeout=None))]
@@ -97,7 +109,11 @@ impl PyPool {
             })
         })?;
         let rows = got.env_ids.len();
-        let summary = {
+        // A view's rows are in its slot, columns included: nothing to decode (and no row of a
+        // view is a restart's).
+        let summary = if got.view.is_some() {
+            0
+        } else {
             let mut out = lock_gil_free(py, &self.out)?;
             got.fill(self.n_info, &mut out);
             out.extras.clear();
@@ -106,6 +122,10 @@ impl PyPool {
         let head = self.extras_head.load(std::sync::atomic::Ordering::Relaxed);
         let extras = join_extras(py, &got.extras, rows, head)?;
         let ids: Vec<i64> = got.env_ids.iter().map(|&e| e as i64).collect();
+        let obs = match got.view {
+            Some(_) => py.None().into_bound(py),
+            None => PyArray1::from_vec(py, got.obs).into_any(),
+        };
         PyTuple::new(
             py,
             [
@@ -113,7 +133,8 @@ impl PyPool {
                 summary.into_pyobject(py)?.into_any(),
                 extras.into_pyobject(py)?.into_any(),
                 PyArray1::from_vec(py, ids).into_any(),
-                PyArray1::from_vec(py, got.obs).into_any(),
+                obs,
+                got.view.into_pyobject(py)?.into_any(),
             ],
         )
     }

@@ -202,8 +202,19 @@ impl XlaTarget {
             outs.write(out, self.n_info);
             return Ok(());
         }
-        let got = self.with_pool(|p| p.recv_want(RecvWant::exactly(rows)))?;
-        copy_rows(&got.obs, ob, obs, own);
+        let (got, writer) = self.with_pool(|p| {
+            let got = p.recv_want(RecvWant::exactly(rows))?;
+            let writer = got.view.and_then(|(slot, _)| p.slot_writer(slot));
+            Ok((got, writer))
+        })?;
+        match (got.view, &writer) {
+            (Some((_, first)), Some(w)) => {
+                // SAFETY: the view's rows, which no worker writes before the next send.
+                let rows = unsafe { w.obs_rows(first..first + rows) };
+                copy_rows(rows, ob, obs, own);
+            }
+            _ => copy_rows(&got.obs, ob, obs, own),
+        }
         got.fill(self.n_info, &mut state.out);
         outs.write(&state.out, self.n_info);
         state.last_ids.clone_from(&got.env_ids);
