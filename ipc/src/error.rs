@@ -47,7 +47,7 @@ pub enum IpcError {
          batch of observations times its slots, batch_slots, 2 by default, plus each worker's \
          records); \
          python -m rogue_gym.doctor checks a machine",
-        crate::room::mib(*free), crate::room::mib(*size), crate::room::mib(*need)
+        mib(*free), mib(*size), mib(*need)
     )]
     NoRoom {
         /// The filesystem's mount point.
@@ -70,4 +70,9 @@ pub(crate) fn ice<E: std::fmt::Debug>(what: impl Into<String>) -> impl FnOnce(E)
         what,
         detail: format!("{e:?}"),
     }
+}
+
+/// `n` bytes as MiB with one decimal, for messages.
+pub fn mib(n: u64) -> String {
+    format!("{:.1} MiB", n as f64 / (1024.0 * 1024.0))
 }

@@ -53,8 +53,3 @@ pub fn no_room(need: u64, room: ShmRoom) -> IpcError {
         free: room.free,
     }
 }
-
-/// `n` bytes as MiB with one decimal, for messages.
-pub fn mib(n: u64) -> String {
-    format!("{:.1} MiB", n as f64 / (1024.0 * 1024.0))
-}

@@ -219,6 +219,13 @@ pub trait EnvBlock {
         let _ = (j, request);
         Err(EnvError::new("this env kind takes no calls"))
     }
+    /// Answer the calls of one request, `(j, request)` for env `j` each: one reply each, in
+    /// order. The default answers them one by one ([`EnvBlock::call`]); a block whose envs act
+    /// together (a vector env) answers them at once, so that an operation asked of every env
+    /// runs once, not once per env.
+    fn calls(&mut self, requests: &[(usize, &[u8])]) -> Result<Vec<Vec<u8>>, EnvError> {
+        requests.iter().map(|&(j, r)| self.call(j, r)).collect()
+    }
 }
 
 /// View an f32 observation buffer as `&mut [f32]`; errors if misaligned or of odd length.

@@ -222,8 +222,8 @@ pub enum PoolError {
         "probably out of shared memory: /dev/shm has {}, and this pool needs {} there. Give the \
          container more shared memory (docker run --shm-size=1g, or --ipc=host), or use fewer \
          envs or smaller observations; python -m rogue_gym.doctor checks a machine. {failure}",
-        room.map(|r| format!("{} free of {}", rogue_gym_ipc::room::mib(r.free), rogue_gym_ipc::room::mib(r.size))).unwrap_or_else(|| "its size is unknown".into()),
-        rogue_gym_ipc::room::mib(*need)
+        room.map(|r| format!("{} free of {}", rogue_gym_ipc::error::mib(r.free), rogue_gym_ipc::error::mib(r.size))).unwrap_or_else(|| "its size is unknown".into()),
+        rogue_gym_ipc::error::mib(*need)
     )]
     OutOfSharedMemory {
         /// The worker's failure (signal 7).

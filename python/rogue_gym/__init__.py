@@ -20,23 +20,27 @@ The entry points:
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from . import envs
-from ._config import PAPER_CONFIG
 from ._native import __version__  # the workspace version (Cargo.toml), written once
-from .envs import (
-    ACTIONS,
-    DungeonType,
-    FirstFloorEnv,
-    ImageSetting,
-    RogueEnv,
-    StairRewardEnv,
-    StatusFlag,
-)
-from .errors import EnvFailedError, PoolClosedError, WorkerCrashedError
 from .registration import ENV_ID, register_envs
-from .vector import PoolVectorEnv, RogueVectorEnv, make_vec
+
+if TYPE_CHECKING:  # the lazy names below, for type checkers
+    from . import envs
+    from ._config import PAPER_CONFIG
+    from .envs import (
+        ACTIONS,
+        DungeonType,
+        FirstFloorEnv,
+        ImageSetting,
+        RogueEnv,
+        StairRewardEnv,
+        StatusFlag,
+    )
+    from .errors import EnvFailedError, PoolClosedError, WorkerCrashedError
+    from .sb3 import PoolVecEnv, RogueVecEnv
+    from .tuning import tune
+    from .vector import PoolVectorEnv, RogueVectorEnv, make_vec
 
 __all__ = [
     "ACTIONS",
@@ -47,6 +51,7 @@ __all__ = [
     "FirstFloorEnv",
     "ImageSetting",
     "PoolClosedError",
+    "PoolVecEnv",
     "PoolVectorEnv",
     "RogueEnv",
     "RogueVecEnv",
@@ -62,14 +67,46 @@ __all__ = [
 
 register_envs()
 
+#: Where each public name lives. They load on first use, so that a pool's worker process
+#: (``python -m rogue_gym.worker``, which runs this file first) loads none of the caller's
+#: side (the front, the kinds, the facades), and SB3 and torch load only with the SB3 facade.
+_LAZY = {
+    "envs": ("envs", None),
+    "PAPER_CONFIG": ("_config", "PAPER_CONFIG"),
+    **{
+        name: ("envs", name)
+        for name in (
+            "ACTIONS",
+            "DungeonType",
+            "FirstFloorEnv",
+            "ImageSetting",
+            "RogueEnv",
+            "StairRewardEnv",
+            "StatusFlag",
+        )
+    },
+    **{
+        name: ("errors", name)
+        for name in ("EnvFailedError", "PoolClosedError", "WorkerCrashedError")
+    },
+    **{name: ("vector", name) for name in ("PoolVectorEnv", "RogueVectorEnv", "make_vec")},
+    "RogueVecEnv": ("sb3", "RogueVecEnv"),
+    "PoolVecEnv": ("sb3", "PoolVecEnv"),
+    "sb3": ("sb3", None),
+    "tune": ("tuning", "tune"),  # rogue_gym.tune(env, num_envs) is rogue_gym.tuning.tune
+}
+
 
 def __getattr__(name: str) -> Any:
-    # SB3 (and torch) load only when the SB3 facade is asked for. import_module, not
-    # ``from . import sb3``: that asks this function for ``sb3`` again, without end.
-    if name in ("RogueVecEnv", "PoolVecEnv"):
-        return getattr(importlib.import_module(".sb3", __name__), name)
-    if name == "sb3":
-        return importlib.import_module(".sb3", __name__)
-    if name == "tune":  # rogue_gym.tune(env, num_envs) is rogue_gym.tuning.tune
-        return importlib.import_module(".tuning", __name__).tune
-    raise AttributeError(f"module 'rogue_gym' has no attribute {name!r}")
+    # import_module, not ``from . import x``: that would ask this function again, without end.
+    where = _LAZY.get(name)
+    if where is None:
+        raise AttributeError(f"module 'rogue_gym' has no attribute {name!r}")
+    module = importlib.import_module(f".{where[0]}", __name__)
+    value = module if where[1] is None else getattr(module, where[1])
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

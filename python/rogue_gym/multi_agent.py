@@ -20,8 +20,8 @@ Rows whose agent is absent (dead, or not yet there):
 
 Every agent must have the same observation and action space (pad them to one first, e.g. with
 SuperSuit's ``pad_observations_v0``/``pad_action_space_v0``); spaces of fixed-size arrays
-(``Box``, ``Discrete``, ``MultiDiscrete``, ``MultiBinary``). Env ``e`` is seeded with the seed
-of its first row (``reset(seed=s)``: ``s + e * A``).
+(``Box``, ``Discrete``, ``MultiDiscrete``, ``MultiBinary``). ``reset(seed=s)`` seeds env ``e``
+with ``s + e``, as SuperSuit's ``concat_vec_envs`` does (a seed list: its first row's entry).
 """
 
 from __future__ import annotations
@@ -216,14 +216,14 @@ class AgentRows(VectorEnv):
         self, *, seed: Any = None, options: Optional[dict[str, Any]] = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset every env (or those with a row in ``options["reset_mask"]``); env ``e`` is
-        seeded with its first row's seed (an int ``s``: ``s + e * A``; a list: entry
-        ``e * A``)."""
+        seeded with ``s + e`` for an int ``s`` (SuperSuit's ``concat_vec_envs`` rule), with
+        its first row's entry (``e * A``) for a list."""
         options = dict(options or {})
         mask = options.pop("reset_mask", None)
         n, agents = self.num_envs, self.num_agents
         if seed is None or isinstance(seed, (int, np.integer)):
             row_seeds: list[Optional[int]] = [
-                None if seed is None else int(seed) + r for r in range(n)
+                None if seed is None else int(seed) + r // agents for r in range(n)
             ]
         else:
             row_seeds = [None if s is None else int(s) for s in seed]

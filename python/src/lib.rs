@@ -1,7 +1,7 @@
 //! Native module of the `rogue_gym` Python package: the engine (`Game`), the environment
 //! pool (`Pool`, with zero-copy views of worker blocks) and the worker entry point
 //! (`worker_main`, run by `python -m rogue_gym.worker`), which also hosts gymnasium envs
-//! written in Python ([`hosted`]).
+//! written in Python ([`worker`]).
 //!
 //! Every Rust error is mapped to a Python exception; nothing panics across the FFI boundary.
 
@@ -15,12 +15,11 @@ mod errors;
 mod game;
 mod gil;
 mod holders;
-mod hosted;
-mod hosted_vector;
 mod pool;
 mod settings;
 mod spec;
 mod summary;
+mod worker;
 mod xla;
 
 /// Run a pool worker with the given arguments (everything after `python -m rogue_gym.worker`)
@@ -52,12 +51,15 @@ fn default_runtime_dir() -> String {
 }
 
 /// The env kinds of this extension's pools: the pool crate's own, plus `"python"` (hosted
-/// gymnasium envs, see [`hosted`]) and `"python-vector"` (a hosted vector env per worker, see
-/// [`hosted_vector`]).
+/// gymnasium envs, see [`worker::hosted`]) and `"python-vector"` (a hosted vector env per
+/// worker, see [`worker::hosted_vector`]).
 pub(crate) fn registry() -> rogue_gym_pool::EnvRegistry {
     let mut r = rogue_gym_pool::EnvRegistry::with_defaults();
-    r.register(hosted::KIND, hosted::make_hosted_env);
-    r.register_block(hosted_vector::KIND, hosted_vector::make_hosted_vector);
+    r.register(worker::hosted::KIND, worker::hosted::make_hosted_env);
+    r.register_block(
+        worker::hosted_vector::KIND,
+        worker::hosted_vector::make_hosted_vector,
+    );
     r
 }
 

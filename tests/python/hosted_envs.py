@@ -391,3 +391,36 @@ class LeakyEnv(gym.Env):
             self.hoard.append(np.ones(self.leak, np.uint8))  # touched: resident
         self.t += 1
         return np.full(1, self.t, np.float32), 1.0, False, False, {}
+
+
+class CountingEnv(gym.Env):
+    """CartPole-like spaces and an env method with a side effect: ``bump()`` counts its own
+    calls and returns the count, so a test sees how often an env operation ran on each env."""
+
+    observation_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
+    action_space = spaces.Discrete(2)
+
+    def __init__(self) -> None:
+        self.bumps = 0
+
+    def bump(self) -> int:
+        self.bumps += 1
+        return self.bumps
+
+    def reset(self, *, seed: Any = None, options: Any = None) -> Any:
+        super().reset(seed=seed)
+        return np.zeros(2, np.float32), {}
+
+    def step(self, action: Any) -> Any:
+        return np.zeros(2, np.float32), 0.0, False, False, {}
+
+
+class ModulesEnv(CountingEnv):
+    """An env that notes which ``rogue_gym`` modules its process has loaded when it is made
+    (in a pool: the worker's)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        import sys
+
+        self.modules = sorted(m for m in sys.modules if m.split(".")[0] == "rogue_gym")

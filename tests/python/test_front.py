@@ -212,3 +212,47 @@ def test_each_kind_serves_the_operations_its_table_declares_and_refuses_the_rest
             with pytest.raises(NotImplementedError, match=f"{who} does not serve .*'{op}'"):
                 env.call_envs(op, name, [(args, {})] * n)
     env.step(_zeros(env))  # the pool goes on
+
+
+#: What a worker process may load of the package: the entry, the native module, the
+#: registration (``import rogue_gym`` registers ``RogueGym-v0``), the worker's adapters and the
+#: protocol both sides share; none of the caller's side (front, kinds, facades, settings).
+WORKER_SIDE = (
+    "rogue_gym._native",
+    "rogue_gym.registration",
+    "rogue_gym.worker",
+    "rogue_gym.protocol",
+)
+
+
+def _callers_side(modules: list[str]) -> list[str]:
+    return [m for m in modules if m != "rogue_gym" and not m.startswith(WORKER_SIDE)]
+
+
+def test_a_worker_loads_none_of_the_callers_side() -> None:
+    """The modules a worker process has loaded: a native pool's worker entry (as spawned:
+    ``python -m rogue_gym.worker``), and a hosted env's worker, read from inside it."""
+    import subprocess
+    import sys
+
+    from hosted_envs import ModulesEnv
+
+    out = subprocess.run(
+        [sys.executable, "-X", "importtime", "-m", "rogue_gym.worker"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    loaded = sorted(
+        {line.rsplit("|", 1)[-1].strip() for line in out.stderr.splitlines() if "|" in line}
+    )
+    native = [m for m in loaded if m.split(".")[0] == "rogue_gym"]
+    assert "rogue_gym._native" in native, out.stderr[-2000:]
+    assert _callers_side(native) == [], native
+    env = rogue_gym.PoolVectorEnv([ModulesEnv] * 2, num_workers=1)
+    try:
+        (hosted, _) = env.get_attr("modules")
+    finally:
+        env.close()
+    assert "rogue_gym.worker.env_adapter" in hosted, hosted
+    assert _callers_side(hosted) == [], hosted

@@ -15,7 +15,7 @@ from gymnasium.vector import AutoresetMode, SyncVectorEnv
 from rogue_gym import PoolVectorEnv
 from rogue_gym.front import leases
 
-from hosted_envs import InfoEnv, NestedEnv, RaisingEnv, SpecialError
+from hosted_envs import CountingEnv, InfoEnv, NestedEnv, RaisingEnv, SpecialError
 from test_hosted import assert_killed_worker_restarts, assert_tree_equal, run_both, tracked
 
 
@@ -188,3 +188,34 @@ def test_a_seed_list_seeds_each_env(hosted) -> None:
     for _ in range(30):
         run_equal(ours.step(np.ones(5, np.int64)), ref.step(np.ones(5, np.int64)))
     ref.close()
+
+
+def test_env_operations_run_once_per_env(hosted) -> None:
+    """A vector env gets one call per worker block: call() runs the method once on each env
+    (6 envs in blocks of 3 each bumped once, not 3 times), get_attr reads each env's own
+    value, set_attr sets a new attribute; a call of some envs only is refused, clearly."""
+    env = hosted(sync_of(CountingEnv), 6, num_workers=2)
+    env.reset(seed=0)
+    assert env.call("bump") == (1,) * 6
+    assert env.get_attr("bumps") == (1,) * 6
+    assert env.call("bump") == (2,) * 6
+    env.set_attr("spam", [10, 11, 12, 13, 14, 15])
+    assert env.get_attr("spam") == (10, 11, 12, 13, 14, 15)
+    env.set_attr("spam", 7)
+    assert env.get_attr("spam") == (7,) * 6
+    with pytest.raises(ValueError, match="runs a call on all its 3 envs"):
+        env.call_envs("call", "bump", [((), {})], indices=[4])
+    assert env.get_attr("bumps") == (2,) * 6, "a refused call ran nowhere"
+
+
+def test_env_operations_run_once_per_env_in_hosted_pools() -> None:
+    """The same counts with one gymnasium env per row (the hosted kind)."""
+    env = PoolVectorEnv([CountingEnv] * 4, num_workers=2)
+    try:
+        env.reset(seed=0)
+        assert env.call("bump") == (1,) * 4
+        assert env.call("bump") == (2,) * 4
+        env.set_attr("spam", [1, 2, 3, 4])
+        assert env.get_attr("spam") == (1, 2, 3, 4)
+    finally:
+        env.close()

@@ -59,7 +59,7 @@ def plain_loop(
     active = np.zeros(n * a_n, bool)
     out = []
     for e, env in enumerate(envs):
-        o, _ = env.reset(seed=seed + e * a_n)
+        o, _ = env.reset(seed=seed + e)
         for j, a in enumerate(agents):
             obs[e * a_n + j] = o.get(a, 0)
             active[e * a_n + j] = a in env.agents
@@ -407,3 +407,23 @@ def test_tune_times_pettingzoo_envs_as_rows() -> None:
     advice = result.advice()
     assert "from_pettingzoo(env_fn, 2," in advice or "AgentRows" in advice
     assert advice in out.getvalue()
+
+
+def test_seeds_follow_supersuits_rule() -> None:
+    """``reset(seed=s)`` seeds env ``e`` with ``s + e``, as SuperSuit's ``concat_vec_envs``:
+    the first observations equal its, row for row, whatever the worker count."""
+    ss = pytest.importorskip("supersuit")
+    theirs = ss.concat_vec_envs_v1(
+        ss.pettingzoo_env_to_vec_env_v1(spread()), 3, num_cpus=0, base_class="gymnasium"
+    )
+    try:
+        want, _ = theirs.reset(seed=5)
+    finally:
+        theirs.close()
+    for workers in (1, 3):
+        env = PoolVectorEnv.from_pettingzoo(spread, 3, num_workers=workers)
+        try:
+            got, _ = env.reset(seed=5)
+        finally:
+            env.close()
+        np.testing.assert_array_equal(got, want, err_msg=f"{workers} workers")

@@ -160,12 +160,17 @@ def test_async_rollout_equals_the_python_loop(pools: Callable[..., Any]) -> None
             theirs[int(e)].append((o[row], r[row]))
         for row, e in enumerate(np.asarray(ids[t])):
             mine[int(e)].append((np.asarray(obs[t][row]), float(reward[t][row])))
+    compared = 0
     for e in range(n):
+        # Service order (first ready first) may favour one worker's envs under load: compare
+        # each env's results as far as both runs got.
         k = min(len(mine[e]), len(theirs[e]))
-        assert k >= T * b // n // 2, "every env was served"
-        for (o1, r1), (o2, r2) in zip(mine[e][:k], theirs[e][:k]):
-            np.testing.assert_array_equal(o1, o2)
-            assert r1 == r2
+        assert k >= 1, f"env {e} never served: {len(mine[e])} jitted, {len(theirs[e])} looped"
+        for i, ((o1, r1), (o2, r2)) in enumerate(zip(mine[e][:k], theirs[e][:k])):
+            np.testing.assert_array_equal(o1, o2, err_msg=f"env {e}, result {i}")
+            assert r1 == r2, (e, i)
+        compared += k
+    assert compared >= T * b // 2, compared
 
 
 def test_killed_worker_gives_the_restarted_episode(pools: Callable[..., Any]) -> None:

@@ -18,17 +18,9 @@ use std::process::Child;
 use std::time::{Duration, Instant};
 
 use super::Supervisor;
-use super::workers::SlotState;
+use super::workers::{SlotState, Successor};
 use crate::error::PoolError;
 use crate::wire::{CMD_CLOSE, successor_go, successor_marker};
-
-/// A worker's successor while it builds its envs.
-pub(super) struct Successor {
-    pub(super) child: Child,
-    pub(super) generation: u64,
-    since: Instant,
-    stderr_path: std::path::PathBuf,
-}
 
 /// How often a worker's resident memory is read (`/proc/<pid>/statm`, about 10 µs) while it
 /// is below [`START_AT`] of its bound, at most; above, it is read before every command.

@@ -12,7 +12,6 @@ use std::time::{Duration, Instant};
 use rogue_gym_ipc::{BlockSample, SupervisorPorts};
 
 use super::Supervisor;
-use super::recycling::Successor;
 use super::stepping::Actions;
 use crate::batch::Block;
 use crate::config::FailurePolicy;
@@ -44,6 +43,14 @@ impl SlotState {
     }
 }
 
+/// A worker's successor while it builds its envs (a planned replacement: `recycling`).
+pub(super) struct Successor {
+    pub(super) child: std::process::Child,
+    pub(super) generation: u64,
+    pub(super) since: std::time::Instant,
+    pub(super) stderr_path: PathBuf,
+}
+
 pub(super) struct WorkerSlot {
     pub(super) ports: SupervisorPorts,
     pub(super) child: Option<Child>,
@@ -71,7 +78,7 @@ pub(super) struct WorkerSlot {
     pub(super) action_extras: Option<Vec<u8>>,
     /// Env steps served since this incarnation started (for `recycle_after_steps`).
     pub(super) served: u64,
-    /// Its successor while it builds its envs ([`super::recycling`]).
+    /// Its successor while it builds its envs (see `recycling`).
     pub(super) successor: Option<Successor>,
     /// It was replaced by plan: the envs of its next block report `worker_recycled`.
     pub(super) recycled: bool,
@@ -139,7 +146,7 @@ impl Supervisor {
     }
 
     /// Start the process of worker `k`, generation `generation` (`successor`: a planned
-    /// replacement, see [`super::recycling`]), its stderr going to a private file.
+    /// replacement, see `recycling`), its stderr going to a private file.
     pub(super) fn start_process(
         &self,
         k: usize,

@@ -61,6 +61,14 @@ impl BlockHost {
         self.block.call(j, request)
     }
 
+    /// Answer a whole request of calls at once (see [`EnvBlock::calls`]).
+    pub(crate) fn calls(
+        &mut self,
+        requests: &[(usize, &[u8])],
+    ) -> Result<Vec<Vec<u8>>, crate::env::EnvError> {
+        self.block.calls(requests)
+    }
+
     /// The fault of a command for some of the block's envs only: a vector env steps all its
     /// envs at once (the supervisor refuses such commands before they are sent).
     pub(crate) fn whole_block_only(&self) -> EnvFault {

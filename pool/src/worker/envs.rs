@@ -116,10 +116,34 @@ pub(super) fn answer_calls(
     first: u64,
 ) -> Result<(), EnvFault> {
     let path = calls::request_path(id, index, generation);
-    let replies = for_each_entry(&path, hosted, first, "a call", |h, j, request| match h {
-        WorkerEnvs::Each(slots) => slots[j].env.call(request),
-        WorkerEnvs::Block(host) => host.call(j, request),
-    })?;
+    let replies = match hosted {
+        // A vector env answers the whole request at once (an operation asked of every env
+        // runs once).
+        WorkerEnvs::Block(host) => {
+            let fail = |message: String| EnvFault::new(first, "a call", message);
+            let entries = calls::take(&path).map_err(fail)?;
+            if let Some((row, _)) = entries.iter().find(|(r, _)| *r as usize >= host.len()) {
+                return Err(fail(format!("entry for row {row}, outside the block")));
+            }
+            let requests: Vec<(usize, &[u8])> = entries
+                .iter()
+                .map(|(r, b)| (*r as usize, b.as_slice()))
+                .collect();
+            let replies = host.calls(&requests).map_err(|e| fail(e.to_string()))?;
+            if replies.len() != entries.len() {
+                return Err(fail(format!(
+                    "{} replies to {} calls",
+                    replies.len(),
+                    entries.len()
+                )));
+            }
+            entries.iter().map(|(r, _)| *r).zip(replies).collect()
+        }
+        _ => for_each_entry(&path, hosted, first, "a call", |h, j, request| match h {
+            WorkerEnvs::Each(slots) => slots[j].env.call(request),
+            WorkerEnvs::Block(host) => host.call(j, request),
+        })?,
+    };
     let entries: Vec<(u32, &[u8])> = replies.iter().map(|(r, b)| (*r, b.as_slice())).collect();
     calls::write(
         &calls::reply_path(id, index, generation),

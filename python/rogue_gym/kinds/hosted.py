@@ -334,11 +334,21 @@ class HostedKind:
             out -= start
         return out
 
+    def _unit_seeds(self, seed: int) -> list[int]:
+        """Rows in units of ``block_unit`` (one PettingZoo env's agents): every row of unit
+        ``u`` gets ``seed + u``, so that env ``u`` is seeded with ``seed + u`` as SuperSuit's
+        ``concat_vec_envs`` seeds it."""
+        if seed < 0 or seed + self.num_envs > 2**63:
+            raise ValueError(f"seed must be in [0, 2**63 - num_envs), got {seed}")
+        return [seed + r // self._block_unit for r in range(self.num_envs)]
+
     def _seeds(self, seed: Any) -> dict[str, Any]:
         """The schedule for ``reset(seed=...)``: env ``i``'s next episode gets ``seed + i`` (or
         ``seed[i]``), or no seed at all for ``None``; later episodes are not reseeded."""
         if seed is None:
             return {"base": 0, "set": {"list": [NO_SEED]}, "policy": "sequential"}
+        if isinstance(seed, (int, np.integer)) and self._block_unit > 1:
+            seed = self._unit_seeds(int(seed))
         if isinstance(seed, (int, np.integer)):
             start = int(seed)
             if start < 0 or start + self.num_envs > 2**63:
@@ -376,8 +386,10 @@ class HostedKind:
     def _seed_partial(self, seed: Any, mask: np.ndarray, core: Core) -> None:
         """The masked envs' next reset gets ``seed + i`` (an int) or ``seed[i]`` (a list; a
         ``None`` entry: no reseeding), as gymnasium's vector envs seed a partial reset."""
-        if isinstance(seed, (int, np.integer)):
-            seeds: list[Optional[int]] = [int(seed) + i for i in range(self.num_envs)]
+        if isinstance(seed, (int, np.integer)) and self._block_unit > 1:
+            seeds: list[Optional[int]] = list(self._unit_seeds(int(seed)))
+        elif isinstance(seed, (int, np.integer)):
+            seeds = [int(seed) + i for i in range(self.num_envs)]
         else:
             seeds = list(seed)
             if len(seeds) != self.num_envs:

@@ -1,7 +1,7 @@
 """The worker side of a hosted env: builds the caller's env from its cloudpickled callable and
 speaks the pool's flat bytes.
 
-The pool's Rust worker loop calls :class:`HostedEnv` (through ``python/src/hosted.rs``) for
+The pool's Rust worker loop calls :class:`HostedEnv` (through ``python/src/worker/hosted.rs``) for
 every reset of the env, and steps the env itself with the parts of :meth:`HostedEnv.step_parts`
 (the hot path has no Python frame of ours). An observation's dynamic leaves (Text, Graph,
 Sequence, OneOf, custom spaces) travel pickled in the command's info, as entries of their own
@@ -226,7 +226,7 @@ class HostedEnv:
             raise EncodedEnvError(encode_exception(exc)) from exc
 
     def step_parts(self) -> tuple[Any, Any, Any, Optional[tuple[int, ...]]]:
-        """What the worker's Rust step calls directly (``python/src/hosted.rs``): the env, the
+        """What the worker's Rust step calls directly (``python/src/worker/hosted.rs``): the env, the
         actions (a list of a Discrete space's actions by index, or a function from an action's
         bytes to its value), the observation's dtype and shape when it is one array (which
         the worker then copies itself from an ndarray of exactly that dtype and shape), or

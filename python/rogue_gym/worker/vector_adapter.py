@@ -2,7 +2,7 @@
 C++ ``AtariVectorEnv``) for a worker's whole block of envs, built from the caller's cloudpickled
 ``vector_env_fn(num_envs)``.
 
-The pool's Rust worker loop (``python/src/hosted.rs``) calls :class:`HostedVectorEnv` once per
+The pool's Rust worker loop (``python/src/worker/hosted_vector.rs``) calls :class:`HostedVectorEnv` once per
 command for the whole block: it keeps each env's episode bookkeeping itself, and this adapter
 resets or steps the vector env, writes the batch of observations straight into the worker's
 rows of shared memory and returns rewards and flags as raw arrays and each env's info as bytes
@@ -33,6 +33,18 @@ from ..protocol.vector_contract import check_vector_env
 from .env_adapter import explained, prepare
 
 __all__ = ["WHO", "HostedVectorEnv"]
+
+#: The operations that read or act on every env of the vector env at once (one vector call).
+_ONCE_FOR_ALL = frozenset({"call", "env_method", "get_attr", "has_attr", "render"})
+
+
+def _refuse_some(name: str, n: int) -> Any:
+    raise ValueError(
+        f"call({name!r}): a vector env per worker runs a call on all its {n} envs at once, "
+        "with the same arguments: call it on every env (the pool's call() does), not on "
+        "some of them"
+    )
+
 
 #: This interpreter's name in :data:`rogue_gym.protocol.ops.SERVED_BY`.
 WHO = "a hosted vector env"
@@ -218,32 +230,81 @@ class HostedVectorEnv:
         except BaseException as exc:
             raise EncodedEnvError(encode_exception(exc)) from exc
 
-    def call(self, row: int, request: bytes) -> bytes:
-        """Answer a call for env ``row`` (a pickled ``(op, name, args, kwargs)``, as
-        :meth:`rogue_gym.worker.env_adapter.HostedEnv.call`) through the vector env's own
-        ``call``/``get_attr``/``set_attr``/``render`` (this env's element), or the next
-        reset's options and seed. The operations that need the env itself (``setattr`` on the
-        outermost wrapper, ``is_wrapped``) are refused: a vector env does not hand its envs
-        out."""
+    def call_block(self, rows: list[int], requests: list[bytes]) -> list[bytes]:
+        """Answer one call file's requests, ``requests[i]`` (a pickled ``(op, name, args,
+        kwargs)``, as :meth:`rogue_gym.worker.env_adapter.HostedEnv.call`) for env ``rows[i]``
+        of the block: each env's reply a cloudpickled ``("ok", value)`` or ``("err", encoded
+        exception)``, with the vector env's operations run once
+        for all the envs that asked, not once per env. The same ``call``/``env_method`` (or
+        ``get_attr``, ``has_attr``, ``render``) asked of every env is one vector call; a
+        ``set_attr`` of every env one ``set_attr`` with each env's value (a new attribute
+        too). ``call``/``env_method`` of some of the envs only, or with different arguments
+        per env, is refused: the vector env runs a call on all its envs."""
         try:
-            op, name, args, kwargs = pickle.loads(request)
-            value = run_op(self._ops, WHO, op, name, row, *args, **kwargs)
-            return bytes(cloudpickle.dumps(("ok", value)))
+            decoded = [pickle.loads(r) for r in requests]
+        except BaseException as exc:
+            failed = bytes(cloudpickle.dumps(("err", encode_exception(exc))))
+            return [failed] * len(rows)
+        whole = sorted(rows) == list(range(self.n))
+        ops = {d[0] for d in decoded}
+        if len(ops) == 1:
+            op = next(iter(ops))
+            if op in _ONCE_FOR_ALL and len(set(requests)) == 1:
+                return self._once_for_all(decoded[0], rows, whole)
+            if op == "set_wrapper_attr" and whole and len({d[1] for d in decoded}) == 1:
+                return self._set_all(decoded, rows)
+        return [self._one(row, d) for row, d in zip(rows, decoded)]
+
+    def _reply(self, run: Any) -> bytes:
+        try:
+            return bytes(cloudpickle.dumps(("ok", run())))
         except BaseException as exc:
             return bytes(cloudpickle.dumps(("err", encode_exception(exc))))
 
-    # The env operations (protocol.ops) for env ``row`` of the block.
-    def _op_call(self, name: str, row: int, *args: Any, **kwargs: Any) -> Any:
+    def _one(self, row: int, request: tuple[Any, ...]) -> bytes:
+        op, name, args, kwargs = request
+        if op in ("call", "env_method"):
+            return self._reply(lambda: _refuse_some(name, self.n))
+        return self._reply(lambda: run_op(self._ops, WHO, op, name, row, *args, **kwargs))
+
+    def _once_for_all(self, request: tuple[Any, ...], rows: list[int], whole: bool) -> list[bytes]:
+        """One vector operation for every env that asked, each env's element its reply."""
+        op, name, args, kwargs = request
+        if op in ("call", "env_method") and not whole:
+            return [self._reply(lambda: _refuse_some(name, self.n))] * len(rows)
+        try:
+            values = run_op(self._ops, WHO, op, name, None, *args, **kwargs)
+        except BaseException as exc:
+            failed = bytes(cloudpickle.dumps(("err", encode_exception(exc))))
+            return [failed] * len(rows)
+        if op == "has_attr":
+            return [bytes(cloudpickle.dumps(("ok", values)))] * len(rows)
+        return [bytes(cloudpickle.dumps(("ok", values[row]))) for row in rows]
+
+    def _set_all(self, requests: list[tuple[Any, ...]], rows: list[int]) -> list[bytes]:
+        """``set_attr`` of every env of the block: one vector ``set_attr``."""
+        name = requests[0][1]
+        values: list[Any] = [None] * self.n
+        for row, (_op, _name, args, _kwargs) in zip(rows, requests):
+            values[row] = args[0]
+        reply = self._reply(lambda: self.envs.set_attr(name, values))
+        return [reply] * len(rows)
+
+    # The env operations (protocol.ops) for env ``row`` of the block (``None``: every env,
+    # for the operations run once for all; their value is then one per env, has_attr's one).
+    def _op_call(self, name: str, row: Optional[int], *args: Any, **kwargs: Any) -> Any:
         if name in ("reset", "step", "close"):
             raise ValueError(f"call({name!r}) is not allowed; use the vector env's own")
-        return self.envs.call(name, *args, **kwargs)[row]
+        values = self.envs.call(name, *args, **kwargs)
+        return values if row is None else values[row]
 
     _op_env_method = _op_call
 
-    def _op_get_attr(self, name: str, row: int) -> Any:
-        return self.envs.get_attr(name)[row]
+    def _op_get_attr(self, name: str, row: Optional[int]) -> Any:
+        values = self.envs.get_attr(name)
+        return values if row is None else values[row]
 
-    def _op_has_attr(self, name: str, row: int) -> bool:
+    def _op_has_attr(self, name: str, row: Optional[int]) -> bool:
         try:
             self.envs.get_attr(name)
         except AttributeError:
@@ -255,8 +316,9 @@ class HostedVectorEnv:
         values[row] = value
         self.envs.set_attr(name, values)
 
-    def _op_render(self, name: str, row: int) -> Any:
-        return self.envs.call("render")[row]
+    def _op_render(self, name: str, row: Optional[int]) -> Any:
+        values = self.envs.call("render")
+        return values if row is None else values[row]
 
     def _op_set_reset_options(self, name: str, row: int, options: Any) -> None:
         self._options = options

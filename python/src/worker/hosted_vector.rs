@@ -14,7 +14,7 @@ use pyo3::types::{PyBytes, PyList, PyTuple};
 use rogue_gym_pool::{EnvBlock, EnvError, EnvSpec, StepOutcome};
 use serde_json::Value;
 
-use crate::hosted::{address, build_adapter, env_error, returned_bytes, spec_and_adapter};
+use super::hosted::{address, build_adapter, env_error, returned_bytes, spec_and_adapter};
 
 /// The kind name of hosted vector envs.
 pub(crate) const KIND: &str = "python-vector";
@@ -163,13 +163,30 @@ impl EnvBlock for HostedVector {
     }
 
     fn call(&mut self, j: usize, request: &[u8]) -> Result<Vec<u8>, EnvError> {
+        let mut replies = self.calls(&[(j, request)])?;
+        replies
+            .pop()
+            .ok_or_else(|| EnvError::new("no reply to a call"))
+    }
+
+    /// The whole request at once: the adapter runs an operation asked of every env once
+    /// (`HostedVectorEnv.call_block`).
+    fn calls(&mut self, requests: &[(usize, &[u8])]) -> Result<Vec<Vec<u8>>, EnvError> {
         Python::attach(|py| {
-            let b = self
+            let rows: Vec<usize> = requests.iter().map(|(j, _)| *j).collect();
+            let bytes: Vec<Bound<'_, PyBytes>> =
+                requests.iter().map(|(_, r)| PyBytes::new(py, r)).collect();
+            let got = self
                 .adapter
                 .bind(py)
-                .call_method1(intern!(py, "call"), (j, PyBytes::new(py, request)))
+                .call_method1(intern!(py, "call_block"), (rows, bytes))
                 .map_err(|e| env_error(py, &self.encoded, e))?;
-            Ok(returned_bytes(&b, "call")?.to_vec())
+            let list = got
+                .cast::<pyo3::types::PyList>()
+                .map_err(|_| EnvError::new("call_block returned no list"))?;
+            list.iter()
+                .map(|b| Ok(returned_bytes(&b, "call")?.to_vec()))
+                .collect()
         })
     }
 }
