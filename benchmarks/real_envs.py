@@ -292,10 +292,10 @@ def run_cell(cell: dict[str, Any]) -> dict[str, Any]:
 #: Where a sample's time goes, by its innermost Python frame (first match wins). The pool's
 #: Rust code runs under the worker's module frame and under the caller's native calls.
 PROFILE_GROUPS = [
-    ("the pool's Rust loop (waiting, polling, transport)", ("rogue_gym/worker.py",)),
-    ("waiting for the workers (native call)", ("<lambda> (rogue_gym/hosted/vector_env.py",)),
-    ("rogue_gym: infos", ("rogue_gym/hosted/infos.py",)),
-    ("rogue_gym: observations, actions", ("rogue_gym/hosted/layout.py",)),
+    ("the pool's Rust loop (waiting, polling, transport)", ("rogue_gym/worker/__main__.py",)),
+    ("waiting for the workers (native call)", ("call (rogue_gym/front/core.py",)),
+    ("rogue_gym: infos", ("rogue_gym/protocol/infos.py",)),
+    ("rogue_gym: observations, actions", ("rogue_gym/protocol/layout.py",)),
     ("rogue_gym: adapter and front end", ("rogue_gym/",)),
     ("the benchmark loop", ("real_envs.py",)),
 ]

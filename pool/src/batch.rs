@@ -5,7 +5,6 @@ use std::ops::Range;
 
 use rogue_gym_ipc::BlockSample;
 
-use crate::error::PoolError;
 use crate::wire::layout::{BlockLayout, EnvRecord, FLAG_RESTARTED, FLAG_TRUNCATED};
 
 /// Per-env arrays of one batch (sync step/reset, or filled from an async [`Batch`]). Row `r`
@@ -187,63 +186,5 @@ impl Block {
     /// lives). Note: restart flags are applied by [`Block::record`], not stored in the sample.
     pub fn into_sample(self) -> BlockSample {
         self.sample
-    }
-}
-
-/// The blocks returned by one async [`Pool::recv`], in arrival order.
-#[derive(Debug)]
-pub struct Batch {
-    /// The blocks.
-    pub blocks: Vec<Block>,
-}
-
-impl Batch {
-    /// Env ids of all rows, in block order.
-    pub fn env_ids(&self) -> Vec<usize> {
-        self.blocks.iter().flat_map(|b| b.env_ids()).collect()
-    }
-    /// Copy the observations into `out` (rows in [`Batch::env_ids`] order).
-    pub fn copy_obs_into(&self, out: &mut [u8]) -> Result<(), PoolError> {
-        let total: usize = self.blocks.iter().map(|b| b.obs().len()).sum();
-        if out.len() != total {
-            return Err(PoolError::BadBuffer {
-                what: "observation buffer",
-                expected: total,
-                got: out.len(),
-            });
-        }
-        let mut off = 0;
-        for b in &self.blocks {
-            let o = b.obs();
-            out[off..off + o.len()].copy_from_slice(o);
-            off += o.len();
-        }
-        Ok(())
-    }
-    /// Fill the per-env arrays (rows in [`Batch::env_ids`] order).
-    pub fn fill(&self, n_info: usize, out: &mut BatchOutput) {
-        out.clear();
-        self.fill_append(n_info, out);
-    }
-}
-
-impl Batch {
-    pub(crate) fn fill_append(&self, n_info: usize, out: &mut BatchOutput) {
-        for b in &self.blocks {
-            let fin = b.final_obs();
-            let ob = b.layout.obs_bytes;
-            for j in 0..b.layout.envs {
-                let r = b.record(j);
-                out.push(
-                    b.env_start + j,
-                    &r,
-                    n_info,
-                    fin.map(|f| &f[j * ob..(j + 1) * ob]),
-                );
-                if r.extra_len > 0 && !b.restarted {
-                    out.extras.push((b.env_start + j, b.extra(j).to_vec()));
-                }
-            }
-        }
     }
 }

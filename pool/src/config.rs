@@ -162,4 +162,55 @@ impl PoolConfig {
             runtime_dir: None,
         }
     }
+
+    /// Check the config before anything is started: counts, the layout of envs on workers
+    /// (`block_unit`), `batch_size`, `max_borrowed`, `batch_slots` and the seed schedule
+    /// ([`PoolError::Config`] saying what is wrong and the range it must be in).
+    pub fn validate(&self) -> Result<(), PoolError> {
+        if self.num_workers == 0 || self.num_envs == 0 {
+            return Err(PoolError::Config(
+                "num_envs and num_workers must be at least 1".into(),
+            ));
+        }
+        if self.num_workers > self.num_envs {
+            return Err(PoolError::Config(format!(
+                "num_workers ({}) must not exceed num_envs ({}): each worker hosts at least one env",
+                self.num_workers, self.num_envs
+            )));
+        }
+        let unit = self.block_unit;
+        if unit == 0
+            || !self.num_envs.is_multiple_of(unit)
+            || self.num_workers > self.num_envs / unit
+        {
+            return Err(PoolError::Config(format!(
+                "envs come in groups of {unit} that stay on one worker (block_unit): num_envs \
+                 ({}) must be a multiple of it and num_workers ({}) at most num_envs / {unit}",
+                self.num_envs, self.num_workers
+            )));
+        }
+        if let Some(b) = self.batch_size
+            && !(1..=self.num_envs).contains(&b)
+        {
+            return Err(PoolError::Config(format!(
+                "batch_size ({b}) must be between 1 and num_envs ({})",
+                self.num_envs
+            )));
+        }
+        if self.max_borrowed < 2 {
+            return Err(PoolError::Config(
+                "max_borrowed must be at least 2 (one sample being received, one held)".into(),
+            ));
+        }
+        if !(2..=crate::MAX_BATCH_SLOTS).contains(&self.batch_slots) {
+            return Err(PoolError::Config(format!(
+                "batch_slots must be between 2 and {}, got {}",
+                crate::MAX_BATCH_SLOTS,
+                self.batch_slots
+            )));
+        }
+        self.seeds
+            .validate(self.num_envs as u64)
+            .map_err(PoolError::Config)
+    }
 }

@@ -5,11 +5,13 @@
 //! supervisor, living in the trainer's process, e.g. behind the Python front end) spawns
 //! `num_workers` worker processes with `std::process::Command`; each worker ([`worker_main`])
 //! builds its block of envs (blocks differ by at most one env) from a JSON spec through an
-//! [`EnvRegistry`], steps them, and writes observations straight into a loaned shared-memory block, which the supervisor
-//! copies into the caller's batch buffer (sync [`Pool::step`]) or hands over zero-copy (async
-//! [`Pool::recv`] returns [`Block`]s that own the samples). A third, copy-free sync form,
-//! [`Pool::step_shared`], has the workers write straight into one of two pool-owned shared
-//! batch slots (double buffering).
+//! [`EnvRegistry`] and steps them. Every per-env output of a whole-batch call (step, reset,
+//! partial reset) is written by its worker in place, at the env's row of a shared batch slot
+//! the call names (`batch_slots` of them, 2 by default; [`wire::slot_layout`]), where the
+//! caller reads it ([`Pool::step_slot`]; [`Pool::step`] copies it out). The async API
+//! ([`Pool::send`], [`Pool::recv`]) answers steps in place too where the caller asks for it
+//! ([`Pool::set_async_in_place`]: a batch of one run of envs is then a view of its slot), and
+//! otherwise through per-worker shared-memory blocks ([`Block`]), copied out for the caller.
 //!
 //! Modules, one job each:
 //!
@@ -44,7 +46,7 @@ pub mod supervisor;
 pub mod wire;
 pub mod worker;
 
-pub use batch::{Batch, BatchOutput, Block, SlotAnswer, SlotExtras};
+pub use batch::{BatchOutput, Block, SlotAnswer, SlotExtras};
 pub use config::{AutoresetMode, FailurePolicy, PoolConfig, WorkerCommand};
 pub use env::{
     Dtype, Env, EnvBlock, EnvError, EnvSpec, MAX_INFO, StepOutcome, action_out_of_range,

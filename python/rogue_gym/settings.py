@@ -1,8 +1,8 @@
 """The pool's settings: one typed definition, with every default written once.
 
 :class:`PoolSettings` is what :func:`rogue_gym.make_vec`,
-:class:`rogue_gym.vector.RogueVectorEnv`, :class:`rogue_gym.sb3.RogueVecEnv` and the pool core
-take; the facades pass their keyword arguments through :meth:`PoolSettings.from_kwargs`, so a
+:class:`rogue_gym.vector.RogueVectorEnv`, :class:`rogue_gym.sb3.RogueVecEnv` and the native
+kind (:class:`rogue_gym.kinds.native.NativeKind`) take; the facades pass their keyword arguments through :meth:`PoolSettings.from_kwargs`, so a
 misspelt option is a ``TypeError`` that lists the valid ones. Its base :class:`PoolOptions` holds
 the options of the pool itself, which hosted envs take too. The env kinds
 (:mod:`rogue_gym.kinds`) turn the checked settings into the JSON object the native pool

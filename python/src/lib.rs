@@ -1,5 +1,6 @@
 //! Native module of the `rogue_gym` Python package: the engine (`Game`), the environment
-//! pool (`Pool`, with zero-copy views of worker blocks) and the worker entry point
+//! pool (`Pool`, with zero-copy views of its shared batch slots), the XLA handlers of `xla()`
+//! ([`xla`]) and the worker entry point
 //! (`worker_main`, run by `python -m rogue_gym.worker`), which also hosts gymnasium envs
 //! written in Python ([`worker`]).
 //!

@@ -209,7 +209,9 @@ def test_each_kind_serves_the_operations_its_table_declares_and_refuses_the_rest
         if op in served:
             assert len(env.call_envs(op, name, [(args, {})] * n)) == n, op
         else:
-            with pytest.raises(NotImplementedError, match=f"{who} does not serve .*'{op}'"):
+            with pytest.raises(
+                NotImplementedError, match=f"{getattr(who, 'value', who)} does not serve .*'{op}'"
+            ):
                 env.call_envs(op, name, [(args, {})] * n)
     env.step(_zeros(env))  # the pool goes on
 

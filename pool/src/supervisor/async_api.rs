@@ -9,7 +9,7 @@ use super::stepping::Actions;
 use super::workers::SlotState;
 use super::{Pool, Supervisor};
 use crate::error::PoolError;
-use crate::wire::{SLOT_ANSWER_WORDS, SLOT_EXTRA_APART, calls, extra_apart_path};
+use crate::wire::{SLOT_ANSWER_WORDS, SLOT_EXTRA_APART};
 
 /// How many envs an async [`Pool::recv_want`] hands over, and how long it may wait for them:
 /// it returns as soon as `max_batch` envs are ready, or at the deadline with every ready env
@@ -248,33 +248,15 @@ impl Supervisor {
     /// Take worker `k`'s answer written in place (its summary words), with the extra info
     /// that travelled beside it as `(env, bytes)`.
     fn take_in_place(&mut self, k: usize) -> Result<Vec<(usize, Vec<u8>)>, PoolError> {
-        let s = &mut self.slots[k];
-        let sample = match std::mem::replace(&mut s.state, SlotState::Idle) {
-            SlotState::Ready(sample) => sample,
-            other => {
-                s.state = other;
-                return Err(PoolError::State(format!("worker {k} has no answer ready")));
-            }
-        };
-        s.recycled = false;
+        let sample = self.take_answer(k)?;
+        self.slots[k].recycled = false;
         let bits = sample.payload()[..SLOT_ANSWER_WORDS][0];
         let seq = sample.user_header().seq;
         drop(sample);
         if bits & SLOT_EXTRA_APART == 0 {
             return Ok(Vec::new());
         }
-        let path = extra_apart_path(&self.id, k, self.slots[k].generation, seq);
-        let entries = calls::take(&path).map_err(|e| {
-            PoolError::Io(format!(
-                "worker {k}: the extra info beside answer {seq}: {e}"
-            ))
-        })?;
-        self.counts[k].spilled_bytes += entries.iter().map(|(_, b)| b.len() as u64).sum::<u64>();
-        let first = self.blocks[k].start;
-        Ok(entries
-            .into_iter()
-            .map(|(j, b)| (first + j as usize, b))
-            .collect())
+        self.take_apart(k, seq)
     }
 
     /// Send each free worker the envs staged for it.

@@ -11,6 +11,7 @@ mod calls;
 mod recycling;
 mod slot_answers;
 mod stepping;
+mod waiting;
 mod workers;
 
 use std::collections::VecDeque;
@@ -18,10 +19,7 @@ use std::ops::Range;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use rogue_gym_ipc::{
-    BlockListener, ChannelSettings, PoolId, SupervisorPorts, Svc, WaitCall, WaitOutcome,
-    hybrid_wait,
-};
+use rogue_gym_ipc::{BlockListener, ChannelSettings, PoolId, SupervisorPorts, Svc};
 
 use crate::config::{AutoresetMode, PoolConfig};
 use crate::env::EnvSpec;
@@ -32,9 +30,7 @@ use crate::stats::{StatsBuffer, SupervisorCounts, WorkerStats};
 use crate::wire::books::Books;
 use crate::wire::layout::BlockLayout;
 use crate::wire::slot_layout::SlotLayout;
-use crate::wire::{
-    BATCH_BUFFER, CMD_CLOSE, MAX_BATCH_SLOTS, WorkerConfig, block_range_of, shm_need,
-};
+use crate::wire::{BATCH_BUFFER, CMD_CLOSE, WorkerConfig, block_range_of, shm_need};
 
 pub use async_api::RecvWant;
 pub use async_envs::Received;
@@ -140,13 +136,6 @@ pub struct Pool {
 /// returning `true` aborts the call with [`PoolError::Interrupted`].
 pub type InterruptCheck = Box<dyn FnMut() -> bool + Send>;
 
-/// How long a wait must have lasted before the interrupt check runs (it runs between blocking
-/// wait slices, every `PoolConfig::wait.block_slice`, so the hot path never calls it).
-const INTERRUPT_AFTER: Duration = Duration::from_millis(5);
-
-/// How long before its bound a call gives up: time to build and raise the error.
-const DEADLINE_MARGIN: Duration = Duration::from_millis(20);
-
 impl std::fmt::Debug for Pool {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Pool")
@@ -174,51 +163,11 @@ impl Pool {
         registry: &EnvRegistry,
         interrupt: Option<InterruptCheck>,
     ) -> Result<Pool, PoolError> {
-        if cfg.num_workers == 0 || cfg.num_envs == 0 {
-            return Err(PoolError::Config(
-                "num_envs and num_workers must be at least 1".into(),
-            ));
-        }
-        if cfg.num_workers > cfg.num_envs {
-            return Err(PoolError::Config(format!(
-                "num_workers ({}) must not exceed num_envs ({}): each worker hosts at least one env",
-                cfg.num_workers, cfg.num_envs
-            )));
-        }
+        cfg.validate()?;
         let unit = cfg.block_unit;
-        if unit == 0 || !cfg.num_envs.is_multiple_of(unit) || cfg.num_workers > cfg.num_envs / unit
-        {
-            return Err(PoolError::Config(format!(
-                "envs come in groups of {unit} that stay on one worker (block_unit): num_envs \
-                 ({}) must be a multiple of it and num_workers ({}) at most num_envs / {unit}",
-                cfg.num_envs, cfg.num_workers
-            )));
-        }
         let blocks: Vec<Range<usize>> = (0..cfg.num_workers)
             .map(|k| block_range_of(cfg.num_envs, cfg.num_workers, k, unit))
             .collect();
-        if let Some(b) = cfg.batch_size
-            && !(1..=cfg.num_envs).contains(&b)
-        {
-            return Err(PoolError::Config(format!(
-                "batch_size ({b}) must be between 1 and num_envs ({})",
-                cfg.num_envs
-            )));
-        }
-        if cfg.max_borrowed < 2 {
-            return Err(PoolError::Config(
-                "max_borrowed must be at least 2 (one sample being received, one held)".into(),
-            ));
-        }
-        if !(2..=MAX_BATCH_SLOTS).contains(&cfg.batch_slots) {
-            return Err(PoolError::Config(format!(
-                "batch_slots must be between 2 and {MAX_BATCH_SLOTS}, got {}",
-                cfg.batch_slots
-            )));
-        }
-        cfg.seeds
-            .validate(cfg.num_envs as u64)
-            .map_err(PoolError::Config)?;
         let spec = match &cfg.spec {
             Some(s) => s.clone(),
             None => registry.make(&cfg.env, 0)?.spec(),
@@ -494,11 +443,6 @@ impl Pool {
             .step_timeout
             .map(|t| t + self.sup.cfg.start_timeout)
     }
-    /// The configuration.
-    pub fn config(&self) -> &PoolConfig {
-        &self.sup.cfg
-    }
-
     /// Install (or remove) a check run between the slices of any wait that has lasted at least
     /// 5 ms (every `PoolConfig::wait.block_slice`, 10 ms by default): if it returns `true`, the
     /// call fails with [`PoolError::Interrupted`] and the pool needs a reset (outstanding
@@ -508,84 +452,6 @@ impl Pool {
     /// XLA handler) can put it back afterwards.
     pub fn set_interrupt_check(&mut self, check: Option<InterruptCheck>) -> Option<InterruptCheck> {
         std::mem::replace(&mut self.interrupt, check)
-    }
-
-    fn wait_until(&mut self, done: impl Fn(&Supervisor) -> bool) -> Result<(), PoolError> {
-        self.wait_until_or(done, None).map(|_| ())
-    }
-
-    /// [`Pool::wait_until`], giving up at `until` too: `Ok(false)` then (nothing is abandoned;
-    /// wait again later). The call's own bound still raises.
-    fn wait_until_or(
-        &mut self,
-        done: impl Fn(&Supervisor) -> bool,
-        until: Option<Instant>,
-    ) -> Result<bool, PoolError> {
-        self.wait_for(|c| Ok(done(c)), until)
-    }
-
-    /// [`Pool::wait_until_or`] with a test that may act on what arrived (the async API turns
-    /// blocks into ready envs and sends staged envs to workers that became free).
-    fn wait_for(
-        &mut self,
-        mut done: impl FnMut(&mut Supervisor) -> Result<bool, PoolError>,
-        until: Option<Instant>,
-    ) -> Result<bool, PoolError> {
-        let listener = self.listener.as_ref().ok_or(PoolError::Closed)?;
-        let sup = &mut self.sup;
-        let interrupt = &mut self.interrupt;
-        let policy = sup.wait_now.unwrap_or(sup.cfg.wait);
-        let t0 = Instant::now();
-        let deadline = match (sup.call_deadline(), until) {
-            (Some(d), Some(u)) => Some(d.min(u)),
-            (d, u) => d.or(u),
-        };
-        let past_deadline =
-            |sup: &Supervisor| sup.call_deadline().is_some_and(|d| Instant::now() >= d);
-        let out = hybrid_wait::<PoolError>(listener.listener(), &policy, deadline, |call| {
-            if call == WaitCall::Idle {
-                if past_deadline(sup) {
-                    return Err(sup.not_back_in_time());
-                }
-                sup.check_liveness()?;
-                if past_deadline(sup) {
-                    return Err(sup.not_back_in_time());
-                }
-                if let Some(check) = interrupt.as_mut()
-                    && t0.elapsed() >= INTERRUPT_AFTER
-                    && check()
-                {
-                    sup.must_reset = true;
-                    return Err(PoolError::Interrupted);
-                }
-            }
-            sup.poll_all()?;
-            if sup.discard_faults {
-                // Env errors of abandoned commands; a worker lost meanwhile is still news.
-                sup.faults
-                    .retain(|f| !matches!(f, PoolError::EnvFailed { .. }));
-            }
-            if !sup.faults.is_empty() {
-                if !sup
-                    .slots
-                    .iter()
-                    .any(|s| matches!(s.state, SlotState::Pending { .. }))
-                {
-                    // Every worker of the call has answered or was handled: raise all its
-                    // failures at once, so that one reset clears them.
-                    let all = std::mem::take(&mut sup.faults);
-                    return Err(PoolError::collected(all).unwrap_or(PoolError::Interrupted));
-                } else {
-                    return Ok(false);
-                }
-            }
-            done(sup)
-        })?;
-        match out {
-            WaitOutcome::Done => Ok(true),
-            WaitOutcome::TimedOut if past_deadline(&self.sup) => Err(self.sup.not_back_in_time()),
-            WaitOutcome::TimedOut => Ok(false),
-        }
     }
 
     /// Start a public call: the pool must be open; the call's bound counts from now.
@@ -711,58 +577,6 @@ impl Supervisor {
             (Some(b), Some(seq)) if !s.first_episodes => Some(b.read(seq, i)),
             _ => None,
         }
-    }
-
-    /// When the current call must give up (see [`Pool::call_bound`]): a little before its
-    /// bound, so that the error is raised within it.
-    fn call_deadline(&self) -> Option<Instant> {
-        let (from, bound) = match self.cfg.step_timeout {
-            Some(t) => (self.call_started, t + self.cfg.start_timeout),
-            None => (self.call_failed_at?, self.cfg.start_timeout),
-        };
-        Some(from + bound - (bound / 20).min(DEADLINE_MARGIN))
-    }
-
-    /// The error of a call that reached its deadline: the workers it still waits for go on
-    /// coming back, and the pool needs a reset.
-    fn not_back_in_time(&mut self) -> PoolError {
-        self.must_reset = true;
-        let waiting = self
-            .slots
-            .iter()
-            .enumerate()
-            .filter_map(|(k, s)| {
-                let what = match s.state {
-                    SlotState::Down { .. } => "waiting out its restart backoff",
-                    SlotState::Starting { .. } => "starting",
-                    SlotState::Pending { .. } => "not answering",
-                    _ => return None,
-                };
-                Some((k, what))
-            })
-            .collect();
-        let bound = match self.cfg.step_timeout {
-            Some(t) => format!(
-                "{:?} (step_timeout {t:?} + start_timeout {:?})",
-                t + self.cfg.start_timeout,
-                self.cfg.start_timeout
-            ),
-            None => format!(
-                "start_timeout {:?} after the first worker failure (no step_timeout)",
-                self.cfg.start_timeout
-            ),
-        };
-        let err = PoolError::NotBackInTime {
-            waiting,
-            bound,
-            deaths: self.deaths,
-            restarts: self.restarts,
-            max_restarts: self.cfg.max_restarts,
-            last: self.last_failure.clone(),
-        };
-        let mut all = vec![err];
-        all.append(&mut self.faults);
-        PoolError::collected(all).unwrap_or(PoolError::Interrupted)
     }
 }
 

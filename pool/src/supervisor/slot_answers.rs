@@ -4,6 +4,8 @@
 
 use std::time::{Duration, Instant};
 
+use rogue_gym_ipc::BlockSample;
+
 use super::Supervisor;
 use super::workers::SlotState;
 use crate::batch::{SlotAnswer, SlotExtras};
@@ -60,14 +62,8 @@ impl Supervisor {
         let layout = self.slot_layout;
         let writer = self.writer_of(acc.answer.slot)?;
         while let Some(k) = self.ready_order.pop_front() {
+            let sample = self.take_answer(k)?;
             let s = &mut self.slots[k];
-            let sample = match std::mem::replace(&mut s.state, SlotState::Idle) {
-                SlotState::Ready(sample) => sample,
-                other => {
-                    s.state = other;
-                    return Err(PoolError::State(format!("worker {k} has no answer ready")));
-                }
-            };
             acc.answered += 1;
             let restarted = std::mem::take(&mut s.restarted);
             let block = self.blocks[k].clone();
@@ -88,18 +84,9 @@ impl Supervisor {
                 acc.answer.final_obs = true;
             }
             if bits & SLOT_EXTRA_APART != 0 {
-                let path = extra_apart_path(&self.id, k, self.slots[k].generation, seq);
-                let entries = calls::take(&path).map_err(|e| {
-                    PoolError::Io(format!(
-                        "worker {k}: the extra info beside answer {seq}: {e}"
-                    ))
-                })?;
-                self.counts[k].spilled_bytes +=
-                    entries.iter().map(|(_, b)| b.len() as u64).sum::<u64>();
+                let apart = self.take_apart(k, seq)?;
                 if !restarted {
-                    let first = block.start;
-                    acc.apart
-                        .extend(entries.into_iter().map(|(j, b)| (first + j as usize, b)));
+                    acc.apart.extend(apart);
                 }
             }
             if bits & SLOT_EXTRA_ANY == 0 || restarted {
@@ -119,6 +106,39 @@ impl Supervisor {
             acc.answer.extras = self.slot_extras(acc, &writer, &layout);
         }
         Ok(())
+    }
+
+    /// Worker `k`'s answer, which has arrived (it is idle again).
+    pub(super) fn take_answer(&mut self, k: usize) -> Result<BlockSample, PoolError> {
+        let s = &mut self.slots[k];
+        match std::mem::replace(&mut s.state, SlotState::Idle) {
+            SlotState::Ready(sample) => Ok(sample),
+            other => {
+                s.state = other;
+                Err(PoolError::State(format!("worker {k} has no answer ready")))
+            }
+        }
+    }
+
+    /// The extra info that did not fit its envs' rooms and travelled beside worker `k`'s
+    /// answer `seq` written in place, as `(env, bytes)`.
+    pub(super) fn take_apart(
+        &mut self,
+        k: usize,
+        seq: u64,
+    ) -> Result<Vec<(usize, Vec<u8>)>, PoolError> {
+        let path = extra_apart_path(&self.id, k, self.slots[k].generation, seq);
+        let entries = calls::take(&path).map_err(|e| {
+            PoolError::Io(format!(
+                "worker {k}: the extra info beside answer {seq}: {e}"
+            ))
+        })?;
+        self.counts[k].spilled_bytes += entries.iter().map(|(_, b)| b.len() as u64).sum::<u64>();
+        let first = self.blocks[k].start;
+        Ok(entries
+            .into_iter()
+            .map(|(j, b)| (first + j as usize, b))
+            .collect())
     }
 
     /// The extra info of a whole-batch call, once every worker answered.

@@ -502,9 +502,8 @@ mod tests {
 
     #[test]
     fn pool_and_block_are_send() {
-        use crate::batch::{Batch, Block};
+        use crate::batch::Block;
         assert_send::<Pool>();
         assert_send::<Block>();
-        assert_send::<Batch>();
     }
 }

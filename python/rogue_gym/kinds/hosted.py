@@ -31,7 +31,7 @@ from ..front.core import SUMMARY_FINAL, out_of_range, scalar_actions
 from ..protocol import NO_SEED, registry
 from ..protocol.infos import RESET_OBS, STEP_OBS, InfoDecoder, split_joined, vector_infos
 from ..protocol.layout import FIXED_SPACES, SpaceLayout, UnsupportedSpaceError, space_leaves
-from ..protocol.ops import SERVED_BY
+from ..protocol.ops import SERVED_BY, Interpreter
 from ..protocol.vector_contract import check_vector_env
 from ..settings import PoolOptions
 from .spec import EnvIds, KindFacts
@@ -236,7 +236,7 @@ class HostedKind:
         self._decoder = InfoDecoder()
         #: (SAME_STEP) each ended env's final dynamic leaves and last step info, until read.
         self._finals: dict[int, tuple[list[Any], dict[str, Any]]] = {}
-        who = "a hosted env" if hosted is None else "a hosted vector env"
+        who = Interpreter.HOSTED if hosted is None else Interpreter.HOSTED_VECTOR
         self.facts = KindFacts(
             num_envs=self.num_envs,
             single_observation_space=self.single_observation_space,

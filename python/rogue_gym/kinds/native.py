@@ -22,7 +22,7 @@ from ..envs.image import ObsSpec, observation_space
 from ..envs.palette import screen_to_rgb
 from ..envs.rogue_env import ACTIONS
 from ..front.core import out_of_range, scalar_actions
-from ..protocol.ops import op_table, run_op
+from ..protocol.ops import Interpreter, op_table, run_op
 from ..settings import PoolSettings
 from .seed_sets import seed_set
 from .spec import EnvIds, KindFacts
@@ -32,8 +32,8 @@ if TYPE_CHECKING:
 
 __all__ = ["RENDER_MODES", "WHO", "NativeKind"]
 
-#: This kind's name in :data:`rogue_gym.protocol.ops.SERVED_BY`.
-WHO = "the native game"
+#: This kind in :data:`rogue_gym.protocol.ops.SERVED_BY`.
+WHO = Interpreter.NATIVE
 
 #: How the native game's frames can be rendered: text (``ansi``), printed (``human``), or one
 #: pixel per cell (``rgb_array``).

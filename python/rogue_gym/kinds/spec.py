@@ -19,6 +19,8 @@ from typing import TYPE_CHECKING, Any, Callable, Optional, Protocol, Sequence, U
 import numpy as np
 from gymnasium import spaces
 
+from ..protocol.ops import Interpreter
+
 if TYPE_CHECKING:
     from ..front.core import Core, Result
 
@@ -45,7 +47,7 @@ class KindFacts:
     worker_command: Sequence[str]
     #: Who serves the env operations (named in refusals), and the operations served
     #: (:data:`rogue_gym.protocol.ops.ENV_OPS`).
-    who: str
+    who: Union[Interpreter, str]
     ops: frozenset[str]
     #: Longest episode the front logs for a replay (:attr:`Core.log`); ``None`` for a kind that
     #: does not render by replay.

@@ -7,9 +7,22 @@ table is refused with one message naming who refused it.
 
 from __future__ import annotations
 
-from typing import Any, Callable, Mapping
+from enum import Enum
+from typing import Any, Callable, Mapping, Union
 
-__all__ = ["ENV_OPS", "SERVED_BY", "OpTable", "op_table", "refuse_op", "run_op"]
+__all__ = ["ENV_OPS", "SERVED_BY", "Interpreter", "OpTable", "op_table", "refuse_op", "run_op"]
+
+
+class Interpreter(Enum):
+    """Who serves env operations; the value is how a refusal names it."""
+
+    #: The native game's kind, on the caller's side.
+    NATIVE = "the native game"
+    #: A worker's adapter of one gymnasium env per row.
+    HOSTED = "a hosted env"
+    #: A worker's adapter of one vector env per block.
+    HOSTED_VECTOR = "a hosted vector env"
+
 
 #: Every env operation, with what it does to one env.
 ENV_OPS: Mapping[str, str] = {
@@ -26,12 +39,12 @@ ENV_OPS: Mapping[str, str] = {
 }
 
 #: The operations each interpreter serves (its handlers are its ``_op_<operation>`` methods).
-SERVED_BY: Mapping[str, frozenset[str]] = {
-    "the native game": frozenset(
+SERVED_BY: Mapping[Interpreter, frozenset[str]] = {
+    Interpreter.NATIVE: frozenset(
         {"call", "env_method", "get_attr", "has_attr", "is_wrapped", "render", "set_reset_options"}
     ),
-    "a hosted env": frozenset(ENV_OPS),
-    "a hosted vector env": frozenset(
+    Interpreter.HOSTED: frozenset(ENV_OPS),
+    Interpreter.HOSTED_VECTOR: frozenset(
         {
             "call",
             "env_method",
@@ -49,20 +62,23 @@ SERVED_BY: Mapping[str, frozenset[str]] = {
 OpTable = Mapping[str, Callable[..., Any]]
 
 
-def op_table(interpreter: Any, who: str) -> OpTable:
+def op_table(interpreter: Any, who: Interpreter) -> OpTable:
     """The table of ``interpreter`` (one of :data:`SERVED_BY`): its ``_op_<operation>`` method
     for each operation it serves."""
     return {op: getattr(interpreter, f"_op_{op}") for op in sorted(SERVED_BY[who])}
 
 
-def refuse_op(who: str, op: str) -> NotImplementedError:
-    """The error for ``op`` asked of an interpreter (``who``) whose table lacks it."""
+def refuse_op(who: Union[Interpreter, str], op: str) -> NotImplementedError:
+    """The error for ``op`` asked of an interpreter (``who``: one of ours, or a kind of the
+    caller's own, by its name) whose table lacks it."""
     if op not in ENV_OPS:
         return NotImplementedError(f"{op!r} is no env operation; the operations: {list(ENV_OPS)}")
-    return NotImplementedError(f"{who} does not serve the env operation {op!r} ({ENV_OPS[op]})")
+    return NotImplementedError(
+        f"{getattr(who, 'value', who)} does not serve the env operation {op!r} ({ENV_OPS[op]})"
+    )
 
 
-def run_op(table: OpTable, who: str, op: str, name: str, *args: Any, **kwargs: Any) -> Any:
+def run_op(table: OpTable, who: Interpreter, op: str, name: str, *args: Any, **kwargs: Any) -> Any:
     """Run ``op`` through ``table``, or raise :func:`refuse_op`'s error."""
     handler = table.get(op)
     if handler is None:

@@ -27,12 +27,12 @@ from ..protocol import NO_SEED, registry
 from ..protocol.exceptions import EncodedEnvError, encode_exception
 from ..protocol.infos import RESET_OBS, STEP_OBS, FlatPlan, InfoEncoder
 from ..protocol.layout import SpaceLayout
-from ..protocol.ops import op_table, run_op
+from ..protocol.ops import Interpreter, op_table, run_op
 
 __all__ = ["WHO", "HostedEnv", "explained", "prepare"]
 
-#: This interpreter's name in :data:`rogue_gym.protocol.ops.SERVED_BY`.
-WHO = "a hosted env"
+#: This interpreter in :data:`rogue_gym.protocol.ops.SERVED_BY`.
+WHO = Interpreter.HOSTED
 
 
 def prepare(cfg: dict[str, Any]) -> None:

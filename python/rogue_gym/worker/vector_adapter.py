@@ -28,7 +28,7 @@ from ..protocol import NO_SEED
 from ..protocol.exceptions import EncodedEnvError, encode_exception
 from ..protocol.infos import InfoEncoder, split_vector_info
 from ..protocol.layout import SpaceLayout
-from ..protocol.ops import op_table, run_op
+from ..protocol.ops import Interpreter, op_table, run_op
 from ..protocol.vector_contract import check_vector_env
 from .env_adapter import explained, prepare
 
@@ -46,8 +46,8 @@ def _refuse_some(name: str, n: int) -> Any:
     )
 
 
-#: This interpreter's name in :data:`rogue_gym.protocol.ops.SERVED_BY`.
-WHO = "a hosted vector env"
+#: This interpreter in :data:`rogue_gym.protocol.ops.SERVED_BY`.
+WHO = Interpreter.HOSTED_VECTOR
 
 
 def _seed_arg(seeds: list[Optional[int]], envs: Any) -> Any:

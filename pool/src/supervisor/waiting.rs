@@ -1,0 +1,157 @@
+//! Waiting for the workers within a call's bound: the pool's one wait loop ([`Pool::wait_for`]
+//! and its two simpler forms), which polls and blocks as the wait policy says, checks the
+//! workers' liveness when idle, runs the interrupt check of a long wait, raises the failures
+//! of a call once every worker of it has answered, and gives up a little before the call's
+//! bound ([`Supervisor::call_deadline`]) with an error that says who is still missing.
+
+use std::time::{Duration, Instant};
+
+use rogue_gym_ipc::{WaitCall, WaitOutcome, hybrid_wait};
+
+use super::workers::SlotState;
+use super::{Pool, Supervisor};
+use crate::error::PoolError;
+
+/// How long a wait must have lasted before the interrupt check runs (it runs between blocking
+/// wait slices, every `PoolConfig::wait.block_slice`, so the hot path never calls it).
+const INTERRUPT_AFTER: Duration = Duration::from_millis(5);
+
+/// How long before its bound a call gives up: time to build and raise the error.
+const DEADLINE_MARGIN: Duration = Duration::from_millis(20);
+
+impl Pool {
+    pub(super) fn wait_until(
+        &mut self,
+        done: impl Fn(&Supervisor) -> bool,
+    ) -> Result<(), PoolError> {
+        self.wait_until_or(done, None).map(|_| ())
+    }
+
+    /// [`Pool::wait_until`], giving up at `until` too: `Ok(false)` then (nothing is abandoned;
+    /// wait again later). The call's own bound still raises.
+    pub(super) fn wait_until_or(
+        &mut self,
+        done: impl Fn(&Supervisor) -> bool,
+        until: Option<Instant>,
+    ) -> Result<bool, PoolError> {
+        self.wait_for(|c| Ok(done(c)), until)
+    }
+
+    /// [`Pool::wait_until_or`] with a test that may act on what arrived (the async API turns
+    /// blocks into ready envs and sends staged envs to workers that became free).
+    pub(super) fn wait_for(
+        &mut self,
+        mut done: impl FnMut(&mut Supervisor) -> Result<bool, PoolError>,
+        until: Option<Instant>,
+    ) -> Result<bool, PoolError> {
+        let listener = self.listener.as_ref().ok_or(PoolError::Closed)?;
+        let sup = &mut self.sup;
+        let interrupt = &mut self.interrupt;
+        let policy = sup.wait_now.unwrap_or(sup.cfg.wait);
+        let t0 = Instant::now();
+        let deadline = match (sup.call_deadline(), until) {
+            (Some(d), Some(u)) => Some(d.min(u)),
+            (d, u) => d.or(u),
+        };
+        let past_deadline =
+            |sup: &Supervisor| sup.call_deadline().is_some_and(|d| Instant::now() >= d);
+        let out = hybrid_wait::<PoolError>(listener.listener(), &policy, deadline, |call| {
+            if call == WaitCall::Idle {
+                if past_deadline(sup) {
+                    return Err(sup.not_back_in_time());
+                }
+                sup.check_liveness()?;
+                if past_deadline(sup) {
+                    return Err(sup.not_back_in_time());
+                }
+                if let Some(check) = interrupt.as_mut()
+                    && t0.elapsed() >= INTERRUPT_AFTER
+                    && check()
+                {
+                    sup.must_reset = true;
+                    return Err(PoolError::Interrupted);
+                }
+            }
+            sup.poll_all()?;
+            if sup.discard_faults {
+                // Env errors of abandoned commands; a worker lost meanwhile is still news.
+                sup.faults
+                    .retain(|f| !matches!(f, PoolError::EnvFailed { .. }));
+            }
+            if !sup.faults.is_empty() {
+                if !sup
+                    .slots
+                    .iter()
+                    .any(|s| matches!(s.state, SlotState::Pending { .. }))
+                {
+                    // Every worker of the call has answered or was handled: raise all its
+                    // failures at once, so that one reset clears them.
+                    let all = std::mem::take(&mut sup.faults);
+                    return Err(PoolError::collected(all).unwrap_or(PoolError::Interrupted));
+                } else {
+                    return Ok(false);
+                }
+            }
+            done(sup)
+        })?;
+        match out {
+            WaitOutcome::Done => Ok(true),
+            WaitOutcome::TimedOut if past_deadline(&self.sup) => Err(self.sup.not_back_in_time()),
+            WaitOutcome::TimedOut => Ok(false),
+        }
+    }
+}
+
+impl Supervisor {
+    /// When the current call must give up (see [`Pool::call_bound`]): a little before its
+    /// bound, so that the error is raised within it.
+    pub(super) fn call_deadline(&self) -> Option<Instant> {
+        let (from, bound) = match self.cfg.step_timeout {
+            Some(t) => (self.call_started, t + self.cfg.start_timeout),
+            None => (self.call_failed_at?, self.cfg.start_timeout),
+        };
+        Some(from + bound - (bound / 20).min(DEADLINE_MARGIN))
+    }
+
+    /// The error of a call that reached its deadline: the workers it still waits for go on
+    /// coming back, and the pool needs a reset.
+    pub(super) fn not_back_in_time(&mut self) -> PoolError {
+        self.must_reset = true;
+        let waiting = self
+            .slots
+            .iter()
+            .enumerate()
+            .filter_map(|(k, s)| {
+                let what = match s.state {
+                    SlotState::Down { .. } => "waiting out its restart backoff",
+                    SlotState::Starting { .. } => "starting",
+                    SlotState::Pending { .. } => "not answering",
+                    _ => return None,
+                };
+                Some((k, what))
+            })
+            .collect();
+        let bound = match self.cfg.step_timeout {
+            Some(t) => format!(
+                "{:?} (step_timeout {t:?} + start_timeout {:?})",
+                t + self.cfg.start_timeout,
+                self.cfg.start_timeout
+            ),
+            None => format!(
+                "start_timeout {:?} after the first worker failure (no step_timeout)",
+                self.cfg.start_timeout
+            ),
+        };
+        let err = PoolError::NotBackInTime {
+            waiting,
+            bound,
+            deaths: self.deaths,
+            restarts: self.restarts,
+            max_restarts: self.cfg.max_restarts,
+            last: self.last_failure.clone(),
+        };
+        let mut all = vec![err];
+        all.append(&mut self.faults);
+        PoolError::collected(all).unwrap_or(PoolError::Interrupted)
+    }
+}
