@@ -217,6 +217,10 @@ def test_bad_input_is_an_error_not_a_crash(pools: Callable[..., Any]) -> None:
         step(handle, jnp.array([0, 1, 5, 0], jnp.int32))[0].block_until_ready()
     with pytest.raises(Exception, match=r"4 actions|one action per env"):
         step(handle, jnp.array([0, 1], jnp.int32))[0].block_until_ready()
+    with pytest.raises(Exception, match="each env once"):
+        step(handle, jnp.array([0, 1, 1, 0], jnp.int32), jnp.array([0, 0, 1, 2], jnp.int32))[
+            0
+        ].block_until_ready()
     # Nothing was lost: a good step goes on.
     _, (obs, *_rest) = step(handle, jnp.array([0, 1, 1, 0], jnp.int32))
     assert np.asarray(obs).shape == (4, 4)

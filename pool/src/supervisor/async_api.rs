@@ -150,7 +150,8 @@ impl Pool {
                 timeout: want.timeout.unwrap_or_default(),
             });
         }
-        let writers = (0..self.sup.cfg.batch_slots)
+        // The slots' readers, for rows written in place (none without rows in place).
+        let writers = (0..self.sup.envs.in_place)
             .map(|slot| self.sup.writer_of(slot))
             .collect::<Result<Vec<_>, _>>()?;
         let got = self.sup.envs.take(max, self.sup.spec.obs_bytes(), &writers);

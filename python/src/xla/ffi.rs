@@ -130,7 +130,6 @@ pub enum DataType {
     U16,
     U32,
     U64,
-    F16,
     F32,
     F64,
 }
@@ -148,7 +147,6 @@ impl DataType {
             7 => DataType::U16,
             8 => DataType::U32,
             9 => DataType::U64,
-            10 => DataType::F16,
             11 => DataType::F32,
             12 => DataType::F64,
             _ => return None,
@@ -159,8 +157,7 @@ impl DataType {
     pub fn size(self) -> usize {
         match self {
             DataType::Pred | DataType::S8 | DataType::U8 => 1,
-            DataType::S16 | DataType::U16 | DataType::F16 => 2,
-            DataType::S32 | DataType::U32 | DataType::F32 => 4,
+            DataType::S16 | DataType::U16 | DataType::S32 | DataType::U32 | DataType::F32 => 4,
             DataType::S64 | DataType::U64 | DataType::F64 => 8,
         }
     }

@@ -91,46 +91,37 @@ impl Buf {
             .collect()
     }
 
-    /// Write `values` (one per element, in order) converted to the buffer's type.
-    fn put(&mut self, values: impl Iterator<Item = f64>) {
+    /// Write `values` (one per element, in order) converted to the buffer's type: one of
+    /// those `rogue_gym.xla` declares the outputs with (float32, int32, bool), or their
+    /// 64-bit forms. The type is matched once, not per element.
+    fn put(&mut self, values: impl Iterator<Item = f64>) -> Result<(), String> {
         let n = self.len();
-        let p = self.data;
-        // SAFETY: each write is to element `i < len` of a result buffer of `dtype`.
-        unsafe {
-            for (i, v) in values.take(n).enumerate() {
-                match self.dtype {
-                    DataType::Pred => *p.add(i) = u8::from(v != 0.0),
-                    DataType::U8 => *p.add(i) = v as u8,
-                    DataType::S8 => *(p as *mut i8).add(i) = v as i8,
-                    DataType::S16 => *(p as *mut i16).add(i) = v as i16,
-                    DataType::U16 => *(p as *mut u16).add(i) = v as u16,
-                    DataType::S32 => *(p as *mut i32).add(i) = v as i32,
-                    DataType::U32 => *(p as *mut u32).add(i) = v as u32,
-                    DataType::S64 => *(p as *mut i64).add(i) = v as i64,
-                    DataType::U64 => *(p as *mut u64).add(i) = v as u64,
-                    DataType::F16 => *(p as *mut u16).add(i) = f16_bits(v as f32),
-                    DataType::F32 => *(p as *mut f32).add(i) = v as f32,
-                    DataType::F64 => *(p as *mut f64).add(i) = v,
+        macro_rules! fill {
+            ($t:ty, $conv:expr) => {{
+                // SAFETY: a result buffer of `n` elements of this type, alive for the call.
+                let dst = unsafe { std::slice::from_raw_parts_mut(self.data.cast::<$t>(), n) };
+                for (d, v) in dst.iter_mut().zip(values) {
+                    *d = $conv(v);
                 }
+            }};
+        }
+        match self.dtype {
+            DataType::F32 => fill!(f32, |v: f64| v as f32),
+            DataType::F64 => fill!(f64, |v: f64| v),
+            DataType::S32 => fill!(i32, |v: f64| v as i32),
+            DataType::S64 => fill!(i64, |v: f64| v as i64),
+            DataType::Pred | DataType::U8 => fill!(u8, |v: f64| u8::from(v != 0.0)),
+            other => {
+                return Err(format!(
+                    "recv(): an output of type {other:?} is not written here"
+                ));
             }
         }
+        Ok(())
     }
 
-    fn put_bools(&mut self, values: &[bool]) {
-        self.put(values.iter().map(|&b| f64::from(u8::from(b))));
-    }
-}
-
-/// The bits of `x` as an IEEE half (round toward zero; enough for rewards logged in f16).
-fn f16_bits(x: f32) -> u16 {
-    let b = x.to_bits();
-    let sign = ((b >> 16) & 0x8000) as u16;
-    let exp = ((b >> 23) & 0xff) as i32 - 127 + 15;
-    let man = ((b >> 13) & 0x3ff) as u16;
-    match exp {
-        e if e <= 0 => sign,
-        e if e >= 31 => sign | 0x7c00,
-        e => sign | ((e as u16) << 10) | man,
+    fn put_bools(&mut self, values: &[bool]) -> Result<(), String> {
+        self.put(values.iter().map(|&b| f64::from(u8::from(b))))
     }
 }
 
@@ -142,7 +133,7 @@ pub(crate) struct Outputs<'a> {
 
 impl Outputs<'_> {
     /// Write the batch `out` (its rows in order) into the outputs after `obs`.
-    pub(crate) fn write(&mut self, out: &BatchOutput, n_info: usize) {
+    pub(crate) fn write(&mut self, out: &BatchOutput, n_info: usize) -> Result<(), String> {
         let [
             reward,
             terminated,
@@ -153,19 +144,20 @@ impl Outputs<'_> {
             info @ ..,
         ] = self.rest
         else {
-            return;
+            return Err("recv() has too few results".into());
         };
-        reward.put(out.reward.iter().copied());
-        terminated.put_bools(&out.terminated);
-        truncated.put_bools(&out.truncated);
-        env_id.put(out.env_ids.iter().map(|&e| e as f64));
-        elapsed.put(out.episode_length.iter().map(|&l| f64::from(l)));
-        restarted.put_bools(&out.restarted);
+        reward.put(out.reward.iter().copied())?;
+        terminated.put_bools(&out.terminated)?;
+        truncated.put_bools(&out.truncated)?;
+        env_id.put(out.env_ids.iter().map(|&e| e as f64))?;
+        elapsed.put(out.episode_length.iter().map(|&l| f64::from(l)))?;
+        restarted.put_bools(&out.restarted)?;
         if let [info] = info
             && n_info > 0
         {
-            info.put(out.info.iter().copied());
+            info.put(out.info.iter().copied())?;
         }
+        Ok(())
     }
 }
 

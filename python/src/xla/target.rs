@@ -121,14 +121,19 @@ impl XlaTarget {
                 ids.len()
             ));
         }
-        let staged = self.actions(action, &ids)?;
         if self.sync() {
-            if ids.len() != self.num_envs {
+            let mut seen = vec![false; self.num_envs];
+            if ids.len() != self.num_envs
+                || ids.iter().any(|&e| std::mem::replace(&mut seen[e], true))
+            {
                 return Err(format!(
-                    "this pool steps all its {} envs at once (batch_size = num_envs): send one action per env",
+                    "this pool steps all its {} envs at once (batch_size = num_envs): send one action per env, each env once",
                     self.num_envs
                 ));
             }
+        }
+        let staged = self.actions(action, &ids)?;
+        if self.sync() {
             state.staged = Some(staged);
             return Ok(());
         }
@@ -199,7 +204,7 @@ impl XlaTarget {
                 self.with_pool(|p| p.step_actions(staged.as_actions(), scratch, out))?;
                 copy_rows(scratch, ob, obs, own);
             }
-            outs.write(out, self.n_info);
+            outs.write(out, self.n_info)?;
             return Ok(());
         }
         let (got, writer) = self.with_pool(|p| {
@@ -216,7 +221,7 @@ impl XlaTarget {
             _ => copy_rows(&got.obs, ob, obs, own),
         }
         got.fill(self.n_info, &mut state.out);
-        outs.write(&state.out, self.n_info);
+        outs.write(&state.out, self.n_info)?;
         state.last_ids.clone_from(&got.env_ids);
         Ok(())
     }
