@@ -277,11 +277,10 @@ class EnvPoolEnv(gym.Env):
             self._pool = source(num_workers=workers, batch_size=batch_size, copy=True)
         else:
             self._pool = PoolVectorEnv(source, num_workers=workers, batch_size=batch_size)
-        self._ended = np.zeros(self.num_envs, bool)
+        #: The pool's call lifecycle (started, ended episodes, the last recv's envs).
+        self._state = self._pool.call_state
         self._seeded = False
-        self._started = False
         self._actions: Optional[np.ndarray] = None
-        self._last_ids: Optional[np.ndarray] = None
         self._xla_used = False
 
     # -- EnvPool's properties --------------------------------------------------------------
@@ -343,14 +342,12 @@ class EnvPoolEnv(gym.Env):
             first = self._recv()
             return first[0], first[4]
         ids = self.all_env_ids if env_id is None else np.atleast_1d(np.asarray(env_id, np.int32))
-        if env_id is None or not self._started:
+        if env_id is None or not self._state.started:
             obs, infos = self._pool.reset(seed=self._seed())
         else:
             full = np.zeros(self.num_envs, bool)
             full[ids] = True
             obs, infos = self._pool.reset(options={"reset_mask": full})
-        self._started = True
-        self._ended[ids] = False
         rows = self.all_env_ids
         info = self._info(infos, rows, np.zeros(self.num_envs, np.float64))
         if env_id is None:
@@ -366,9 +363,6 @@ class EnvPoolEnv(gym.Env):
     def async_reset(self) -> None:
         """Start resetting every env; collect the first batches with :meth:`recv`."""
         self._pool.async_reset(seed=self._seed())
-        self._started = True
-        self._ended[:] = False
-        self._last_ids = None
 
     def send(self, action: Any, env_id: Optional[Any] = None) -> None:
         """Send ``action`` (one row per env of ``env_id``) to the envs ``env_id``."""
@@ -380,12 +374,14 @@ class EnvPoolEnv(gym.Env):
                     "num_envs): send one action per env, or make it with a smaller batch_size "
                     "to step some envs at a time"
                 )
-            if not self._started:
+            if not self._state.started:
                 raise RuntimeError("call reset() (or async_reset()) before step()")
             order = None if env_id is None else np.argsort(np.asarray(env_id))
             self._actions = actions if order is None else actions[order]
             return
-        ids = self._last_ids if env_id is None else np.atleast_1d(np.asarray(env_id, np.int64))
+        ids = (
+            self._state.last_ids if env_id is None else np.atleast_1d(np.asarray(env_id, np.int64))
+        )
         if ids is None:
             raise RuntimeError("send() needs env_id, or a recv() before it whose envs it answers")
         self._pool.send(actions, ids)
@@ -412,8 +408,6 @@ class EnvPoolEnv(gym.Env):
         else:
             obs, rewards, terminated, truncated, infos = self._pool.recv()
             ids = np.asarray(infos["env_id"], np.int32)
-            self._last_ids = ids.astype(np.int64)
-        self._ended[ids] = terminated | truncated
         info = self._info(infos, ids, rewards)
         reward = np.asarray(rewards, np.float32)
         if self._clip:
@@ -432,7 +426,7 @@ class EnvPoolEnv(gym.Env):
             lives = np.asarray(info.get("lives", np.zeros(len(ids))), np.int32)
             info["lives"] = lives
             info["reward"] = np.asarray(rewards, np.float32)
-            info["terminated"] = self._ended[ids].astype(np.int32) & (lives == 0)
+            info["terminated"] = self._state.ended[ids].astype(np.int32) & (lives == 0)
         env_id = np.asarray(ids, np.int32)
         info["env_id"] = env_id
         info["players"] = {"env_id": env_id.copy()}
@@ -473,7 +467,7 @@ class EnvPoolEnv(gym.Env):
 
         info: dict[str, Any] = {}
         if raw.info is not None:
-            for j, name in enumerate(self._pool._core.info_names):
+            for j, name in enumerate(self._pool._core.layout.info_names):
                 value = raw.info[:, j]
                 info[name] = value.astype(bool) if name in _BOOL_INFOS else value.astype(jnp.int32)
         reward = raw.reward

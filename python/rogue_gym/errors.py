@@ -1,12 +1,18 @@
-"""Exceptions raised by the pool."""
+"""Exceptions raised by the pool, and the messages every env kind words alike."""
 
 from __future__ import annotations
 
-from typing import Optional
+from typing import Any, Optional
 
 from gymnasium.error import ClosedEnvironmentError
 
-__all__ = ["EnvFailedError", "PoolClosedError", "WorkerCrashedError"]
+__all__ = [
+    "EnvFailedError",
+    "PoolClosedError",
+    "WorkerCrashedError",
+    "out_of_range",
+    "scalar_actions",
+]
 
 #: The message of every call on a closed pool, whatever the env kind.
 CLOSED_MESSAGE = "the pool is closed: its workers are stopped for good; create a new one"
@@ -97,3 +103,22 @@ class EnvFailedError(RuntimeError):
         self.pid = pid
         self.context = context
         self.detail = detail
+
+
+def scalar_actions(n: int) -> str:
+    """The message of a ``TypeError`` for one action given to a vector env of ``n`` envs (as
+    gymnasium's vector envs refuse it)."""
+    return (
+        f"expected a batch of actions, one per env ({n}), got a scalar: a vector env takes "
+        "an array of shape (num_envs, ...)"
+    )
+
+
+def out_of_range(env: int, action: Any, low: int, high: int, space: Any = None) -> str:
+    """The message of a ``ValueError`` for env ``env``'s ``action`` outside ``low`` to
+    ``high`` (of ``space``, when named); the pool's own check words it the same."""
+    of = "" if space is None else f" of {space}"
+    count = f" (range({high + 1}))" if low == 0 else ""
+    return (
+        f"env {env}: action {action} is out of range{of}; valid actions are {low} to {high}{count}"
+    )

@@ -44,7 +44,7 @@ def test_dynamic_leaves_match_sync_vector_env(pool, mode) -> None:
 def test_fixed_leaves_stay_zero_copy_and_nothing_is_pickled_without_dynamic_leaves(pool) -> None:
     ours = pool([NoteEnv] * 2, num_workers=1, copy=False)
     obs, _ = ours.reset(seed=0)
-    slot = ours._core.slots[ours._core.slot]
+    slot = ours._core.slots[ours._core.state.slot]
     assert np.shares_memory(obs["pos"], slot), "the Box leaf is a view of shared memory"
     assert isinstance(obs["note"], tuple) and obs["note"] == ("", "")
     fixed = pool([NestedEnv] * 2, num_workers=1)

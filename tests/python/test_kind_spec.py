@@ -6,14 +6,16 @@ lifecycle, resets, partial resets, the async API, refusing what the kind does no
 from __future__ import annotations
 
 import sys
-from typing import Any, Callable, Optional, Sequence
+from typing import Any, Optional, Sequence
 
 import numpy as np
 import pytest
 from gymnasium import spaces
-from rogue_gym.front.core import Core, Result
 from rogue_gym.front.vector_env import FrontVectorEnv
+from rogue_gym.kinds.final_obs import add_final_obs
+from rogue_gym.kinds.result import Result
 from rogue_gym.kinds.spec import EnvIds, Kind, KindFacts
+from rogue_gym.kinds.view import PoolView
 from rogue_gym.protocol.ops import run_op
 from rogue_gym.settings import PoolOptions
 
@@ -24,7 +26,8 @@ OBS_SHAPE, NUM_ACTIONS, MAX_STEPS = (6,), 3, 5
 
 
 class ToyKind:
-    """The least a kind needs: facts, settings, codecs, seeds, infos, operations, render."""
+    """The least a kind needs: facts, settings, codecs, seeds, infos, operations, render; it
+    reads the pool through the view it is bound to."""
 
     def __init__(
         self, num_envs: int, obs_shape: tuple[int, ...] = OBS_SHAPE, num_workers: int = 2
@@ -42,6 +45,7 @@ class ToyKind:
             ops=frozenset({"call"}),
         )
         self._base = 0
+        self.view: Optional[PoolView] = None
 
     def pool_settings(self) -> dict[str, Any]:
         env = {"kind": "test", "obs_shape": list(self.obs_shape), "num_actions": NUM_ACTIONS}
@@ -58,19 +62,16 @@ class ToyKind:
             "policy": "sequential",
         }
 
-    def bind(self, core: Core) -> None:
-        pass
+    def bind(self, view: PoolView) -> None:
+        self.view = view
 
     def batch_views(self, rows: np.ndarray) -> np.ndarray:
         return rows.reshape((rows.shape[0], *self.obs_shape))
 
-    def obs_filler(self) -> Optional[Callable[[Any, Optional[np.ndarray]], Any]]:
-        return None
-
     def actions(self, actions: Any, env_ids: Optional[EnvIds]) -> np.ndarray:
         return np.asarray(actions, np.int64)
 
-    def seeds(self, seed: Any, mask: Optional[np.ndarray], core: Core) -> Optional[dict[str, Any]]:
+    def seeds(self, seed: Any, mask: Optional[np.ndarray]) -> Optional[dict[str, Any]]:
         if mask is not None:
             raise ValueError("the toy env's seeds are a schedule: no seeded partial resets")
         if seed is None:
@@ -78,16 +79,15 @@ class ToyKind:
         self._base = int(seed)
         return self._schedule()
 
-    def infos(self, core: Core, result: Result, only: Optional[np.ndarray]) -> dict[str, Any]:
+    def infos(self, result: Result, only: Optional[np.ndarray]) -> dict[str, Any]:
         t = result.cols["info_int"][0].copy()
-        return {"t": t, "_t": np.ones(result.rows, bool) if only is None else only}
-
-    def final(self, core: Core, env: int) -> tuple[Any, dict[str, Any]]:
-        return core.final_obs(env), {}  # SAME_STEP: the slot's final observation
+        infos = {"t": t, "_t": np.ones(result.rows, bool) if only is None else only}
+        assert self.view is not None
+        # SAME_STEP: the slot's final observations, as they are, with no info of their own.
+        return add_final_obs(infos, self.view, result, self.batch_views, lambda e, o: (o, {}))
 
     def call(
         self,
-        core: Core,
         op: str,
         name: str,
         arguments: Sequence[tuple[tuple[Any, ...], dict[str, Any]]],
@@ -96,10 +96,7 @@ class ToyKind:
         table = {"call": lambda name, env: {"max_steps": MAX_STEPS}[name]}
         return [run_op(table, self.facts.who, op, name, env) for env in indices]
 
-    def info_counts(self) -> tuple[int, int]:
-        return 0, 0
-
-    def render(self, core: Core) -> Optional[tuple[Any, ...]]:
+    def render(self) -> Optional[tuple[Any, ...]]:
         return None
 
 
@@ -152,3 +149,37 @@ def test_the_toy_kind_is_deterministic_through_the_async_api_too(toy) -> None:
         pooled.send(a, np.arange(4))
         obs, *_, infos = pooled.recv()
         assert np.array_equal(obs[np.argsort(infos["env_id"])], want)
+
+
+def test_same_step_final_observations_come_with_the_kinds_infos(toy) -> None:
+    env = toy(autoreset_mode="SameStep")
+    env.reset(seed=1)
+    ended = np.zeros(4, bool)
+    for _ in range(MAX_STEPS):
+        obs, _, term, trunc, infos = env.step(np.ones(4, np.int64))
+        ended = term | trunc
+        if ended.any():
+            break
+    assert ended.any()
+    assert infos["_final_obs"].tolist() == ended.tolist()
+    for e in np.flatnonzero(ended):
+        final = infos["final_obs"][e]
+        assert final.shape == OBS_SHAPE and not np.shares_memory(final, obs)
+
+
+def test_a_bound_kind_makes_no_reference_cycle_with_the_front() -> None:
+    """The kind keeps its view, not the front: dropping the last reference to the vector env
+    frees its core (and stops its workers) at once, with the cycle collector off."""
+    import gc
+    import weakref
+
+    gc.disable()
+    try:
+        env = FrontVectorEnv(ToyKind(2))
+        env.reset(seed=0)
+        name, core = env.pool_name, weakref.ref(env._core)
+        del env
+        assert core() is None
+        assert pool_files(name) == []
+    finally:
+        gc.enable()

@@ -176,7 +176,7 @@ def test_rows_stay_whole_through_many_steps_and_kills() -> None:
             state = np.zeros(8, np.uint64)
             for k in range(8):
                 state |= (obs[:, k] ^ np.uint8(k)).astype(np.uint64) << np.uint64(8 * k)
-            cols = env._core.cols[env._core.slot]
+            cols = env._core.cols[env._core.state.slot]
             where = f"step {step}"
             np.testing.assert_array_equal(cols["info_int"][0], cols["episode_length"], where)
             np.testing.assert_array_equal(cols["info_int"][1], state % np.uint64(1000), where)

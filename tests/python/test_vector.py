@@ -532,8 +532,8 @@ def test_render_replay_follows_a_partial_reset(make_vec) -> None:
         for t, a in enumerate(acts):
             env.step(a)
             # The episode log follows every env's episode (length as the columns say).
-            cols = env._core.cols[env._core.slot]
-            assert np.array_equal(env._core.log.length, cols["episode_length"]), t
+            cols = env._core.cols[env._core.state.slot]
+            assert np.array_equal(env._core.state.log.length, cols["episode_length"]), t
             if m is not None and t == 3:  # all envs just ended: unmasked ones autoreset next
                 env.reset(options={"reset_mask": m})
         screens.append(env.render())

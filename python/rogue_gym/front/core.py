@@ -5,109 +5,39 @@ keeps of it: views of the shared-memory batch slots, where the workers write eve
 output of a whole-batch call in place (observations, the columns of rewards, flags, counters
 and info values, SAME_STEP final observations, extra info), the column buffer of ``recv``,
 the lending of slots
-(:mod:`rogue_gym.front.leases`), and the call lifecycle every kind shares: whether the envs
-were reset (:attr:`Core.started`), which episodes ended at the last call (:attr:`Core.ended`)
-and, for kinds that render by replay, each env's actions since its episode began
-(:attr:`Core.log`). Every call returns one :class:`Result`. It knows nothing of gymnasium's or
-SB3's API: the facades in :mod:`rogue_gym.front` build those over it, and the env kind
-(:mod:`rogue_gym.kinds`) turns slot bytes into observations and columns into infos.
+(:mod:`rogue_gym.front.leases`), and the call lifecycle every kind shares
+(:attr:`Core.state`, a :class:`rogue_gym.kinds.view.CallState`). Every call returns one
+:class:`rogue_gym.kinds.result.Result`. It knows nothing of gymnasium's or SB3's API: the
+facades in :mod:`rogue_gym.front` build those over it, and the env kind
+(:mod:`rogue_gym.kinds`), reading the pool through its view
+(:class:`rogue_gym.front.pool_view.CoreView`), turns slot bytes into observations and columns
+into infos.
 """
 
 from __future__ import annotations
 
 import errno
 import json
-import pickle
 import weakref
-from typing import TYPE_CHECKING, Any, Callable, NoReturn, Optional, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Optional
 
 import numpy as np
 
 from .. import _native
 from ..errors import CLOSED_MESSAGE, EnvFailedError, PoolClosedError
-from ..protocol.exceptions import decode_exception
+from ..kinds.episode_log import EpisodeLog
+from ..kinds.result import Extras, Result, copy_tree
+from ..kinds.view import CallState, PoolLayout
 from ..protocol.infos import HEAD
 from . import leases, sigterm
-from .episode_log import EpisodeLog
+from .pool_view import CoreView
 from .stats import PoolStats, WorkerStats
+from .worker_errors import reraise
 
 if TYPE_CHECKING:
     from ..kinds.spec import Kind
 
-__all__ = [
-    "SUMMARY_FINAL",
-    "SUMMARY_RESTARTED",
-    "Core",
-    "Result",
-    "copy_tree",
-    "mark_restarted",
-    "out_of_range",
-    "raised_in_worker",
-    "reraise",
-    "row_of",
-    "scalar_actions",
-]
-
-#: Bit of a result's summary: some env's worker was restarted during the call.
-SUMMARY_RESTARTED: int = _native.SUMMARY_RESTARTED
-#: Bit of a result's summary: some env has a final observation (SAME_STEP).
-SUMMARY_FINAL: int = _native.SUMMARY_FINAL
-
-#: A call's extra info: ``(rows, data, size, ends)`` (see
-#: :func:`rogue_gym.protocol.infos.split_joined`), ``data`` being the joined bytes or, when
-#: every env wrote ``size`` bytes of one layout, the slot's extra-info room (``num_envs x
-#: extra_bytes``, read in place); or ``None`` when no env wrote any.
-Extras = Optional[tuple[Optional[list[int]], Any, int, list[int]]]
-
-
-class Result:
-    """One call's result, in the one form every call has: per-env values as columns.
-
-    A whole-batch call (step, reset, partial reset) has one row per env, in env order, in the
-    column buffer of the batch ``slot`` it wrote (reused by a later call that writes the same
-    slot). A ``recv`` has one row per env received (``env_ids``), in the ``recv`` buffer, and
-    its observations (``obs``, a fresh copy).
-    """
-
-    __slots__ = ("cols", "env_ids", "extras", "obs", "rows", "slot", "summary")
-
-    def __init__(
-        self,
-        cols: dict[str, np.ndarray],
-        summary: int,
-        extras: Extras,
-        slot: Optional[int] = None,
-        env_ids: Optional[np.ndarray] = None,
-        obs: Optional[np.ndarray] = None,
-    ) -> None:
-        #: Column name to array (``rows`` entries; ``info_int``/``info_bool``: one row each).
-        self.cols = cols
-        #: ``SUMMARY_*`` bits.
-        self.summary = summary
-        #: The joined extra info of the rows that wrote some (hosted envs' infos).
-        self.extras = extras
-        #: The batch slot written (whole-batch calls), else ``None``.
-        self.slot = slot
-        #: The env of each row (``recv``), else ``None`` (every env, in order).
-        self.env_ids = env_ids
-        #: The rows' observations as bytes, ``(rows, obs_bytes)`` (``recv``), else ``None``.
-        self.obs = obs
-        #: Rows of the result.
-        self.rows = len(cols["reward"])
-
-    @property
-    def restarted(self) -> Optional[np.ndarray]:
-        """The rows whose env's worker was restarted during the call, or ``None`` if none."""
-        return self.cols["restarted"] if self.summary & SUMMARY_RESTARTED else None
-
-    @property
-    def ended(self) -> np.ndarray:
-        """The rows whose episode ended at the call (terminated or truncated)."""
-        return self.cols["terminated"] | self.cols["truncated"]
-
-    def ids(self) -> np.ndarray:
-        """The env of each row."""
-        return np.arange(self.rows) if self.env_ids is None else self.env_ids
+__all__ = ["Core", "mark_restarted"]
 
 
 class Core:
@@ -121,7 +51,8 @@ class Core:
             are then lent (the slot is not written again while a returned array lives) rather
             than copied.
     The kind's ``facts.log_steps`` (not ``None``: it renders by replay) has each env's actions
-    since its episode began kept in :attr:`log`, for episodes of up to that many steps.
+    since its episode began kept in the call state's ``log``, for episodes of up to that many
+    steps.
     """
 
     def __init__(self, kind: Kind, *, same_step: bool, copy: bool) -> None:
@@ -154,10 +85,6 @@ class Core:
         #: Bytes of one env's observation in a batch slot.
         self.obs_bytes: int = int(self.pool.obs_bytes)
         lend = self.copy and n * self.obs_bytes >= leases.LEND_MIN_BYTES
-        #: One env's observation as the workers write it: shape, dtype name, info value names.
-        self.obs_shape = tuple(self.pool.obs_shape)
-        self.obs_dtype = str(self.pool.obs_dtype)
-        self.info_names: list[str] = list(self.pool.info_names)
         areas = self.pool.slot_views()
         #: Each batch slot's observations as the workers write them (``num_envs x obs_bytes``).
         self.slots = [np.asarray(a[0]).reshape(n, self.obs_bytes) for a in areas]
@@ -171,29 +98,42 @@ class Core:
         self.extra_rooms = [
             None if a[3] is None else np.asarray(a[3]).reshape(n, -1) for a in areas
         ]
-        layout, total = self.pool.column_layout()
+        #: One env's observation as the workers write it, info value names, batch slots.
+        self.layout = PoolLayout(
+            tuple(self.pool.obs_shape),
+            str(self.pool.obs_dtype),
+            tuple(self.pool.info_names),
+            len(areas),
+        )
+        columns, total = self.pool.column_layout()
         #: Each slot's columns (the per-env values the workers wrote in place), then ``recv``'s.
-        self.cols = [self._columns(np.asarray(a[1]), layout) for a in areas]
+        self.cols = [self._columns(np.asarray(a[1]), columns) for a in areas]
         recv = np.zeros(total, np.uint8)
         self.pool.bind_recv_columns(recv, HEAD)
-        self.cols.append(self._columns(recv, layout))
+        self.cols.append(self._columns(recv, columns))
         # Async step answers are written in place in the slots (``recv`` hands out views)
         # unless slots are lent out: a lent slot must not be written while it is lent.
         self.pool.async_in_place(self.lender is None)
-        #: The slot written by the last whole-batch call (``None`` before the first).
-        self.slot: Optional[int] = None
         #: The last call's result (``None`` before the first).
         self.last: Optional[Result] = None
         self._views: dict[tuple[int, int, int], tuple[dict[str, np.ndarray], Any]] = {}
-        #: Whether the envs were reset (a reset, or ``async_reset``) since the pool started.
-        self.started = False
-        #: The envs whose episode ended at their last call (terminated or truncated).
-        self.ended = np.zeros(n, bool)
-        #: Each env's actions since its episode began (kinds that render by replay).
-        self.log = None if facts.log_steps is None else EpisodeLog(n, facts.log_steps)
+        #: The call lifecycle: written by the facades, read by the kind through its view.
+        self.state = CallState(n)
+        if facts.log_steps is not None:
+            self.state.log = EpisodeLog(n, facts.log_steps)
         #: Observation batches handed out: lent, copied, or as views (``stats()``).
         self.lent = self.copied = self.viewed = 0
-        kind.bind(self)
+        #: The pool as the kind reads it (no reference back to this object).
+        self.view = CoreView(
+            self.pool,
+            copy=self.copy,
+            same_step=self.same_step,
+            layout=self.layout,
+            state=self.state,
+            cols=self.cols,
+            finals=self.finals,
+        )
+        kind.bind(self.view)
 
     def _columns(
         self, area: np.ndarray, layout: list[tuple[str, str, int, int, int]]
@@ -239,7 +179,7 @@ class Core:
         """The result of a whole-batch call, from the native ``(slot, summary, extras)``
         (extras of one layout are read in place, in the slot's extra-info room)."""
         slot, summary, extras = r
-        self.slot = slot
+        self.state.slot = slot
         if extras is not None and extras[1] is None:
             room = self.extra_rooms[slot]
             assert room is not None
@@ -292,33 +232,6 @@ class Core:
             return copy_tree(self.views[slot])
         self.viewed += 1
         return self.views[slot]
-
-    def final_obs(self, env: int) -> Any:
-        """(SAME_STEP) env ``env``'s final observation of the last call, a fresh copy."""
-        final = None if self.slot is None else self.finals[self.slot]
-        assert final is not None
-        return copy_tree(row_of(self.kind.batch_views(final[env : env + 1]), 0))
-
-    def stage_action_extras(self, extras: list[tuple[int, bytes]]) -> None:
-        """Stage the pickled parts of no fixed size of the next step's actions, ``(env id,
-        bytes)`` each: the step command to each env's worker carries them."""
-        self.call(self.pool.stage_action_extras, extras)
-
-    def call_envs(self, op: str, name: str, requests: Sequence[tuple[int, Any]]) -> list[Any]:
-        """Run env operation ``op`` with ``name`` in the workers: ``requests`` are ``(env,
-        (args, kwargs))``; one result each, or the env's own exception raised here."""
-        encoded = [
-            (env, pickle.dumps((op, name, *call), protocol=pickle.HIGHEST_PROTOCOL))
-            for env, call in requests
-        ]
-        results = []
-        for env, data in self.call(self.pool.call_envs, encoded):
-            status, value = pickle.loads(data)
-            if status == "err":
-                exc = raised_in_worker(value, f"env {env} during {op}({name!r})")
-                raise exc if exc is not None else RuntimeError(f"env {env}: {value}")
-            results.append(value)
-        return results
 
     # -- async (EnvPool-style) -------------------------------------------------------------
 
@@ -384,7 +297,8 @@ class Core:
     def stats(self) -> PoolStats:
         """The counters since the pool started (see :mod:`rogue_gym.front.stats`)."""
         workers, between_ns, inside_ns, calls = self.pool.stats()
-        typed, pickled = self.kind.info_counts()
+        counts = self.kind.facts.info_counts
+        typed, pickled = (0, 0) if counts is None else counts()
         return PoolStats(
             seconds=(between_ns + inside_ns) / 1e9,
             caller_s=between_ns / 1e9,
@@ -420,89 +334,9 @@ class Core:
         self._finalizer()
 
 
-def scalar_actions(n: int) -> str:
-    """The message of a ``TypeError`` for one action given to a vector env of ``n`` envs (as
-    gymnasium's vector envs refuse it)."""
-    return (
-        f"expected a batch of actions, one per env ({n}), got a scalar: a vector env takes "
-        "an array of shape (num_envs, ...)"
-    )
-
-
-def out_of_range(env: int, action: Any, low: int, high: int, space: Any = None) -> str:
-    """The message of a ``ValueError`` for env ``env``'s ``action`` outside ``low`` to
-    ``high`` (of ``space``, when named); the pool's own check words it the same."""
-    of = "" if space is None else f" of {space}"
-    count = f" (range({high + 1}))" if low == 0 else ""
-    return (
-        f"env {env}: action {action} is out of range{of}; valid actions are {low} to {high}{count}"
-    )
-
-
 def mark_restarted(infos: dict[str, Any], restarted: Optional[np.ndarray]) -> None:
     """Flag the envs whose worker was restarted during the call (``worker_restarted`` and its
     mask), if any: every kind and call reports them so."""
     if restarted is not None and restarted.any():
         infos["worker_restarted"] = restarted.copy()
         infos["_worker_restarted"] = restarted.copy()
-
-
-def copy_tree(value: Any) -> Any:
-    """A copy of a batch (an array, or a dict / tuple of them; anything else is kept)."""
-    if isinstance(value, dict):
-        return {k: copy_tree(v) for k, v in value.items()}
-    if isinstance(value, tuple):
-        return tuple(copy_tree(v) for v in value)
-    return value.copy() if isinstance(value, np.ndarray) else value
-
-
-def row_of(tree: Any, i: int) -> Any:
-    """Row ``i`` of a batch tree (a dict / tuple of arrays; anything else is kept)."""
-    if isinstance(tree, dict):
-        return {k: row_of(v, i) for k, v in tree.items()}
-    if isinstance(tree, tuple):
-        return tuple(row_of(v, i) for v in tree)
-    return tree[i] if isinstance(tree, np.ndarray) else tree
-
-
-def raised_in_worker(detail: str, where: str) -> Optional[BaseException]:
-    """The env's exception encoded in ``detail`` (by the worker's adapter), with a note (Python
-    3.11+) saying ``where`` it was raised and the worker-side traceback; ``None`` if ``detail``
-    is no such encoding."""
-    decoded = decode_exception(detail)
-    if decoded is None:
-        return None
-    exc, tb = decoded
-    if hasattr(exc, "add_note"):
-        exc.add_note(f"raised by {where}. Worker-side traceback:\n{tb}")
-    return exc
-
-
-def env_exception(err: BaseException) -> BaseException:
-    """The env's own exception carried by an ``EnvFailedError`` (with the worker-side traceback
-    as a note on Python 3.11+), or ``err`` itself if it carries none."""
-    if not isinstance(err, EnvFailedError):
-        return err
-    where = (
-        f"env {err.env} during {err.context} in worker {err.worker} (pid {err.pid}); call "
-        "reset() to continue"
-    )
-    return raised_in_worker(err.detail, where) or err
-
-
-def reraise(err: EnvFailedError) -> NoReturn:
-    """Raise the env's own exception carried by ``err``. When several envs or workers failed
-    in the same call, the first is raised and the others (decoded too) are in its ``others``
-    attribute, one note each on Python 3.11+; one ``reset()`` clears them all."""
-    exc = env_exception(err)
-    others = [env_exception(o) for o in getattr(err, "others", [])]
-    if others:
-        if exc is not err:
-            exc.__notes__ = [
-                n for n in getattr(exc, "__notes__", []) if not n.startswith("also failed")
-            ]
-        exc.others = others  # type: ignore[attr-defined]
-        for o in others:
-            if hasattr(exc, "add_note"):
-                exc.add_note(f"also failed in the same call: {type(o).__name__}: {o}")
-    raise exc from None

@@ -24,7 +24,7 @@ from stable_baselines3.common.vec_env.base_vec_env import (
     VecEnvStepReturn,
 )
 
-from .core import copy_tree, row_of
+from ..kinds.result import copy_tree, row_of
 from .stats import PoolStats
 from .vector_env import FrontVectorEnv
 

@@ -10,10 +10,10 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-from ..protocol.infos import add_row_info
+from ..kinds.result import Result, copy_tree
 from ..protocol.ops import refuse_op
 from ..settings import parse_autoreset_mode
-from .core import SUMMARY_FINAL, Core, Result, copy_tree, mark_restarted
+from .core import Core, mark_restarted
 from .pending import already_pending, no_async_call, timed_out, warn_close_pending
 from .reset_mask import partial_mask, refuse_finished
 from .stats import PoolStats
@@ -86,11 +86,12 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         self.spec = facts.spec
         self.copy = bool(copy)
         self._kind = kind
-        self._fill = kind.obs_filler()
+        self._fill = facts.obs_filler
         self._disabled = self.autoreset_mode == AutoresetMode.DISABLED
         #: The split call in flight.
         self._pending: Optional[Pending] = None
-        self._async_ids: Optional[np.ndarray] = None
+        #: The call lifecycle (shared with the kind's view, and rogue_gym.envpool).
+        self.call_state = self._core.state
         #: The actions each env took last (kept for the episode log).
         self._taken = np.zeros(facts.num_envs, np.int64)
         self._stats_base: Optional[PoolStats] = None
@@ -165,22 +166,23 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         core.check_open()
         self._not_pending("reset_async")
         options = dict(options or {})
-        mask = partial_mask(options.pop("reset_mask", None), self.num_envs, core.started)
+        state = core.state
+        mask = partial_mask(options.pop("reset_mask", None), self.num_envs, state.started)
         if mask is not None and seed is not None:
-            self._kind.seeds(seed, mask, core)
+            self._kind.seeds(seed, mask)
         if options:  # for each env's next reset, as AsyncVectorEnv passes them
             self._call_all("set_reset_options", "", (options,))
         if mask is not None:
             res = core.reset_envs(mask)
             restarted = res.restarted
             reset = mask if restarted is None else mask | restarted
-            core.ended &= ~reset
-            if core.log is not None:
-                core.log.record(res, None, self._same_step, rows=reset)
+            state.ended &= ~reset
+            if state.log is not None:
+                state.log.record(res, None, self._same_step, rows=reset)
             infos = self._infos(res, mask)
             self._pending = Pending("reset", (self._observations(res), infos))
             return
-        schedule = self._kind.seeds(seed, None, core)
+        schedule = self._kind.seeds(seed, None)
         if isinstance(seed, (int, np.integer)):
             super().reset(seed=int(seed))  # the vector env's own np_random
         if schedule is not None:
@@ -201,10 +203,10 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         if res is None:
             self._pending = Pending("reset")
             raise timed_out("reset", timeout)
-        core.ended[:] = False
-        core.started = True
-        if core.log is not None:
-            core.log.record(res, None, self._same_step)
+        state = core.state
+        state.restart()
+        if state.log is not None:
+            state.log.record(res, None, self._same_step)
         infos = copy_tree(self._infos(res))  # a reset's infos are the caller's to keep
         return self._observations(res), infos
 
@@ -241,33 +243,30 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         core.check_open()
         if self._pending is not None:
             raise already_pending(caller, self._pending.what)
-        if not core.started:
+        if not core.state.started:
             raise RuntimeError("call reset() before step()")
         if self._disabled:
-            refuse_finished(core.ended)
+            refuse_finished(core.state.ended)
         return self._kind.actions(actions, None)
 
     def _stepped(self, res: Result, actions: np.ndarray) -> StepResult:
         """What a step returns, from the slot the workers wrote and its columns."""
         cols = res.cols
-        log = self._core.log
-        if log is not None:
-            log.record(res, actions, self._same_step)
+        state = self._core.state
+        if state.log is not None:
+            state.log.record(res, actions, self._same_step)
         infos = self._infos(res)
         terminated, truncated = cols["terminated"].copy(), cols["truncated"].copy()
-        self._core.ended = terminated | truncated
+        np.bitwise_or(terminated, truncated, out=state.ended)
         return self._observations(res), cols["reward"].copy(), terminated, truncated, infos
 
     def _infos(self, res: Result, only: Optional[np.ndarray] = None) -> dict[str, Any]:
-        """A call's infos (``only``: a partial reset's mask): the kind's, then what every kind
-        reports (restarted and recycled workers, ``env_id`` for ``recv``). Read before the
-        observations: a kind may complete those from its infos."""
+        """A call's infos (``only``: a partial reset's mask): the kind's (SAME_STEP's final
+        observations included), then what every kind reports (restarted and recycled workers,
+        ``env_id`` for ``recv``). Read before the observations: a kind may complete those from
+        its infos."""
         core = self._core
-        infos = self._kind.infos(core, res, only)
-        if self._same_step and res.slot is not None and res.summary & SUMMARY_FINAL:
-            for env in np.flatnonzero(res.cols["has_final_obs"]).tolist():
-                obs, info = self._kind.final(core, env)
-                add_row_info(infos, {"final_obs": obs, "final_info": info}, env, self.num_envs)
+        infos = self._kind.infos(res, only)
         if res.env_ids is not None:
             infos["env_id"] = res.env_ids
         restarted = res.restarted
@@ -300,7 +299,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
     def episode_counters(self) -> tuple[np.ndarray, np.ndarray]:
         """``(episode_return, episode_length)`` of every env after the last call: in SAME_STEP,
         an env whose episode ended on that step shows the ended episode's."""
-        slot = self._core.slot
+        slot = self._core.state.slot
         if slot is None:
             raise RuntimeError("call reset() first")
         cols = self._core.cols[slot]
@@ -319,19 +318,18 @@ class FrontVectorEnv(gym.vector.VectorEnv):
             raise ValueError(
                 "the async API (async_reset/send/recv) needs autoreset_mode NEXT_STEP or SAME_STEP"
             )
-        schedule = self._kind.seeds(seed, None, core)
+        schedule = self._kind.seeds(seed, None)
         if schedule is not None:
             core.set_seeds(schedule)
         core.async_reset()
-        core.started = True
-        self._async_ids = None
+        core.state.restart()
 
     def send(self, actions: Any, env_id: Optional[Any] = None) -> None:
         """Send ``actions`` (one row per env id) to the envs ``env_id`` (default: those of the
         last :meth:`recv`): any envs, each at most once until it is received. An env whose
         worker is busy with others of its envs goes with the worker's next command."""
         self._core.check_open()
-        ids = self._async_ids if env_id is None else np.asarray(env_id)
+        ids = self.call_state.last_ids if env_id is None else np.asarray(env_id)
         if ids is None:
             raise RuntimeError("send() needs env_id, or a previous recv() whose envs it answers")
         env_ids = np.atleast_1d(ids)
@@ -341,7 +339,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
             env_ids = env_ids.astype(np.int64)
         acts = self._kind.actions(actions, env_ids)
         self._core.send(acts, env_ids)
-        if self._core.log is not None:
+        if self.call_state.log is not None:
             self._taken[env_ids] = acts
 
     def recv(
@@ -365,12 +363,13 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         core.check_open()
         res = core.recv(min_batch, max_batch, timeout)
         assert res.env_ids is not None
-        self._async_ids = res.env_ids
+        state = core.state
+        state.last_ids = res.env_ids
         cols = res.cols
         terminated, truncated = cols["terminated"].copy(), cols["truncated"].copy()
-        core.ended[res.env_ids] = terminated | truncated
-        if core.log is not None:
-            core.log.record(res, self._taken, self._same_step)
+        state.ended[res.env_ids] = terminated | truncated
+        if state.log is not None:
+            state.log.record(res, self._taken, self._same_step)
         infos = self._infos(res)
         return self._observations(res), cols["reward"].copy(), terminated, truncated, infos
 
@@ -394,7 +393,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         facts = self._kind.facts
         if op not in facts.ops:
             raise refuse_op(facts.who, op)
-        return self._kind.call(self._core, op, name, arguments, envs)
+        return self._kind.call(op, name, arguments, envs)
 
     def call_async(self, name: str, *args: Any, **kwargs: Any) -> None:
         """The first half of :meth:`call` (gymnasium's ``AsyncVectorEnv.call_async``). Env
@@ -444,7 +443,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         """Every env's frame in the render mode (see the kind: the native game rebuilds its
         screens by replay; hosted envs render in their workers)."""
         self._core.check_open()
-        return self._kind.render(self._core)
+        return self._kind.render()
 
     # -- close -----------------------------------------------------------------------------
 

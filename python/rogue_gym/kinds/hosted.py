@@ -15,9 +15,8 @@ from __future__ import annotations
 import base64
 import pickle
 import sys
-import weakref
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, Optional, Sequence
+from typing import Any, Callable, Optional, Sequence
 
 import cloudpickle
 import gymnasium as gym
@@ -27,17 +26,17 @@ from gymnasium.error import CustomSpaceError
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_differing_spaces
 
-from ..front.core import SUMMARY_FINAL, out_of_range, scalar_actions
+from ..errors import out_of_range, scalar_actions
 from ..protocol import NO_SEED, registry
 from ..protocol.infos import RESET_OBS, STEP_OBS, InfoDecoder, split_joined, vector_infos
 from ..protocol.layout import FIXED_SPACES, SpaceLayout, UnsupportedSpaceError, space_leaves
 from ..protocol.ops import SERVED_BY, Interpreter
 from ..protocol.vector_contract import check_vector_env
 from ..settings import PoolOptions
+from .final_obs import add_final_obs
+from .result import Result
 from .spec import EnvIds, KindFacts
-
-if TYPE_CHECKING:
-    from ..front.core import Core, Result
+from .view import PoolView
 
 __all__ = ["DEFAULT_INFO_BYTES", "HOSTED_WORKER_POLL_US", "HostedKind", "VectorEnvFn"]
 
@@ -201,7 +200,7 @@ class HostedKind:
         #: Bytes of one action on the wire (at least 1: a space of dynamic leaves only).
         self._act_bytes = max(self._act_layout.nbytes, 1)
         self._act_rows = np.zeros((self.num_envs, self._act_bytes), np.uint8)
-        self._core: Optional[weakref.ref[Core]] = None
+        self._view: Optional[PoolView] = None
         spec = {
             "obs_shape": [self.obs_bytes],
             "dtype": "u8",
@@ -236,6 +235,7 @@ class HostedKind:
         self._decoder = InfoDecoder()
         #: (SAME_STEP) each ended env's final dynamic leaves and last step info, until read.
         self._finals: dict[int, tuple[list[Any], dict[str, Any]]] = {}
+        filler = self._fill_dynamic if self._obs_layout.dynamic else None
         who = Interpreter.HOSTED if hosted is None else Interpreter.HOSTED_VECTOR
         self.facts = KindFacts(
             num_envs=self.num_envs,
@@ -247,6 +247,8 @@ class HostedKind:
             worker_command=checked["worker_command"],
             who=who,
             ops=SERVED_BY[who],
+            obs_filler=filler,
+            info_counts=self._decoder.counts,
         )
 
     # -- the pool --------------------------------------------------------------------------
@@ -261,18 +263,20 @@ class HostedKind:
             "block_unit": self._block_unit,
         }
 
-    def bind(self, core: Core) -> None:
-        """Keep the core, for the calls that carry dynamic actions; infos are decoded as they
-        come."""
-        self._core = weakref.ref(core)
+    def bind(self, view: PoolView) -> None:
+        """Keep the view: env operations, dynamic actions and final observations go through
+        it; infos are decoded as they come."""
+        self._view = view
+
+    def _bound(self) -> PoolView:
+        """The view of the running pool."""
+        if self._view is None:
+            raise RuntimeError("the hosted kind is not bound to a running pool yet")
+        return self._view
 
     def batch_views(self, rows: np.ndarray) -> Any:
         """Slot rows as a batch of the observation space, leaf by leaf (views)."""
         return self._obs_layout.batch_views(rows)
-
-    def obs_filler(self) -> Optional[Callable[[Any, Optional[np.ndarray]], Any]]:
-        """:meth:`_fill_dynamic` for a space with dynamic leaves; ``None`` otherwise."""
-        return self._fill_dynamic if self._obs_layout.dynamic else None
 
     def _fill_dynamic(self, obs: Any, env_ids: Optional[np.ndarray]) -> Any:
         """``obs`` with its dynamic leaves (one tuple of values per leaf, as gymnasium batches
@@ -308,14 +312,12 @@ class HostedKind:
                 raise TypeError(f"{where} must be a tuple of one value of {space} per env")
             if len(column) != n:
                 raise ValueError(f"{where} has {len(column)} values of {space}; expected {n}")
-        core = self._core() if self._core is not None else None
-        assert core is not None  # bound before any step
         ids = range(n) if env_ids is None else env_ids
         extras = [
             (int(env), pickle.dumps(list(row), protocol=pickle.HIGHEST_PROTOCOL))
             for env, row in zip(ids, zip(*columns))
         ]
-        core.stage_action_extras(extras)
+        self._bound().stage_action_extras(extras)
 
     def _discrete_indices(self, actions: Any, env_ids: Optional[EnvIds], n: int) -> np.ndarray:
         a = np.asarray(actions)
@@ -372,18 +374,18 @@ class HostedKind:
             raise ValueError("seeds must be in [0, 2**63)")
         return {"base": 0, "set": {"list": values}, "policy": "sequential"}
 
-    def seeds(self, seed: Any, mask: Optional[np.ndarray], core: Core) -> Optional[dict[str, Any]]:
+    def seeds(self, seed: Any, mask: Optional[np.ndarray]) -> Optional[dict[str, Any]]:
         """A full reset: an int seeds env ``i`` with ``seed + i``, a list seeds each env;
         ``None`` keeps each env's generator (a first reset without a seed reseeds nothing, as
         gymnasium's). A partial reset: see :meth:`_seed_partial`."""
         if mask is not None:
-            self._seed_partial(seed, mask, core)
+            self._seed_partial(seed, mask)
             return None
-        if seed is None and core.started:
+        if seed is None and self._bound().state.started:
             return None
         return self._seeds(seed)
 
-    def _seed_partial(self, seed: Any, mask: np.ndarray, core: Core) -> None:
+    def _seed_partial(self, seed: Any, mask: np.ndarray) -> None:
         """The masked envs' next reset gets ``seed + i`` (an int) or ``seed[i]`` (a list; a
         ``None`` entry: no reseeding), as gymnasium's vector envs seed a partial reset."""
         if isinstance(seed, (int, np.integer)) and self._block_unit > 1:
@@ -403,17 +405,24 @@ class HostedKind:
             args: list[tuple[tuple[Any, ...], dict[str, Any]]] = [
                 ((int(s),), {}) for s in chosen.values()
             ]
-            self.call(core, "set_reset_seed", "", args, list(chosen))
+            self.call("set_reset_seed", "", args, list(chosen))
 
     # -- infos -----------------------------------------------------------------------------
 
-    def infos(self, core: Core, result: Result, only: Optional[np.ndarray]) -> dict[str, Any]:
-        """The infos the envs returned, merged as gymnasium's vector envs merge them (the
-        ended envs' last step infos are kept for :meth:`final`)."""
+    def infos(self, result: Result, only: Optional[np.ndarray]) -> dict[str, Any]:
+        """The infos the envs returned, merged as gymnasium's vector envs merge them, and
+        SAME_STEP's final observations (dynamic leaves included) with their last step's info."""
+        view = self._bound()
+        if not (view.same_step and result.has_final):
+            return self._env_infos(result, set())
+        final = {int(i) for i in np.flatnonzero(result.cols["has_final_obs"])}
+        infos = self._env_infos(result, final)
+        return add_final_obs(infos, view, result, self.batch_views, self._final)
+
+    def _env_infos(self, result: Result, final: set[int]) -> dict[str, Any]:
+        """The envs' own infos (those of ``final``: their reset's; their last step's info and
+        final dynamic leaves are kept for :meth:`_final`)."""
         rows = result.rows
-        final: set[int] = set()
-        if result.summary & SUMMARY_FINAL and core.same_step and result.env_ids is None:
-            final = {int(i) for i in np.flatnonzero(result.cols["has_final_obs"])}
         infos: dict[str, Any] = {}
         extras: list[tuple[int, bytes]] = []
         if result.extras is not None:
@@ -429,16 +438,14 @@ class HostedKind:
             self._decoder,
             extras,
             rows,
-            lambda row, entries: self._env_info(core, int(env_of[row]), entries, row in final),
+            lambda row, entries: self._env_info(int(env_of[row]), entries, row in final),
             final,
         )
 
-    def _env_info(
-        self, core: Core, env: int, entries: list[tuple[str, Any]], final: bool
-    ) -> dict[str, Any]:
+    def _env_info(self, env: int, entries: list[tuple[str, Any]], final: bool) -> dict[str, Any]:
         """One env's info for this call: the reset's (or step's). When the episode ended in
         SAME_STEP mode, the last step's info and the final observation's dynamic leaves are
-        kept for :meth:`final`."""
+        kept for :meth:`_final`."""
         info: dict[str, Any] = {}
         final_info: dict[str, Any] = {}
         final_dynamic: list[Any] = []
@@ -455,30 +462,25 @@ class HostedKind:
             self._finals[env] = (final_dynamic, final_info)
         return info
 
-    def final(self, core: Core, env: int) -> tuple[Any, dict[str, Any]]:
-        """(SAME_STEP) env ``env``'s final observation (dynamic leaves included) and the info
-        of its last step."""
+    def _final(self, env: int, obs: Any) -> tuple[Any, dict[str, Any]]:
+        """(SAME_STEP) env ``env``'s final observation ``obs`` with its dynamic leaves, and the
+        info of its last step."""
         dynamic, info = self._finals.pop(env, ([], {}))
-        return self._obs_layout.env_value(core.final_obs(env), dynamic), info
-
-    def info_counts(self) -> tuple[int, int]:
-        """Info rows decoded so far: typed, and pickled."""
-        return self._decoder.typed_rows, self._decoder.pickled_rows
+        return self._obs_layout.env_value(obs, dynamic), info
 
     # -- calls and render ------------------------------------------------------------------
 
     def call(
         self,
-        core: Core,
         op: str,
         name: str,
         arguments: Sequence[tuple[tuple[Any, ...], dict[str, Any]]],
         indices: Sequence[int],
     ) -> list[Any]:
         """Run ``op`` in the envs' workers; an env's exception is re-raised here."""
-        return core.call_envs(op, name, list(zip(indices, arguments)))
+        return self._bound().call_envs(op, name, list(zip(indices, arguments)))
 
-    def render(self, core: Core) -> Optional[tuple[Any, ...]]:
+    def render(self) -> Optional[tuple[Any, ...]]:
         """Every env's ``render()``."""
         n = self.num_envs
-        return tuple(self.call(core, "render", "", [((), {})] * n, range(n)))
+        return tuple(self.call("render", "", [((), {})] * n, range(n)))

@@ -3,14 +3,13 @@
 Its spaces come from the engine, its seeds from the pool's episode schedule (env ``i``'s
 ``e``-th episode plays the same dungeon whatever the worker count), its infos from the
 columns every call is decoded into (no per-env Python), and its frames are rebuilt by
-replaying each env's episode, as the front logs it (:mod:`rogue_gym.front.episode_log`), on an
+replaying each env's episode, as the front logs it (:mod:`rogue_gym.kinds.episode_log`), on an
 in-process engine.
 """
 
 from __future__ import annotations
 
-import weakref
-from typing import TYPE_CHECKING, Any, Optional, Sequence
+from typing import Any, Optional, Sequence
 
 import gymnasium as gym
 import numpy as np
@@ -21,14 +20,14 @@ from .._config import resolve_config, to_json
 from ..envs.image import ObsSpec, observation_space
 from ..envs.palette import screen_to_rgb
 from ..envs.rogue_env import ACTIONS
-from ..front.core import out_of_range, scalar_actions
+from ..errors import out_of_range, scalar_actions
 from ..protocol.ops import Interpreter, op_table, run_op
 from ..settings import PoolSettings
+from .final_obs import add_final_obs
+from .result import Result
 from .seed_sets import seed_set
 from .spec import EnvIds, KindFacts
-
-if TYPE_CHECKING:
-    from ..front.core import Core, Result
+from .view import PoolView
 
 __all__ = ["RENDER_MODES", "WHO", "NativeKind"]
 
@@ -81,6 +80,7 @@ class NativeKind:
         self._info_keys: list[str] = []
         self._masks: dict[str, np.ndarray] = {}
         self._actions = np.zeros(self.num_envs, np.int64)
+        self._view: Optional[PoolView] = None
         self._ops = op_table(self, WHO)
         self.facts = KindFacts(
             num_envs=self.num_envs,
@@ -112,17 +112,18 @@ class NativeKind:
             "seeds": dict(self._schedule),
         }
 
-    def bind(self, core: Core) -> None:
+    def bind(self, view: PoolView) -> None:
         """Check the pool's observation and build one info template per slot over its
         columns (the step path copies a template, nothing per env)."""
-        self._core = weakref.ref(core)
-        if core.obs_shape != self.obs_shape or np.dtype(core.obs_dtype) != self.obs_dtype:
+        self._view = view
+        layout = view.layout
+        if layout.obs_shape != self.obs_shape or np.dtype(layout.obs_dtype) != self.obs_dtype:
             raise RuntimeError(
-                f"pool observation {core.obs_dtype}{core.obs_shape} differs from the engine's "
-                f"{self.obs_dtype}{self.obs_shape}"
+                f"pool observation {layout.obs_dtype}{layout.obs_shape} differs from the "
+                f"engine's {self.obs_dtype}{self.obs_shape}"
             )
-        self.info_names = core.info_names
-        self._templates = [self._info_values(cols) for cols in core.cols]
+        self.info_names = list(layout.info_names)
+        self._templates = [self._info_values(view.columns(s)) for s in range(layout.slots)]
         self._info_keys = list(self._templates[0])
         ones = np.ones(self.num_envs, bool)
         self._masks = {f"_{k}": ones for k in self._info_keys}
@@ -143,10 +144,6 @@ class NativeKind:
     def batch_views(self, rows: np.ndarray) -> np.ndarray:
         """Slot rows as observations of the engine's dtype and shape (a view)."""
         return rows.view(self.obs_dtype).reshape((rows.shape[0], *self.obs_shape))
-
-    def obs_filler(self) -> None:
-        """The game's observations are whole as they come."""
-        return None
 
     # -- actions and seeds -----------------------------------------------------------------
 
@@ -190,7 +187,7 @@ class NativeKind:
         np.copyto(out, a, casting="unsafe")
         return out
 
-    def seeds(self, seed: Any, mask: Optional[np.ndarray], core: Core) -> Optional[dict[str, Any]]:
+    def seeds(self, seed: Any, mask: Optional[np.ndarray]) -> Optional[dict[str, Any]]:
         """``reset(seed=s)`` restarts every env's episode schedule from base seed ``s``; with
         a partial reset's mask it is refused (a seed restarts the whole schedule)."""
         if seed is None:
@@ -208,7 +205,7 @@ class NativeKind:
         seed = int(seed)
         if not 0 <= seed < 2**64:
             raise ValueError(f"seed must be in [0, 2**64), got {seed}")
-        if not core.started and seed == self.base_seed:
+        if not self._bound().state.started and seed == self.base_seed:
             return None  # the pool just started from this schedule
         self.base_seed = seed
         self._schedule["base"] = seed
@@ -216,16 +213,28 @@ class NativeKind:
 
     # -- infos -----------------------------------------------------------------------------
 
-    def infos(self, core: Core, result: Result, only: Optional[np.ndarray]) -> dict[str, Any]:
+    def infos(self, result: Result, only: Optional[np.ndarray]) -> dict[str, Any]:
         """A whole-batch call: the slot's info template (arrays reused, like the slot, unless
-        the env hands out copies). A partial reset (``only``) or a ``recv``: fresh arrays, the
-        rows not reset zero and unmasked."""
+        the env hands out copies), and SAME_STEP's final observations. A partial reset
+        (``only``) or a ``recv``: fresh arrays, the rows not reset zero and unmasked."""
         if only is None and result.slot is not None:
-            infos = self._templates[result.slot].copy()
+            view = self._bound()
+            template = self._templates[result.slot]
+            infos = template.copy()
             infos.update(self._masks)
-            if core.copy:
+            if view.copy:
                 for key in self._info_keys:
                     infos[key] = infos[key].copy()
+            if result.has_final:
+                # The step's row of an ended episode describes it: its info is the last step's.
+                keys = self._info_keys
+                add_final_obs(
+                    infos,
+                    view,
+                    result,
+                    self.batch_views,
+                    lambda env, obs: (obs, {key: template[key][env] for key in keys}),
+                )
             return infos
         # A recv's rows: in the recv buffer, or (written in place) in a slot.
         slot = result.slot
@@ -244,16 +253,11 @@ class NativeKind:
             infos[f"_{key}"] = shown
         return infos
 
-    def final(self, core: Core, env: int) -> tuple[Any, dict[str, Any]]:
-        """(SAME_STEP) env ``env``'s final observation and the info values of its last step
-        (the step's row describes the ended episode)."""
-        assert core.slot is not None  # after the step that ended the episode
-        template = self._templates[core.slot]
-        return core.final_obs(env), {key: template[key][env] for key in self._info_keys}
-
-    def info_counts(self) -> tuple[int, int]:
-        """None: the game's infos are fixed columns, not rows."""
-        return 0, 0
+    def _bound(self) -> PoolView:
+        """The view of the running pool."""
+        if self._view is None:
+            raise RuntimeError("the native kind is not bound to a running pool yet")
+        return self._view
 
     # -- calls and render ------------------------------------------------------------------
 
@@ -272,11 +276,11 @@ class NativeKind:
 
     def _attribute(self, name: str, env: int) -> Any:
         if name == "episode_seed":
-            core = self._core()
-            assert core is not None  # bound while the pool lives
-            if core.slot is None:
+            view = self._bound()
+            slot = view.state.slot
+            if slot is None:
                 return None
-            return int(core.cols[core.slot]["seed"].view(np.uint64)[env])
+            return int(view.columns(slot)["seed"].view(np.uint64)[env])
         table = self._attributes()
         if name not in table:
             raise AttributeError(
@@ -287,7 +291,6 @@ class NativeKind:
 
     def call(
         self,
-        core: Core,
         op: str,
         name: str,
         arguments: Sequence[tuple[tuple[Any, ...], dict[str, Any]]],
@@ -344,22 +347,22 @@ class NativeKind:
     def screen(self, env: int) -> str:
         """The current screen of env ``env`` (map rows and status line), rebuilt by replaying
         its episode as the front logged it."""
-        core = self._core()
-        if core is None or core.log is None:
+        state = self._bound().state
+        if state.log is None:
             raise RuntimeError(
                 "rendering needs render_mode='ansi', 'human' or 'rgb_array' (actions are only "
                 "recorded then)"
             )
-        if not core.started:
+        if not state.started:
             raise RuntimeError("call reset() before render()")
-        seed, actions = core.log.episode(env)
+        seed, actions = state.log.episode(env)
         game = _native.Game(to_json(self.config), self.max_steps, self.stair_reward)
         game.reset(seed)
         for a in actions:
             game.step(int(a))
         return "\n".join([*game.screen(), game.status_line()])
 
-    def render(self, core: Core) -> Optional[tuple[Any, ...]]:
+    def render(self) -> Optional[tuple[Any, ...]]:
         """Every env's frame; ``human`` prints the screens and returns ``None``."""
         if self.facts.render_mode is None:
             gym.logger.warn(

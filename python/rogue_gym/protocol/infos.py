@@ -377,6 +377,10 @@ class InfoDecoder:
         self.typed_rows = 0
         self.pickled_rows = 0
 
+    def counts(self) -> tuple[int, int]:
+        """Rows decoded so far: typed, and pickled."""
+        return self.typed_rows, self.pickled_rows
+
     def _layout(self, data: bytes) -> _Decoded:
         head = data[:HEADER_BYTES]
         layout = self._layouts.get(head[8:16])

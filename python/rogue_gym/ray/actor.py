@@ -36,7 +36,7 @@ class PoolActor:
     def __init__(
         self, env: EnvLike, first_env: int, num_envs: int, total_envs: int, options: dict
     ) -> None:
-        import rogue_gym
+        from ..vector import make_vec
 
         self.first_env = int(first_env)
         self.num_envs = int(num_envs)
@@ -44,9 +44,9 @@ class PoolActor:
         self.envs: Any
         if self.native:
             options = {**options, "shard": (self.first_env, int(total_envs))}
-            self.envs = rogue_gym.make_vec(self.num_envs, **options)
+            self.envs = make_vec(self.num_envs, **options)
         else:
-            self.envs = rogue_gym.make_vec(env, self.num_envs, **options)
+            self.envs = make_vec(env, self.num_envs, **options)
 
     def spaces(self) -> tuple[Any, Any]:
         """The single observation and action spaces."""

@@ -32,7 +32,7 @@ def make_rllib_env(env_config: dict[str, Any]) -> Union[gym.Env, gym.vector.Vect
     id (hosted as Python envs); every other key is a pool option of ``rogue_gym.make_vec`` (or,
     for a single env, a keyword of ``gymnasium.make`` under ``env_kwargs``).
     """
-    import rogue_gym
+    from ..vector import make_vec
 
     options = dict(env_config)
     env = options.pop(ENV_KEY, ENV_ID)
@@ -41,7 +41,7 @@ def make_rllib_env(env_config: dict[str, Any]) -> Union[gym.Env, gym.vector.Vect
         if env == ENV_ID:
             return gym.make(ENV_ID)
         return gym.make(env, **dict(options.get("env_kwargs") or {}))
-    return rogue_gym.make_vec(env, int(num_envs), **options)
+    return make_vec(env, int(num_envs), **options)
 
 
 def configure_rllib(

@@ -52,7 +52,7 @@ class Target:
 
 def build(target: Target, c: Candidate) -> Any:
     """``c``'s vector env of ``target``'s envs."""
-    import rogue_gym
+    from ..vector import PoolVectorEnv, make_vec
 
     kw = dict(c.kwargs)
     if target.start_timeout is not None and target.kind != "native" and c.mode != "sync":
@@ -64,16 +64,16 @@ def build(target: Target, c: Candidate) -> Any:
             from ..multi_agent import AgentRows
 
             return AgentRows(fns)
-        return rogue_gym.PoolVectorEnv.from_pettingzoo(env_fn, n, **kw)
+        return PoolVectorEnv.from_pettingzoo(env_fn, n, **kw)
     if c.mode == "sync":
         return gym.vector.SyncVectorEnv(fns)
     if target.kind == "native":
-        return rogue_gym.make_vec(n, config="paper", seed=0, **kw)
+        return make_vec(n, config="paper", seed=0, **kw)
     if c.mode == "vector":
         assert target.gym_id is not None  # vector candidates exist for gymnasium ids only
         make = functools.partial(vector_env, target.gym_id)
-        return rogue_gym.PoolVectorEnv.from_vector_env(make, n, **kw)
-    return rogue_gym.PoolVectorEnv(fns, **kw)
+        return PoolVectorEnv.from_vector_env(make, n, **kw)
+    return PoolVectorEnv(fns, **kw)
 
 
 def obs_bytes(kind: str, env_fn: Any) -> int:

@@ -56,7 +56,7 @@ impl PyPool {
             })?,
         };
         let acts = self.owned_actions(actions, env_ids.len())?;
-        self.with_pool(py, move |p, _| p.send_actions(acts.as_actions(), &env_ids))
+        self.with_pool(py, move |p, _| p.send(acts.as_actions(), &env_ids))
     }
 
     /// Async: the first envs ready, `(rows, summary, extras, env_ids, obs, view)`: their

@@ -137,7 +137,7 @@ impl XlaTarget {
             state.staged = Some(staged);
             return Ok(());
         }
-        self.with_pool(|p| p.send_actions(staged.as_actions(), &ids))
+        self.with_pool(|p| p.send(staged.as_actions(), &ids))
     }
 
     /// The actions of `action` as the pool takes them: in env order for a sync step (row `r`
@@ -198,10 +198,10 @@ impl XlaTarget {
                 .ok_or("recv() of a sync pool follows a send() of every env's action")?;
             let (out, scratch) = (&mut state.out, &mut state.scratch);
             if own == ob {
-                self.with_pool(|p| p.step_actions(staged.as_actions(), obs, out))?;
+                self.with_pool(|p| p.step(staged.as_actions(), obs, out))?;
             } else {
                 scratch.resize(rows * ob, 0);
-                self.with_pool(|p| p.step_actions(staged.as_actions(), scratch, out))?;
+                self.with_pool(|p| p.step(staged.as_actions(), scratch, out))?;
                 copy_rows(scratch, ob, obs, own);
             }
             outs.write(out, self.n_info)?;

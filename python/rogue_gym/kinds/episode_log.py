@@ -1,5 +1,6 @@
 """Each env's episode so far (its seed and the actions it took), kept by the front on every
-path (reset, partial reset, step, ``recv``), for a kind that rebuilds frames by replay (the
+path (reset, partial reset, step, ``recv``) in the call state
+(:class:`rogue_gym.kinds.view.CallState`), for a kind that rebuilds frames by replay (the
 native game: workers do not ship screens)."""
 
 from __future__ import annotations
@@ -9,7 +10,7 @@ from typing import TYPE_CHECKING, Optional
 import numpy as np
 
 if TYPE_CHECKING:
-    from .core import Result
+    from .result import Result
 
 __all__ = ["EpisodeLog"]
 

@@ -1,0 +1,126 @@
+"""The package's layering, read from its source: the import graph (type-only imports included)
+has no circle, and each side imports only what it may (design.md: the kinds read a declared
+view and import nothing of the front; the protocol imports neither side; the worker's side
+imports nothing of the caller's)."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import rogue_gym
+
+PACKAGE = Path(rogue_gym.__file__).parent
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _exists(module: str) -> bool:
+    rel = Path(*module.split("."))
+    base = PACKAGE.parent / rel
+    if base.with_suffix(".py").exists() or (base / "__init__.py").exists():
+        return True
+    return base.with_suffix(".pyi").exists()  # an extension module (``_native``)
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Each rogue_gym module and the rogue_gym modules it imports, anywhere in its source
+    (under ``TYPE_CHECKING`` and inside functions too). ``from pkg import name`` counts as
+    importing ``pkg.name`` when that is a module, else ``pkg``; the implicit run of parent
+    packages' ``__init__`` is not an edge."""
+    graph: dict[str, set[str]] = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        name = _module_name(path)
+        is_pkg = path.name == "__init__.py"
+        here = name.split(".") if is_pkg else name.split(".")[:-1]
+        edges: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                edges.update(a.name for a in node.names if a.name.startswith("rogue_gym"))
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = here[: len(here) - node.level + 1]
+                    mod = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    mod = node.module or ""
+                if not mod.startswith("rogue_gym"):
+                    continue
+                for alias in node.names:
+                    sub = f"{mod}.{alias.name}"
+                    edges.add(sub if _exists(sub) else mod)
+        edges.discard(name)
+        graph[name] = {e for e in edges if _exists(e)}
+    return graph
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_the_import_graph_has_no_circle() -> None:
+    graph = import_graph()
+    assert len(graph) > 50  # the walk found the package
+    assert _cycles(graph) == []
+
+
+def _imports_of(prefix: str, graph: dict[str, set[str]]) -> set[str]:
+    return {e for m, es in graph.items() if m == prefix or m.startswith(prefix + ".") for e in es}
+
+
+def test_each_side_imports_only_what_it_may() -> None:
+    graph = import_graph()
+    kinds = _imports_of("rogue_gym.kinds", graph)
+    assert {e for e in kinds if e.startswith("rogue_gym.front")} == set()
+    protocol = _imports_of("rogue_gym.protocol", graph)
+    sides = ("rogue_gym.front", "rogue_gym.kinds", "rogue_gym.worker")
+    assert {e for e in protocol if e.startswith(sides)} == set()
+    worker = _imports_of("rogue_gym.worker", graph)
+    assert {e for e in worker if e.startswith(("rogue_gym.front", "rogue_gym.kinds"))} == set()
+
+
+def test_a_kind_has_at_most_nine_members() -> None:
+    from rogue_gym.kinds.spec import Kind
+    from rogue_gym.kinds.view import PoolView
+
+    def members(proto: type) -> set[str]:
+        own = set(vars(proto)) | set(getattr(proto, "__annotations__", {}))
+        return {m for m in own if not m.startswith("_")}
+
+    assert len(members(Kind)) <= 9, sorted(members(Kind))
+    assert len(members(PoolView)) <= 10, sorted(members(PoolView))
