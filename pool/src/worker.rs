@@ -20,9 +20,8 @@ use crate::wire::books::Books;
 use crate::wire::layout::BlockLayout;
 use crate::wire::slot_layout::SlotLayout;
 use crate::wire::{
-    ACTION_EXTRAS, BATCH_BUFFER, BLOCK_AT_ONCE, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY,
-    CMD_CALL, CMD_CLOSE, CMD_STEP, EnvFault, RELOAD_SEEDS, SLOT_ANSWER_WORDS, SUBSET, TARGET_BITS,
-    TARGET_SHIFT, WorkerConfig, calls, env_fault_path, extra_apart_path, successor_go,
+    BATCH_BUFFER, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, Command, EnvFault, Op,
+    SLOT_ANSWER_WORDS, Serve, WorkerConfig, calls, env_fault_path, extra_apart_path, successor_go,
     successor_marker,
 };
 
@@ -294,7 +293,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
     // One env's extra info, and the block's infos that did not fit its room.
     let mut info: Vec<u8> = Vec::new();
     let mut apart: Vec<(u32, Vec<u8>)> = Vec::new();
-    // The last command asked to wait for the next one without polling (BLOCK_AT_ONCE).
+    // The last command asked to wait for the next one without polling (`block_at_once`).
     let blocking = WaitPolicy {
         poll_budget: Duration::ZERO,
         ..policy
@@ -326,12 +325,14 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         let Some(cmd) = cmd else { continue };
         let h = *cmd.user_header();
         let n = (h.len as usize).min(cmd.payload().len());
-        if h.kind == CMD_CLOSE {
+        let command = Command::decode(h.kind)
+            .map_err(|e| WorkerError::Msg(format!("command {}: {e}", h.seq)))?;
+        block_at_once = command.block_at_once;
+        if command.op == Op::Close {
             return Ok(());
         }
-        let kind = h.kind & ((1 << TARGET_SHIFT) - 1);
-        block_at_once = h.kind & BLOCK_AT_ONCE != 0;
-        if kind == CMD_CALL {
+        let Some(kind) = command.serve() else {
+            // Op::Call: env calls, off the hot path.
             drop(cmd);
             let kind =
                 match answer_calls(&id, (a.index, a.generation), &mut hosted, first_env as u64) {
@@ -345,11 +346,11 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
             *reply.user_header_mut() = header(h.seq, kind);
             ports.send_block(reply)?;
             continue;
-        }
+        };
         // Words per env: one episode index per env for a reset, one action for a step; a
-        // SUBSET step adds one word per env (whether it steps).
-        let per_env = if kind == CMD_STEP { aw } else { 1 };
-        let subset = kind == CMD_STEP && h.kind & SUBSET != 0;
+        // subset step adds one word per env (whether it steps).
+        let per_env = if kind == Serve::Step { aw } else { 1 };
+        let subset = kind == Serve::Step && command.subset;
         let want = epw * per_env + if subset { epw } else { 0 };
         if n != want {
             return Err(WorkerError::Msg(format!(
@@ -362,8 +363,8 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         let (acts, only) = payload[..n].split_at(epw * per_env);
         let only = subset.then_some(only);
 
-        let target = ((h.kind & TARGET_BITS) >> TARGET_SHIFT) as usize;
-        if h.kind & RELOAD_SEEDS != 0 {
+        let target = command.target as usize;
+        if command.reload_seeds {
             seeds = read_config(&a.config).map_err(WorkerError::Msg)?.seeds;
         }
         let ctx = SlotCtx {
@@ -426,7 +427,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
             }
         };
         let serving = stamp();
-        let extras = if kind == CMD_STEP && h.kind & ACTION_EXTRAS != 0 {
+        let extras = if kind == Serve::Step && command.action_extras {
             take_action_extras(&id, (a.index, a.generation), &mut hosted, first_env as u64)
         } else {
             Ok(())

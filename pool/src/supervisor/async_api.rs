@@ -44,13 +44,13 @@ impl Pool {
     pub fn async_reset(&mut self) -> Result<(), PoolError> {
         self.begin_call()?;
         self.drain()?;
-        self.sup.async_mode = true;
+        self.sup.async_api.on = true;
         for k in 0..self.sup.slots.len() {
             self.sup.send_reset(k, 0)?;
             let envs = self.sup.blocks[k].clone();
-            self.sup.envs.all_in_flight(k, envs);
+            self.sup.async_api.envs.all_in_flight(k, envs);
         }
-        self.sup.must_reset = false;
+        self.sup.failures.must_reset = false;
         Ok(())
     }
 
@@ -58,22 +58,18 @@ impl Pool {
     /// `actions[r]` is for `env_ids[r]`. An env whose worker is busy with others of its envs
     /// waits for it (it goes with the worker's next command). Envs of a vector env per worker
     /// ([`crate::EnvRegistry::builds_blocks`]) go by whole worker blocks.
-    pub fn send(&mut self, actions: &[i64], env_ids: &[usize]) -> Result<(), PoolError> {
-        self.send_actions(Actions::Indices(actions), env_ids)
-    }
-
-    /// [`Pool::send`] with actions of either kind ([`Actions`]).
-    pub fn send_actions(
+    pub fn send<'a>(
         &mut self,
-        actions: Actions<'_>,
+        actions: impl Into<Actions<'a>>,
         env_ids: &[usize],
     ) -> Result<(), PoolError> {
+        let actions = actions.into();
         self.begin_call()?;
         self.sup.check_started("send")?;
         self.check_actions(actions, env_ids)?;
         self.sup.check_sendable(env_ids)?;
         // A sync reset may start the async API too (as TorchRL's loop does).
-        self.sup.async_mode = true;
+        self.sup.async_api.on = true;
         let (ab, aw) = (self.sup.spec.action_bytes, self.sup.spec.action_words());
         let mut words = vec![0u64; aw];
         for (r, &e) in env_ids.iter().enumerate() {
@@ -85,7 +81,7 @@ impl Pool {
                         .copy_from_slice(&b[r * ab..(r + 1) * ab]);
                 }
             }
-            self.sup.envs.stage(e, &words);
+            self.sup.async_api.envs.stage(e, &words);
         }
         // Answers that came meanwhile free their workers for what was just staged.
         self.sup.poll_all()?;
@@ -99,7 +95,7 @@ impl Pool {
     /// call, and must not hold on to other views of the slots: a binding that lends slots out
     /// keeps this off. Off by default.
     pub fn set_async_in_place(&mut self, on: bool) {
-        self.sup.envs.in_place = if on && self.sup.batch.is_some() {
+        self.sup.async_api.envs.in_place = if on && self.sup.batch.is_some() {
             self.sup.cfg.batch_slots
         } else {
             0
@@ -121,7 +117,7 @@ impl Pool {
             )));
         }
         self.sup.check_started("recv")?;
-        let outstanding = self.sup.envs.outstanding();
+        let outstanding = self.sup.async_api.envs.outstanding();
         if outstanding < want.min_batch {
             return Err(PoolError::State(format!(
                 "recv() needs {} envs sent and not yet received but only {outstanding} are: send() actions (or async_reset()) first",
@@ -138,11 +134,11 @@ impl Pool {
         let done = self.wait_for(
             |c| {
                 c.absorb()?;
-                Ok(c.envs.num_ready() >= enough)
+                Ok(c.async_api.envs.num_ready() >= enough)
             },
             until,
         )?;
-        let ready = self.sup.envs.num_ready();
+        let ready = self.sup.async_api.envs.num_ready();
         if !done && ready < want.min_batch {
             return Err(PoolError::RecvTimeout {
                 ready,
@@ -151,12 +147,16 @@ impl Pool {
             });
         }
         // The slots' readers, for rows written in place (none without rows in place).
-        let writers = (0..self.sup.envs.in_place)
+        let writers = (0..self.sup.async_api.envs.in_place)
             .map(|slot| self.sup.writer_of(slot))
             .collect::<Result<Vec<_>, _>>()?;
-        let got = self.sup.envs.take(max, self.sup.spec.obs_bytes(), &writers);
+        let got = self
+            .sup
+            .async_api
+            .envs
+            .take(max, self.sup.spec.obs_bytes(), &writers);
         // The rows' own replacements by plan, whenever their worker was replaced.
-        self.sup.recycled_envs.clone_from(&got.recycled);
+        self.sup.recycling.replaced_envs.clone_from(&got.recycled);
         Ok(got)
     }
 }
@@ -165,11 +165,11 @@ impl Supervisor {
     /// Fail a `send` or `recv` that needs an `async_reset` first: with the failures that made
     /// it so, if they were seen outside a wait (by a `send`) and not raised yet.
     fn check_started(&mut self, call: &str) -> Result<(), PoolError> {
-        if !self.must_reset {
+        if !self.failures.must_reset {
             return Ok(());
         }
-        if !self.faults.is_empty() {
-            let all = std::mem::take(&mut self.faults);
+        if !self.call.faults.is_empty() {
+            let all = std::mem::take(&mut self.call.faults);
             return Err(PoolError::collected(all).unwrap_or(PoolError::Interrupted));
         }
         Err(PoolError::State(format!(
@@ -189,7 +189,7 @@ impl Supervisor {
                     n - 1
                 )));
             }
-            let why = match self.envs.turn[e] {
+            let why = match self.async_api.envs.turn[e] {
                 _ if seen[e] => "appears twice in env_ids",
                 Turn::Caller => "",
                 Turn::Staged | Turn::InFlight => {
@@ -202,7 +202,7 @@ impl Supervisor {
             }
             seen[e] = true;
         }
-        if self.whole_blocks
+        if self.async_api.whole_blocks
             && let Some(b) = self.blocks.iter().find(|b| {
                 let mut r = (*b).clone();
                 let some = r.clone().any(|e| seen[e]);
@@ -219,8 +219,9 @@ impl Supervisor {
     /// Turn the workers' answers into ready envs, in the order they became ready, and send
     /// what is staged to the workers that are free.
     pub(super) fn absorb(&mut self) -> Result<(), PoolError> {
-        if !self.ready_order.is_empty() {
+        if !self.async_api.ready_order.is_empty() {
             let mut arrived: Vec<(u64, usize)> = self
+                .async_api
                 .ready_order
                 .drain(..)
                 .map(|k| match &self.slots[k].state {
@@ -235,12 +236,14 @@ impl Supervisor {
                 let target = self.slots[k].target;
                 if target != 0 && !self.slots[k].restarted {
                     let apart = self.take_in_place(k)?;
-                    self.envs.arrive_in_slot(k, target as usize - 1, apart);
+                    self.async_api
+                        .envs
+                        .arrive_in_slot(k, target as usize - 1, apart);
                     continue;
                 }
                 let recycled = self.slots[k].recycled && self.slots[k].restarted;
                 let block = self.take_block(k)?;
-                self.envs.arrive(k, block, keep, recycled);
+                self.async_api.envs.arrive(k, block, keep, recycled);
             }
         }
         self.dispatch_staged()
@@ -262,11 +265,11 @@ impl Supervisor {
 
     /// Send each free worker the envs staged for it.
     pub(super) fn dispatch_staged(&mut self) -> Result<(), PoolError> {
-        if self.envs.num_staged == 0 {
+        if self.async_api.envs.num_staged == 0 {
             return Ok(());
         }
         for k in 0..self.slots.len() {
-            if !self.envs.has_staged(k) {
+            if !self.async_api.envs.has_staged(k) {
                 continue;
             }
             // Planned replacements happen here, between two commands (see `recycling`); a
@@ -275,11 +278,12 @@ impl Supervisor {
                 continue;
             }
             let envs = self.blocks[k].clone();
-            let Some((words, only)) = self.envs.dispatch(k, envs.clone()) else {
+            let Some((words, only)) = self.async_api.envs.dispatch(k, envs.clone()) else {
                 continue;
             };
             let whole = only.iter().all(|&w| w != 0);
             let target = self
+                .async_api
                 .envs
                 .target_for(envs, &only)
                 .map_or(0, |t| t as u32 + 1);

@@ -3,7 +3,7 @@
 //!
 //! Workers still answer one command at a time; this layer turns their answers into envs. An
 //! env sent while its worker is busy is *staged* and goes with the worker's next command, with
-//! any other envs of that worker staged meanwhile ([`crate::wire::SUBSET`] steps only those).
+//! any other envs of that worker staged meanwhile ([`crate::wire::Command::subset`] steps only those).
 //! A block that arrives is held until the caller has received each of its ready envs; a worker
 //! with many blocks held has the oldest copied out, so that its shared-memory samples never
 //! run out.

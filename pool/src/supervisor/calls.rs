@@ -4,7 +4,7 @@
 use super::workers::SlotState;
 use super::{Pool, Supervisor};
 use crate::error::PoolError;
-use crate::wire::{CMD_CALL, calls};
+use crate::wire::{Command, Op, calls};
 
 /// One worker's entries of a call file: `(row in its block, bytes)`.
 type Entries<'a> = Vec<(u32, &'a [u8])>;
@@ -38,7 +38,7 @@ impl Pool {
     /// the next step command to an env's worker carries them (in a private file beside it),
     /// and the env takes them ([`crate::Env::set_action_extra`]) just before it steps. What
     /// was staged before for those workers is replaced; a reset drops what it finds staged.
-    /// This works for EnvPool-style [`Pool::send_actions`] to some workers too.
+    /// This works for EnvPool-style [`Pool::send`] to some workers too.
     pub fn stage_action_extras(&mut self, extras: &[(usize, Vec<u8>)]) -> Result<(), PoolError> {
         let per_worker = self.sup.per_worker(extras)?;
         for (k, entries) in per_worker.iter().enumerate() {
@@ -74,7 +74,8 @@ impl Pool {
             )
             .map_err(PoolError::Io)?;
             s.seq += 1;
-            s.ports.send_cmd(s.seq, CMD_CALL, 0, |_| {})?;
+            s.ports
+                .send_cmd(s.seq, Command::new(Op::Call, 0).encode(), 0, |_| {})?;
             s.state = SlotState::Pending {
                 since: std::time::Instant::now(),
             };
@@ -93,8 +94,8 @@ impl Pool {
                 // Restarted meanwhile: its envs were rebuilt and reset; that reset's block is
                 // dropped, so the caller must reset.
                 c.slots[k].state = SlotState::Idle;
-                c.ready_order.retain(|&w| w != k);
-                c.must_reset = true;
+                c.async_api.ready_order.retain(|&w| w != k);
+                c.failures.must_reset = true;
                 return Err(PoolError::State(format!(
                     "worker {k} failed during a call and was restarted; call reset() and retry"
                 )));

@@ -10,6 +10,7 @@ mod async_envs;
 mod calls;
 mod recycling;
 mod slot_answers;
+mod state;
 mod stepping;
 mod waiting;
 mod workers;
@@ -23,23 +24,24 @@ use rogue_gym_ipc::{BlockListener, ChannelSettings, PoolId, SupervisorPorts, Svc
 
 use crate::config::{AutoresetMode, PoolConfig};
 use crate::env::EnvSpec;
-use crate::error::{PoolError, WorkerFailure};
+use crate::error::PoolError;
 use crate::registry::EnvRegistry;
 use crate::seeds::SeedSchedule;
 use crate::stats::{StatsBuffer, SupervisorCounts, WorkerStats};
 use crate::wire::books::Books;
 use crate::wire::layout::BlockLayout;
 use crate::wire::slot_layout::SlotLayout;
-use crate::wire::{BATCH_BUFFER, CMD_CLOSE, WorkerConfig, block_range_of, shm_need};
+use crate::wire::{BATCH_BUFFER, Command, Op, WorkerConfig, block_range_of, shm_need};
 
 pub use async_api::RecvWant;
 pub use async_envs::Received;
+use state::{AsyncState, CallInFlight, Failures, Recycling};
 pub use stepping::{Actions, validate_actions};
 use workers::{SlotState, WorkerSlot};
 
 /// The supervisor proper: the workers (their processes, blocks, channels and layouts), the
-/// shared batch buffer and the bookkeeping of the call in flight. [`Pool`] wraps it with the
-/// per-env async layer.
+/// shared batch buffer and the bookkeeping of the call in flight, grouped by concern
+/// ([`state`]). [`Pool`] wraps it.
 struct Supervisor {
     cfg: PoolConfig,
     spec: EnvSpec,
@@ -62,33 +64,11 @@ struct Supervisor {
     books: Option<Books>,
     /// Bytes the pool needs in /dev/shm ([`Pool::shm_bytes`]).
     shm_need: u64,
-    /// Envs whose worker was replaced by plan during the last call ([`Pool::recycled_envs`]).
-    recycled_envs: Vec<usize>,
     next_slot: usize,
-    /// Workers whose answer has arrived, in the order polled.
-    ready_order: VecDeque<usize>,
-    /// The async API's envs ([`async_envs`]).
-    envs: async_envs::AsyncEnvs,
-    /// The async API is in use (from `async_reset` or a `send` to the next reset).
-    async_mode: bool,
     /// The machine's usable cores: workers past them are told to wait for their next command
-    /// without polling ([`crate::wire::BLOCK_AT_ONCE`]; in the async API from as many workers
+    /// without polling ([`Command::block_at_once`]; in the async API from as many workers
     /// as cores), and the caller polls for answers only while the workers leave it a core.
     cores: usize,
-    /// How long the workers took to answer the last whole-batch call they were waited for:
-    /// the next wait sleeps through most of it and polls for the rest.
-    expected_answer: Option<Duration>,
-    /// The wait policy of the wait in progress, when it differs from the pool's.
-    wait_now: Option<rogue_gym_ipc::WaitPolicy>,
-    /// When the whole-batch call in flight was sent, and the same on the clock the workers
-    /// stamp their answers with (`CLOCK_MONOTONIC`, ns).
-    split_sent: Instant,
-    split_sent_ns: u64,
-    /// Workers host a vector env each ([`EnvRegistry::builds_blocks`]): the async API sends
-    /// whole worker blocks only.
-    whole_blocks: bool,
-    restarts: u32,
-    must_reset: bool,
     closed: bool,
     /// Workers must re-read the seed schedule at their next reset.
     reload_seeds: Vec<bool>,
@@ -96,25 +76,14 @@ struct Supervisor {
     /// The first start is over (every worker was ready once): from then on a worker that
     /// exits while starting is a crash like any other, not a broken worker command.
     started: bool,
-    /// Failures of the current call (env errors, workers lost under the raise policy), raised
-    /// together once no worker still owes the call an answer.
-    faults: Vec<PoolError>,
-    /// While draining stale answers before a reset: env errors of abandoned commands are
-    /// dropped, not raised (the reset starts those envs afresh anyway); lost workers are not.
-    discard_faults: bool,
-    /// Worker deaths and hangs over the pool's life (under either policy).
-    deaths: u32,
-    /// The last worker failure, for the report of a call that outlived its bound.
-    last_failure: Option<Box<WorkerFailure>>,
-    /// When the current call began, and when a worker first failed during it: its bound
-    /// ([`Supervisor::call_deadline`]) counts from these.
-    call_started: Instant,
-    call_failed_at: Option<Instant>,
-    /// The shared slot of a sync step or reset that was sent and not yet collected
-    /// ([`Pool::send_step_shared`], [`Pool::wait_shared`]).
-    split: Option<usize>,
-    /// The answers of that call taken so far.
-    collecting: Option<slot_answers::SlotCollect>,
+    /// The call in progress.
+    call: CallInFlight,
+    /// The EnvPool-style async API's state.
+    async_api: AsyncState,
+    /// Worker failures over the pool's life.
+    failures: Failures,
+    /// Workers replaced by plan ([`recycling`]).
+    recycling: Recycling,
     /// The workers' counters in shared memory ([`Pool::stats`]), and what this side counts.
     stats: Option<StatsBuffer>,
     counts: Vec<SupervisorCounts>,
@@ -236,37 +205,45 @@ impl Pool {
                 slots: Vec::new(),
                 pids: (0..num_workers).map(|_| Default::default()).collect(),
                 node: None,
-                ready_order: VecDeque::new(),
-                envs,
-                async_mode: false,
                 cores: std::thread::available_parallelism().map_or(1, |c| c.get()),
-                expected_answer: None,
-                wait_now: None,
-                split_sent: Instant::now(),
-                split_sent_ns: 0,
-                whole_blocks,
                 batch: None,
                 slot_layout,
                 books: None,
                 shm_need,
-                recycled_envs: Vec::new(),
                 next_slot: 0,
-                restarts: 0,
-                must_reset: true,
                 closed: false,
                 reload_seeds: vec![false; num_workers],
                 worker_config: None,
                 started: false,
-                faults: Vec::new(),
-                discard_faults: false,
-                deaths: 0,
-                last_failure: None,
+                call: CallInFlight {
+                    started: Instant::now(),
+                    failed_at: None,
+                    faults: Vec::new(),
+                    discard_faults: false,
+                    split: None,
+                    collecting: None,
+                    split_sent: Instant::now(),
+                    split_sent_ns: 0,
+                    expected_answer: None,
+                    wait_now: None,
+                },
+                async_api: AsyncState {
+                    envs,
+                    on: false,
+                    whole_blocks,
+                    ready_order: VecDeque::new(),
+                },
+                failures: Failures {
+                    restarts: 0,
+                    deaths: 0,
+                    last_failure: None,
+                    must_reset: true,
+                },
+                recycling: Recycling {
+                    replaced_envs: Vec::new(),
+                },
                 stats: None,
                 counts: Vec::new(),
-                call_started: Instant::now(),
-                call_failed_at: None,
-                split: None,
-                collecting: None,
             },
         };
         // From here on, Drop cleans up whatever was created.
@@ -358,7 +335,7 @@ impl Pool {
         c.worker_config = Some(wcfg);
         c.slots.iter_mut().for_each(|s| s.first_episodes = true);
         c.reload_seeds.iter_mut().for_each(|r| *r = true);
-        c.must_reset = true;
+        c.failures.must_reset = true;
         Ok(())
     }
 
@@ -384,7 +361,7 @@ impl Pool {
     /// worker was replaced since they were sent): they report `restarted`, and their episodes
     /// were cut there, between two commands.
     pub fn recycled_envs(&self) -> &[usize] {
-        &self.sup.recycled_envs
+        &self.sup.recycling.replaced_envs
     }
     /// The envs worker `k` hosts (contiguous; blocks differ by at most one env, the larger
     /// first).
@@ -415,11 +392,11 @@ impl Pool {
     }
     /// Worker restarts so far.
     pub fn restarts(&self) -> u32 {
-        self.sup.restarts
+        self.sup.failures.restarts
     }
     /// Worker deaths and hangs so far, under either failure policy.
     pub fn worker_deaths(&self) -> u32 {
-        self.sup.deaths
+        self.sup.failures.deaths
     }
     /// Each worker's statistics since the pool started (see [`crate::stats`]): read from the
     /// workers' counters in shared memory, no message; empty once closed.
@@ -459,9 +436,9 @@ impl Pool {
         if self.sup.closed {
             return Err(PoolError::Closed);
         }
-        self.sup.call_started = Instant::now();
-        self.sup.call_failed_at = None;
-        self.sup.recycled_envs.clear();
+        self.sup.call.started = Instant::now();
+        self.sup.call.failed_at = None;
+        self.sup.recycling.replaced_envs.clear();
         Ok(())
     }
 
@@ -497,16 +474,16 @@ impl Pool {
     /// Wait for every outstanding request (and starting worker) and discard the results,
     /// env errors of those requests included.
     fn drain(&mut self) -> Result<(), PoolError> {
-        self.sup.split = None;
-        self.sup.collecting = None;
-        self.sup.faults.clear();
-        self.sup.discard_faults = true;
+        self.sup.call.split = None;
+        self.sup.call.collecting = None;
+        self.sup.call.faults.clear();
+        self.sup.call.discard_faults = true;
         let drained = self.wait_until(|c| {
             !c.slots
                 .iter()
                 .any(|s| s.state.coming_back() || matches!(s.state, SlotState::Pending { .. }))
         });
-        self.sup.discard_faults = false;
+        self.sup.call.discard_faults = false;
         drained?;
         for s in &mut self.sup.slots {
             if matches!(s.state, SlotState::Ready(_)) {
@@ -514,9 +491,9 @@ impl Pool {
             }
             s.restarted = false;
         }
-        self.sup.ready_order.clear();
-        self.sup.envs.clear();
-        self.sup.async_mode = false;
+        self.sup.async_api.ready_order.clear();
+        self.sup.async_api.envs.clear();
+        self.sup.async_api.on = false;
         Ok(())
     }
 
@@ -533,7 +510,8 @@ impl Pool {
         let c = &mut self.sup;
         for s in &c.slots {
             if s.child.is_some() {
-                let _ = s.ports.send_cmd(u64::MAX, CMD_CLOSE, 0, |_| {});
+                let close = Command::new(Op::Close, 0).encode();
+                let _ = s.ports.send_cmd(u64::MAX, close, 0, |_| {});
             }
         }
         let deadline = Instant::now() + Duration::from_millis(300);
@@ -554,8 +532,8 @@ impl Pool {
                 }
             }
         }
-        c.ready_order.clear();
-        c.envs.clear();
+        c.async_api.ready_order.clear();
+        c.async_api.envs.clear();
         c.slots.clear();
         c.pids
             .iter()

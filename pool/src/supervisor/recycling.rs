@@ -20,7 +20,7 @@ use std::time::{Duration, Instant};
 use super::Supervisor;
 use super::workers::{SlotState, Successor};
 use crate::error::PoolError;
-use crate::wire::{CMD_CLOSE, successor_go, successor_marker};
+use crate::wire::{Command, Op, successor_go, successor_marker};
 
 /// How often a worker's resident memory is read (`/proc/<pid>/statm`, about 10 µs) while it
 /// is below [`START_AT`] of its bound, at most; above, it is read before every command.
@@ -186,7 +186,8 @@ impl Supervisor {
         let s = &mut self.slots[k];
         if s.child.is_some() {
             s.seq += 1;
-            let _ = s.ports.send_cmd(s.seq, CMD_CLOSE, 0, |_| {});
+            let close = Command::new(Op::Close, 0).encode();
+            let _ = s.ports.send_cmd(s.seq, close, 0, |_| {});
         }
         if let Some(old) = s.child.take() {
             reap(old, CLOSE_WITHIN);
@@ -195,7 +196,7 @@ impl Supervisor {
         rogue_gym_ipc::private::create_private_file(&successor_go(&self.id, k, succ.generation))?;
         let s = &mut self.slots[k];
         while s.ports.try_recv()?.is_some() {}
-        self.ready_order.retain(|&w| w != k);
+        self.async_api.ready_order.retain(|&w| w != k);
         let _ = fs::remove_file(&s.stderr_path);
         let _ = fs::remove_file(successor_marker(&self.id, k, succ.generation));
         s.generation = succ.generation;

@@ -61,14 +61,14 @@ impl Supervisor {
     pub(super) fn take_slot_answers(&mut self, acc: &mut SlotCollect) -> Result<(), PoolError> {
         let layout = self.slot_layout;
         let writer = self.writer_of(acc.answer.slot)?;
-        while let Some(k) = self.ready_order.pop_front() {
+        while let Some(k) = self.async_api.ready_order.pop_front() {
             let sample = self.take_answer(k)?;
             let s = &mut self.slots[k];
             acc.answered += 1;
             let restarted = std::mem::take(&mut s.restarted);
             let block = self.blocks[k].clone();
             if std::mem::take(&mut s.recycled) && restarted {
-                self.recycled_envs.extend(block.clone());
+                self.recycling.replaced_envs.extend(block.clone());
             }
             let mut words = [0u64; SLOT_ANSWER_WORDS];
             words.copy_from_slice(&sample.payload()[..SLOT_ANSWER_WORDS]);
@@ -192,7 +192,7 @@ impl Supervisor {
     /// early answer still wakes it), then poll for up to half of it (at most 2 ms), so that the
     /// answer is seen without a wake-up. `None`: the pool's own policy.
     pub(super) fn expected_wait(&self) -> Option<rogue_gym_ipc::WaitPolicy> {
-        let expected = self.expected_answer?;
+        let expected = self.call.expected_answer?;
         if self.slots.len() >= self.cores || expected > Duration::from_millis(50) {
             return None;
         }
@@ -204,7 +204,7 @@ impl Supervisor {
                 ..self.cfg.wait
             });
         }
-        let wake = self.split_sent + expected * 3 / 4 - Duration::from_micros(200);
+        let wake = self.call.split_sent + expected * 3 / 4 - Duration::from_micros(200);
         Some(rogue_gym_ipc::WaitPolicy {
             sleep_first: wake.saturating_duration_since(Instant::now()),
             poll_budget: self

@@ -19,6 +19,24 @@ pub enum Actions<'a> {
     Bytes(&'a [u8]),
 }
 
+impl<'a> From<&'a [i64]> for Actions<'a> {
+    fn from(a: &'a [i64]) -> Self {
+        Actions::Indices(a)
+    }
+}
+
+impl<'a> From<&'a Vec<i64>> for Actions<'a> {
+    fn from(a: &'a Vec<i64>) -> Self {
+        Actions::Indices(a)
+    }
+}
+
+impl<'a, const N: usize> From<&'a [i64; N]> for Actions<'a> {
+    fn from(a: &'a [i64; N]) -> Self {
+        Actions::Indices(a)
+    }
+}
+
 impl<'a> Actions<'a> {
     /// The actions of rows `rows` (`action_bytes`: bytes per action, for `Bytes`).
     pub(crate) fn rows(self, rows: Range<usize>, action_bytes: usize) -> Actions<'a> {
@@ -67,24 +85,16 @@ impl Pool {
         Ok(())
     }
 
-    /// Sync step: `actions[i]` for env `i` (all envs), copied out like [`Pool::reset`]. See
-    /// [`AutoresetMode`] for what a step after/at an episode end returns.
-    pub fn step(
+    /// Sync step: `actions[i]` for env `i` (all envs: indices, `&[i64]`, or any
+    /// [`Actions`]), copied out like [`Pool::reset`]. See [`AutoresetMode`] for what a step
+    /// after/at an episode end returns.
+    pub fn step<'a>(
         &mut self,
-        actions: &[i64],
+        actions: impl Into<Actions<'a>>,
         obs_out: &mut [u8],
         out: &mut BatchOutput,
     ) -> Result<(), PoolError> {
-        self.step_actions(Actions::Indices(actions), obs_out, out)
-    }
-
-    /// [`Pool::step`] with actions of either kind ([`Actions`]).
-    pub fn step_actions(
-        &mut self,
-        actions: Actions<'_>,
-        obs_out: &mut [u8],
-        out: &mut BatchOutput,
-    ) -> Result<(), PoolError> {
+        let actions = actions.into();
         self.check_obs_buf(obs_out)?;
         let a = self.step_slot(actions)?;
         self.read_slot(&a, Some(obs_out), out);
@@ -149,7 +159,7 @@ impl Pool {
                 got: mask.len(),
             });
         }
-        if self.sup.must_reset {
+        if self.sup.failures.must_reset {
             return Err(PoolError::State(
                 "a partial reset needs every env started: call a full reset() first (after creation, set_seeds or a worker failure)".into(),
             ));
@@ -159,10 +169,10 @@ impl Pool {
         for k in 0..self.sup.slots.len() {
             self.sup.send_reset_masked(k, slot as u32 + 1, Some(mask))?;
         }
-        self.sup.split = Some(slot);
-        self.sup.split_sent = std::time::Instant::now();
-        self.sup.split_sent_ns = rogue_gym_ipc::monotonic_ns();
-        self.sup.collecting = None;
+        self.sup.call.split = Some(slot);
+        self.sup.call.split_sent = std::time::Instant::now();
+        self.sup.call.split_sent_ns = rogue_gym_ipc::monotonic_ns();
+        self.sup.call.collecting = None;
         self.collect_split(None)?
             .ok_or_else(|| PoolError::State("a partial reset timed out".into()))
     }
@@ -183,12 +193,12 @@ impl Pool {
 
     /// Like [`Pool::step`], read back into `out`; returns the slot the workers wrote (its
     /// observations: [`Pool::shared_obs`]).
-    pub fn step_shared(
+    pub fn step_shared<'a>(
         &mut self,
-        actions: &[i64],
+        actions: impl Into<Actions<'a>>,
         out: &mut BatchOutput,
     ) -> Result<usize, PoolError> {
-        let a = self.step_slot(Actions::Indices(actions))?;
+        let a = self.step_slot(actions)?;
         self.read_slot(&a, None, out);
         Ok(a.slot)
     }
@@ -200,7 +210,10 @@ impl Pool {
     /// ([`crate::PoolConfig::batch_slots`] of them, two by default): slot `s` stays unchanged
     /// until the call that writes `s` again, at the earliest the second slot call after the
     /// one that returned `s`. [`Pool::select_slot`] names the slot the next call writes.
-    pub fn step_slot(&mut self, actions: Actions<'_>) -> Result<SlotAnswer, PoolError> {
+    pub fn step_slot<'a>(
+        &mut self,
+        actions: impl Into<Actions<'a>>,
+    ) -> Result<SlotAnswer, PoolError> {
         self.send_step_shared(actions)?;
         self.collect_split(None)?
             .ok_or_else(|| PoolError::State("a step without a timeout timed out".into()))
@@ -210,14 +223,18 @@ impl Pool {
     /// and send each worker its block, to be written into the next shared slot, which it
     /// returns; the workers step while the caller does something else. Collect the answers
     /// with [`Pool::wait_shared`]; a sync call in between fails (a reset abandons the step).
-    pub fn send_step_shared(&mut self, actions: Actions<'_>) -> Result<usize, PoolError> {
+    pub fn send_step_shared<'a>(
+        &mut self,
+        actions: impl Into<Actions<'a>>,
+    ) -> Result<usize, PoolError> {
+        let actions = actions.into();
         self.prepare_sync_step(actions)?;
         let slot = self.sup.next_slot;
         self.send_steps(actions, slot as u32 + 1)?;
-        self.sup.split = Some(slot);
-        self.sup.split_sent = std::time::Instant::now();
-        self.sup.split_sent_ns = rogue_gym_ipc::monotonic_ns();
-        self.sup.collecting = None;
+        self.sup.call.split = Some(slot);
+        self.sup.call.split_sent = std::time::Instant::now();
+        self.sup.call.split_sent_ns = rogue_gym_ipc::monotonic_ns();
+        self.sup.call.collecting = None;
         Ok(slot)
     }
 
@@ -230,11 +247,11 @@ impl Pool {
         for k in 0..self.sup.slots.len() {
             self.sup.send_reset(k, slot as u32 + 1)?;
         }
-        self.sup.must_reset = false;
-        self.sup.split = Some(slot);
-        self.sup.split_sent = std::time::Instant::now();
-        self.sup.split_sent_ns = rogue_gym_ipc::monotonic_ns();
-        self.sup.collecting = None;
+        self.sup.failures.must_reset = false;
+        self.sup.call.split = Some(slot);
+        self.sup.call.split_sent = std::time::Instant::now();
+        self.sup.call.split_sent_ns = rogue_gym_ipc::monotonic_ns();
+        self.sup.call.collecting = None;
         Ok(slot)
     }
 
@@ -256,7 +273,7 @@ impl Pool {
         &mut self,
         timeout: Option<std::time::Duration>,
     ) -> Result<Option<SlotAnswer>, PoolError> {
-        let Some(slot) = self.sup.split else {
+        let Some(slot) = self.sup.call.split else {
             return Err(PoolError::State(
                 "no step or reset is pending: send_step_shared() or send_reset_shared() first"
                     .into(),
@@ -266,10 +283,11 @@ impl Pool {
         let workers = self.sup.slots.len();
         let mut acc = self
             .sup
+            .call
             .collecting
             .take()
             .unwrap_or_else(|| SlotCollect::new(slot));
-        self.sup.wait_now = self.sup.expected_wait();
+        self.sup.call.wait_now = self.sup.expected_wait();
         let mut polls = 0;
         let done = self.wait_for(
             |c| {
@@ -279,25 +297,25 @@ impl Pool {
             },
             until,
         );
-        self.sup.wait_now = None;
+        self.sup.call.wait_now = None;
         if matches!(done, Ok(true)) && polls > 1 {
             // Waited for: how long the workers took (by their own stamps, not by when this side
             // saw the answers: a late look must not lengthen the next wait), for the next wait.
-            let took = acc.ready_ns.saturating_sub(self.sup.split_sent_ns);
-            self.sup.expected_answer = Some(std::time::Duration::from_nanos(took));
+            let took = acc.ready_ns.saturating_sub(self.sup.call.split_sent_ns);
+            self.sup.call.expected_answer = Some(std::time::Duration::from_nanos(took));
         }
         match done {
             Ok(false) => {
-                self.sup.collecting = Some(acc);
+                self.sup.call.collecting = Some(acc);
                 return Ok(None);
             }
             Ok(true) => {}
             Err(e) => {
-                self.sup.split = None;
+                self.sup.call.split = None;
                 return Err(e);
             }
         }
-        self.sup.split = None;
+        self.sup.call.split = None;
         self.sup.next_slot = (slot + 1) % self.sup.cfg.batch_slots;
         Ok(Some(acc.answer))
     }
@@ -458,7 +476,7 @@ impl Pool {
     fn prepare_sync_step(&mut self, actions: Actions<'_>) -> Result<(), PoolError> {
         self.begin_call()?;
         self.check_all_actions(actions)?;
-        if self.sup.must_reset {
+        if self.sup.failures.must_reset {
             return Err(PoolError::State(
                 "call reset() before step() (after creation or after a worker failure)".into(),
             ));

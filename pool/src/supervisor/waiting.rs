@@ -47,7 +47,7 @@ impl Pool {
         let listener = self.listener.as_ref().ok_or(PoolError::Closed)?;
         let sup = &mut self.sup;
         let interrupt = &mut self.interrupt;
-        let policy = sup.wait_now.unwrap_or(sup.cfg.wait);
+        let policy = sup.call.wait_now.unwrap_or(sup.cfg.wait);
         let t0 = Instant::now();
         let deadline = match (sup.call_deadline(), until) {
             (Some(d), Some(u)) => Some(d.min(u)),
@@ -68,17 +68,18 @@ impl Pool {
                     && t0.elapsed() >= INTERRUPT_AFTER
                     && check()
                 {
-                    sup.must_reset = true;
+                    sup.failures.must_reset = true;
                     return Err(PoolError::Interrupted);
                 }
             }
             sup.poll_all()?;
-            if sup.discard_faults {
+            if sup.call.discard_faults {
                 // Env errors of abandoned commands; a worker lost meanwhile is still news.
-                sup.faults
+                sup.call
+                    .faults
                     .retain(|f| !matches!(f, PoolError::EnvFailed { .. }));
             }
-            if !sup.faults.is_empty() {
+            if !sup.call.faults.is_empty() {
                 if !sup
                     .slots
                     .iter()
@@ -86,7 +87,7 @@ impl Pool {
                 {
                     // Every worker of the call has answered or was handled: raise all its
                     // failures at once, so that one reset clears them.
-                    let all = std::mem::take(&mut sup.faults);
+                    let all = std::mem::take(&mut sup.call.faults);
                     return Err(PoolError::collected(all).unwrap_or(PoolError::Interrupted));
                 } else {
                     return Ok(false);
@@ -107,8 +108,8 @@ impl Supervisor {
     /// bound, so that the error is raised within it.
     pub(super) fn call_deadline(&self) -> Option<Instant> {
         let (from, bound) = match self.cfg.step_timeout {
-            Some(t) => (self.call_started, t + self.cfg.start_timeout),
-            None => (self.call_failed_at?, self.cfg.start_timeout),
+            Some(t) => (self.call.started, t + self.cfg.start_timeout),
+            None => (self.call.failed_at?, self.cfg.start_timeout),
         };
         Some(from + bound - (bound / 20).min(DEADLINE_MARGIN))
     }
@@ -116,7 +117,7 @@ impl Supervisor {
     /// The error of a call that reached its deadline: the workers it still waits for go on
     /// coming back, and the pool needs a reset.
     pub(super) fn not_back_in_time(&mut self) -> PoolError {
-        self.must_reset = true;
+        self.failures.must_reset = true;
         let waiting = self
             .slots
             .iter()
@@ -145,13 +146,13 @@ impl Supervisor {
         let err = PoolError::NotBackInTime {
             waiting,
             bound,
-            deaths: self.deaths,
-            restarts: self.restarts,
+            deaths: self.failures.deaths,
+            restarts: self.failures.restarts,
             max_restarts: self.cfg.max_restarts,
-            last: self.last_failure.clone(),
+            last: self.failures.last_failure.clone(),
         };
         let mut all = vec![err];
-        all.append(&mut self.faults);
+        all.append(&mut self.call.faults);
         PoolError::collected(all).unwrap_or(PoolError::Interrupted)
     }
 }

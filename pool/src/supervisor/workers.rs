@@ -6,7 +6,7 @@ use std::io::{Read, Seek, SeekFrom};
 use std::ops::Range;
 use std::os::unix::process::ExitStatusExt;
 use std::path::PathBuf;
-use std::process::{Child, Command, ExitStatus, Stdio};
+use std::process::{Child, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 use rogue_gym_ipc::{BlockSample, SupervisorPorts};
@@ -18,9 +18,8 @@ use crate::config::FailurePolicy;
 use crate::error::{FailureCause, PoolError, WorkerFailure};
 use crate::wire::books::next_seq;
 use crate::wire::{
-    ACTION_EXTRAS, BLOCK_AT_ONCE, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, CMD_RESET,
-    CMD_STEP, EnvFault, KEEP_EPISODE, RELOAD_SEEDS, SUBSET, TARGET_SHIFT, calls, env_fault_path,
-    extra_apart_path,
+    BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, Command, EnvFault, KEEP_EPISODE, Op, calls,
+    env_fault_path, extra_apart_path,
 };
 
 pub(super) enum SlotState {
@@ -63,7 +62,7 @@ pub(super) struct WorkerSlot {
     /// its next command resets them (and they report `restarted`).
     pub(super) cut: bool,
     pub(super) stderr_path: PathBuf,
-    /// Observation target of the last command (see `TARGET_SHIFT`).
+    /// Observation target of the last command (see [`Command::target`]).
     pub(super) target: u32,
     /// Failures of this worker in a row, with no answer to a command in between (see
     /// [`restart_backoff`]); an answer ends the streak.
@@ -132,17 +131,31 @@ impl Supervisor {
         self.blocks[k].clone()
     }
 
-    /// The flags that pace a worker's wait after a command: [`BLOCK_AT_ONCE`] for workers past
-    /// the usable cores (in the async API from as many workers as cores: pollers there take
-    /// the CPU from the workers with work, and first-ready-first-served then serves the
-    /// pollers' envs again and again).
-    fn pace(&self) -> u32 {
-        let past = if self.async_mode {
+    /// A command to the workers, paced: [`Command::block_at_once`] for workers past the usable
+    /// cores (in the async API from as many workers as cores: pollers there take the CPU from
+    /// the workers with work, and first-ready-first-served then serves the pollers' envs again
+    /// and again).
+    fn command(&self, op: Op, target: u32) -> Command {
+        let past = if self.async_api.on {
             self.slots.len() >= self.cores
         } else {
             self.slots.len() > self.cores
         };
-        if past { BLOCK_AT_ONCE } else { 0 }
+        Command {
+            block_at_once: past,
+            ..Command::new(op, target)
+        }
+    }
+
+    /// Write the action extras staged for worker `k`'s next step to its file; whether there
+    /// were any ([`Command::action_extras`]).
+    fn write_action_extras(&mut self, k: usize) -> Result<bool, PoolError> {
+        let Some(extras) = self.slots[k].action_extras.take() else {
+            return Ok(false);
+        };
+        let path = calls::action_extras_path(&self.id, k, self.slots[k].generation);
+        calls::write(&path, &extras).map_err(PoolError::Io)?;
+        Ok(true)
     }
 
     /// Start the process of worker `k`, generation `generation` (`successor`: a planned
@@ -156,7 +169,7 @@ impl Supervisor {
         let log = self.id.aux_dir().join(format!("w{k}.g{generation}.stderr"));
         let file = rogue_gym_ipc::private::create_private_file(&log)?;
         let w = &self.cfg.worker;
-        let mut command = Command::new(&w.program);
+        let mut command = std::process::Command::new(&w.program);
         command
             .args(&w.args)
             .arg("--config")
@@ -229,21 +242,15 @@ impl Supervisor {
                 }
             })
             .collect();
-        let reload = if std::mem::take(&mut self.reload_seeds[k]) {
-            RELOAD_SEEDS
-        } else {
-            0
+        let cmd = Command {
+            reload_seeds: std::mem::take(&mut self.reload_seeds[k]),
+            ..self.command(Op::Reset, target)
         };
-        let pace = self.pace();
         let s = &mut self.slots[k];
         s.seq = next_seq(s.seq, s.delivered);
         s.target = target;
-        s.ports.send_cmd(
-            s.seq,
-            CMD_RESET | (target << TARGET_SHIFT) | reload | pace,
-            eps.len(),
-            |p| p.copy_from_slice(&eps),
-        )?;
+        s.ports
+            .send_cmd(s.seq, cmd.encode(), eps.len(), |p| p.copy_from_slice(&eps))?;
         s.state = SlotState::Pending {
             since: Instant::now(),
         };
@@ -263,32 +270,31 @@ impl Supervisor {
             return self.send_reset(k, target);
         }
         let aw = self.spec.action_words();
-        let mut kind = CMD_STEP | (target << TARGET_SHIFT) | self.pace();
-        if let Some(extras) = self.slots[k].action_extras.take() {
-            let path = calls::action_extras_path(&self.id, k, self.slots[k].generation);
-            calls::write(&path, &extras).map_err(PoolError::Io)?;
-            kind |= ACTION_EXTRAS;
-        }
+        let cmd = Command {
+            action_extras: self.write_action_extras(k)?,
+            ..self.command(Op::Step, target)
+        };
         let s = &mut self.slots[k];
         s.seq = next_seq(s.seq, s.delivered);
         s.target = target;
         s.served += self.blocks[k].len() as u64;
         let words = self.blocks[k].len() * aw;
-        s.ports.send_cmd(s.seq, kind, words, |p| match actions {
-            Actions::Indices(a) => {
-                for (d, a) in p.iter_mut().zip(a) {
-                    *d = *a as u64;
+        s.ports
+            .send_cmd(s.seq, cmd.encode(), words, |p| match actions {
+                Actions::Indices(a) => {
+                    for (d, a) in p.iter_mut().zip(a) {
+                        *d = *a as u64;
+                    }
                 }
-            }
-            Actions::Bytes(b) => {
-                let ab = self.spec.action_bytes;
-                for (j, w) in p.chunks_mut(aw).enumerate() {
-                    w.fill(0);
-                    rogue_gym_ipc::words_as_bytes_mut(w)[..ab]
-                        .copy_from_slice(&b[j * ab..(j + 1) * ab]);
+                Actions::Bytes(b) => {
+                    let ab = self.spec.action_bytes;
+                    for (j, w) in p.chunks_mut(aw).enumerate() {
+                        w.fill(0);
+                        rogue_gym_ipc::words_as_bytes_mut(w)[..ab]
+                            .copy_from_slice(&b[j * ab..(j + 1) * ab]);
+                    }
                 }
-            }
-        })?;
+            })?;
         s.state = SlotState::Pending {
             since: Instant::now(),
         };
@@ -296,7 +302,7 @@ impl Supervisor {
     }
 
     /// Step command to worker `k` from action words (`aw` per env of its block); with `only`
-    /// (one word per env, 0 = left alone), a [`SUBSET`] step of the envs it names; answered
+    /// (one word per env, 0 = left alone), a [`Command::subset`] step of the envs it names; answered
     /// into batch slot `target - 1` in place, or by block (`target` 0). A replaced
     /// worker ([`WorkerSlot::cut`]) resets all its envs instead, which report `restarted`.
     pub(super) fn send_words(
@@ -310,25 +316,21 @@ impl Supervisor {
             self.slots[k].restarted = true;
             return self.send_reset(k, 0);
         }
-        let mut kind = CMD_STEP | (target << TARGET_SHIFT) | self.pace();
-        if let Some(extras) = self.slots[k].action_extras.take() {
-            let path = calls::action_extras_path(&self.id, k, self.slots[k].generation);
-            calls::write(&path, &extras).map_err(PoolError::Io)?;
-            kind |= ACTION_EXTRAS;
-        }
         let served = only.map_or(self.blocks[k].len(), |o| {
             o.iter().filter(|&&w| w != 0).count()
         });
         let only = only.unwrap_or(&[]);
-        if !only.is_empty() {
-            kind |= SUBSET;
-        }
+        let cmd = Command {
+            action_extras: self.write_action_extras(k)?,
+            subset: !only.is_empty(),
+            ..self.command(Op::Step, target)
+        };
         let s = &mut self.slots[k];
         s.seq = next_seq(s.seq, s.delivered);
         s.target = target;
         s.served += served as u64;
         s.ports
-            .send_cmd(s.seq, kind, words.len() + only.len(), |p| {
+            .send_cmd(s.seq, cmd.encode(), words.len() + only.len(), |p| {
                 let (a, o) = p.split_at_mut(words.len());
                 a.copy_from_slice(words);
                 o.copy_from_slice(only);
@@ -345,7 +347,7 @@ impl Supervisor {
             SlotState::Ready(sample) => {
                 let restarted = std::mem::take(&mut s.restarted);
                 if std::mem::take(&mut s.recycled) && restarted {
-                    self.recycled_envs.extend(self.blocks[k].clone());
+                    self.recycling.replaced_envs.extend(self.blocks[k].clone());
                 }
                 let layout = self.layouts[k];
                 let apart =
@@ -403,7 +405,7 @@ impl Supervisor {
                             drop(sample);
                             // Same observation target as the interrupted command; in the
                             // async API by block (the reset covers envs the caller holds).
-                            let target = if self.async_mode { 0 } else { s.target };
+                            let target = if self.async_api.on { 0 } else { s.target };
                             self.send_reset(k, target)?;
                         } else {
                             s.state = SlotState::Idle;
@@ -415,7 +417,7 @@ impl Supervisor {
                         s.delivered = Some(h.seq);
                         s.first_episodes = false;
                         s.state = SlotState::Ready(sample);
-                        self.ready_order.push_back(k);
+                        self.async_api.ready_order.push_back(k);
                     }
                     (SlotState::Pending { .. }, BLOCK_CALL) if h.seq == s.seq => {
                         s.restart_streak = 0;
@@ -433,8 +435,8 @@ impl Supervisor {
                                 format!("an env of the worker failed; {e}"),
                             )
                         });
-                        self.must_reset = true;
-                        self.faults.push(PoolError::EnvFailed {
+                        self.failures.must_reset = true;
+                        self.call.faults.push(PoolError::EnvFailed {
                             fault: Box::new(fault),
                             worker: k,
                             pid: s.pid,
@@ -505,8 +507,8 @@ impl Supervisor {
                 let fault = EnvFault::take(&fault_path).map_err(PoolError::Io)?;
                 let pid = s.pid;
                 self.respawn_now(k, then_reset)?;
-                self.must_reset = true;
-                self.faults.push(PoolError::EnvFailed {
+                self.failures.must_reset = true;
+                self.call.faults.push(PoolError::EnvFailed {
                     fault: Box::new(fault),
                     worker: k,
                     pid,
@@ -553,7 +555,7 @@ impl Supervisor {
                 if !self.started {
                     return Err(err);
                 }
-                self.faults.push(err);
+                self.call.faults.push(err);
                 continue;
             }
             self.handle_failure(k, failure, then_reset)?;
@@ -568,10 +570,10 @@ impl Supervisor {
         k: usize,
         failure: WorkerFailure,
     ) -> Result<PoolError, PoolError> {
-        self.deaths += 1;
+        self.failures.deaths += 1;
         self.counts[k].restarts += 1;
         self.counts[k].last_failure = Some(failure.to_string());
-        self.must_reset = true;
+        self.failures.must_reset = true;
         let err = PoolError::OutOfSharedMemory {
             failure: Box::new(failure),
             need: self.shm_need,
@@ -589,7 +591,7 @@ impl Supervisor {
         rogue_gym_ipc::cleanup_dead_nodes(&self.id)?;
         // Drop whatever the dead incarnation left in the queue.
         while self.slots[k].ports.try_recv()?.is_some() {}
-        self.ready_order.retain(|&w| w != k);
+        self.async_api.ready_order.retain(|&w| w != k);
         // Its stderr's tail is in the failure report already: a storm must not pile up files.
         let _ = fs::remove_file(&self.slots[k].stderr_path);
         // A successor being built (recycling) is of no use now: the next generation is after it.
@@ -613,30 +615,32 @@ impl Supervisor {
         failure: WorkerFailure,
         then_reset: bool,
     ) -> Result<(), PoolError> {
-        self.deaths += 1;
-        self.call_failed_at.get_or_insert_with(Instant::now);
+        self.failures.deaths += 1;
+        self.call.failed_at.get_or_insert_with(Instant::now);
         let counts = &mut self.counts[k];
         counts.restarts += 1;
         counts.timeouts += u64::from(matches!(failure.cause, FailureCause::Hung(_)));
         counts.last_failure = Some(failure.to_string());
         match self.cfg.on_worker_failure {
             FailurePolicy::Raise => {
-                self.last_failure = Some(Box::new(failure.clone()));
+                self.failures.last_failure = Some(Box::new(failure.clone()));
                 self.respawn_now(k, false)?;
-                self.must_reset = true;
-                self.faults.push(PoolError::WorkerFailed(Box::new(failure)));
+                self.failures.must_reset = true;
+                self.call
+                    .faults
+                    .push(PoolError::WorkerFailed(Box::new(failure)));
                 Ok(())
             }
             FailurePolicy::Restart => {
-                self.restarts += 1;
-                if self.restarts > self.cfg.max_restarts {
-                    self.must_reset = true;
+                self.failures.restarts += 1;
+                if self.failures.restarts > self.cfg.max_restarts {
+                    self.failures.must_reset = true;
                     return Err(PoolError::RestartBudgetExceeded {
                         max_restarts: self.cfg.max_restarts,
                         last: Box::new(failure),
                     });
                 }
-                self.last_failure = Some(Box::new(failure));
+                self.failures.last_failure = Some(Box::new(failure));
                 let s = &mut self.slots[k];
                 let backoff = restart_backoff(s.restart_streak, self.cfg.start_timeout);
                 s.restart_streak = s.restart_streak.saturating_add(1);

@@ -1,10 +1,11 @@
-//! The wire protocol between the supervisor and its workers, imported by both sides: command
-//! and block kinds, the shared batch buffer and the layout of its slots ([`slot_layout`]), the
+//! The wire protocol between the supervisor and its workers, imported by both sides: commands
+//! ([`command`]) and block kinds, the shared batch buffer and the layout of its slots ([`slot_layout`]), the
 //! episode books ([`books`]), the worker's config file ([`WorkerConfig`]), the layout of a
 //! block ([`layout`]) and the files of env calls ([`calls`]).
 
 pub(crate) mod books;
 pub mod calls;
+pub(crate) mod command;
 pub mod layout;
 pub mod slot_layout;
 
@@ -17,38 +18,11 @@ use serde_json::Value;
 use crate::config::AutoresetMode;
 pub use crate::error::EnvFault;
 use crate::seeds::SeedSchedule;
+pub(crate) use command::{Command, Op, Serve};
 
-/// Command: reset the block's envs; payload = episode index per env.
-pub(crate) const CMD_RESET: u32 = 1;
-/// Payload value of a `CMD_RESET` for an env that is *not* reset (partial reset): the env keeps
-/// its state and re-writes its current observation ([`Env::observe`]).
+/// Payload value of a reset ([`Op::Reset`]) for an env that is *not* reset (partial reset): the
+/// env keeps its state and re-writes its current observation ([`Env::observe`]).
 pub(crate) const KEEP_EPISODE: u64 = u64::MAX;
-/// Command: step the block's envs; payload = action per env.
-pub(crate) const CMD_STEP: u32 = 2;
-/// Command: exit cleanly.
-pub(crate) const CMD_CLOSE: u32 = 3;
-/// Command: call into envs (off the hot path); the requests are in the worker's call file
-/// ([`calls::request_path`]), the replies go to [`calls::reply_path`]. No payload.
-pub(crate) const CMD_CALL: u32 = 4;
-/// Command kinds carry the observation target in bits 8..: 0 = the block's own obs area,
-/// `s + 1` = slot `s` of the shared batch buffer.
-pub(crate) const TARGET_SHIFT: u32 = 8;
-/// Flag of a reset command: re-read the seed schedule from the config file first.
-pub(crate) const RELOAD_SEEDS: u32 = 1 << 16;
-/// Flag of a step command: hand the envs the parts of their actions of no fixed size, in the
-/// worker's action-extras file ([`calls::action_extras_path`]), before they step.
-pub(crate) const ACTION_EXTRAS: u32 = 1 << 17;
-/// Flag of a step command: only some envs of the block step (the async API serves envs, not
-/// blocks). The payload carries, after the action words, one word per env of the block: 1 for
-/// an env that steps, 0 for one left as it is (its row of the answer is not to be read).
-pub(crate) const SUBSET: u32 = 1 << 18;
-/// Flag of a reset or step command: after answering it, wait for the next command without
-/// polling. The async API sets it on a machine with no core to spare: workers that poll take
-/// the CPU from the workers with work, and first-ready-first-served then serves the pollers'
-/// envs again and again.
-pub(crate) const BLOCK_AT_ONCE: u32 = 1 << 19;
-/// The bits of a command kind that name its observation target (below the flags).
-pub(crate) const TARGET_BITS: u32 = RELOAD_SEEDS - 1;
 /// Name of the shared batch buffer (`/dev/shm/<prefix>batch`).
 pub(crate) const BATCH_BUFFER: &str = "batch";
 /// Default number of slots of the shared batch buffer (double buffering).
@@ -120,7 +94,7 @@ pub(crate) const SLOT_ANSWER_WORDS: usize = 4;
 /// Block: an env failed on the command (no data); the report is in the worker's fault file
 /// ([`env_fault_path`]).
 pub(crate) const BLOCK_ERROR: u32 = 3;
-/// Block: the replies of a [`CMD_CALL`] are written (no data).
+/// Block: the replies of an [`Op::Call`] are written (no data).
 pub(crate) const BLOCK_CALL: u32 = 4;
 
 /// The file a successor (a planned replacement of worker `index`, as generation `generation`)

@@ -7,7 +7,7 @@ use std::ops::Range;
 use crate::config::AutoresetMode;
 use crate::env::{EnvBlock, EnvSpec, StepOutcome};
 use crate::wire::layout::{EnvRecord, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED};
-use crate::wire::{CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE};
+use crate::wire::{EnvFault, KEEP_EPISODE, Serve};
 
 use super::slot::{BlockOut, Slot, SlotCtx, fault, place_extra};
 
@@ -87,18 +87,19 @@ impl BlockHost {
         )
     }
 
-    /// Answer one command (`CMD_RESET`: an episode index or [`KEEP_EPISODE`] per env;
-    /// `CMD_STEP`: an action per env) for the whole block, records and extra info included.
+    /// Answer one command ([`Serve::Reset`]: an episode index or [`KEEP_EPISODE`] per env;
+    /// [`Serve::Step`]: an action per env) for the whole block, records and extra info
+    /// included.
     pub(crate) fn serve(
         &mut self,
-        kind: u32,
+        kind: Serve,
         payload: &[u64],
         out: &mut BlockOut<'_>,
         ctx: &SlotCtx,
     ) -> Result<(), EnvFault> {
         let n = self.books.len();
         match kind {
-            CMD_RESET => {
+            Serve::Reset => {
                 for (j, s) in self.books.iter_mut().enumerate() {
                     let value = payload[j];
                     self.mask[j] = value != KEEP_EPISODE;
@@ -113,7 +114,7 @@ impl BlockHost {
                     .reset(&self.mask, &self.seeds, &self.episodes, out.obs)
                     .map_err(|e| self.block_fault("reset", e))?;
             }
-            CMD_STEP => {
+            Serve::Step => {
                 let w = payload.len() / n.max(1);
                 for (j, s) in self.books.iter_mut().enumerate() {
                     // NEXT_STEP: an env whose episode ended resets on this step (the block
@@ -138,17 +139,10 @@ impl BlockHost {
                     }
                 }
             }
-            k => {
-                return Err(fault(
-                    &self.books[0],
-                    "a command".into(),
-                    format!("unknown command kind {k}"),
-                ));
-            }
         }
         for j in 0..n {
             let mut rec = EnvRecord::default();
-            if kind == CMD_STEP && !self.mask[j] {
+            if kind == Serve::Step && !self.mask[j] {
                 let o = self.outcomes[j];
                 rec.reward = o.reward;
                 rec.flags = (u32::from(o.terminated) * FLAG_TERMINATED)
@@ -290,7 +284,7 @@ mod tests {
     /// Serve one command; the block's words.
     fn serve(
         host: &mut BlockHost,
-        kind: u32,
+        kind: Serve,
         payload: &[u64],
         ctx: &SlotCtx,
     ) -> Result<(BlockLayout, Vec<u64>), EnvFault> {
@@ -334,11 +328,12 @@ mod tests {
         let mut slots: Vec<Slot> = (0..N as u64)
             .map(|j| Slot::new(Box::new(test_env()) as Box<dyn Env>, FIRST + j))
             .collect();
-        let mut commands = vec![(CMD_RESET, vec![0u64; N])];
-        commands
-            .extend((0..12u64).map(|t| (CMD_STEP, (0..N as u64).map(|j| (t + j) % 5).collect())));
-        commands.push((CMD_RESET, vec![KEEP_EPISODE, 4, KEEP_EPISODE]));
-        commands.push((CMD_STEP, vec![1, 2, 3]));
+        let mut commands = vec![(Serve::Reset, vec![0u64; N])];
+        commands.extend(
+            (0..12u64).map(|t| (Serve::Step, (0..N as u64).map(|j| (t + j) % 5).collect())),
+        );
+        commands.push((Serve::Reset, vec![KEEP_EPISODE, 4, KEEP_EPISODE]));
+        commands.push((Serve::Step, vec![1, 2, 3]));
         let mut ends = 0;
         for (kind, payload) in commands {
             let (layout, block) = serve(&mut host, kind, &payload, &ctx).unwrap();
@@ -360,7 +355,7 @@ mod tests {
                 assert_eq!(
                     layout.record(&block, j),
                     want,
-                    "{mode:?}: command {kind}, env {j}"
+                    "{mode:?}: command {kind:?}, env {j}"
                 );
                 assert_eq!(&layout.obs(&block)[j * OB..(j + 1) * OB], &obs);
                 if want.has_final_obs() {
@@ -377,8 +372,8 @@ mod tests {
         let seeds = SeedSchedule::from_base(1);
         let ctx = ctx(&seeds, AutoresetMode::NextStep);
         let mut host = host(&seeds);
-        serve(&mut host, CMD_RESET, &[0; N], &ctx).unwrap();
-        let e = serve(&mut host, CMD_STEP, &[0, 9, 0], &ctx).unwrap_err();
+        serve(&mut host, Serve::Reset, &[0; N], &ctx).unwrap();
+        let e = serve(&mut host, Serve::Step, &[0, 9, 0], &ctx).unwrap_err();
         assert_eq!(e.env, FIRST + 1);
         assert!(e.message.contains("action 9"), "{}", e.message);
     }

@@ -6,7 +6,7 @@ use rogue_gym_ipc::PoolId;
 use super::block::BlockHost;
 use super::slot::{BlockOut, Slot, SlotCtx, apply};
 use crate::wire::books::Books;
-use crate::wire::{EnvFault, calls};
+use crate::wire::{EnvFault, Serve, calls};
 
 /// A worker's envs: one [`Env`] each, or one [`crate::EnvBlock`] for them all.
 pub(super) enum WorkerEnvs {
@@ -41,11 +41,11 @@ impl WorkerEnvs {
     }
 
     /// Answer one command (`kind`, with `per_env` payload words per env) into `out`; with
-    /// `only` (a [`crate::wire::SUBSET`] command: one word per env, 0 = left alone), only the
+    /// `only` (a [`crate::wire::Command::subset`] command: one word per env, 0 = left alone), only the
     /// envs it names. Returns how many envs were served.
     pub(super) fn serve(
         &mut self,
-        kind: u32,
+        kind: Serve,
         payload: &[u64],
         per_env: usize,
         only: Option<&[u64]>,

@@ -10,8 +10,7 @@ use crate::wire::layout::{
 };
 use crate::wire::slot_layout::RowWriter;
 use crate::wire::{
-    CMD_RESET, CMD_STEP, EnvFault, KEEP_EPISODE, SLOT_EXTRA_ANY, SLOT_EXTRA_APART,
-    SLOT_EXTRA_UNIFORM, SLOT_FINAL,
+    EnvFault, KEEP_EPISODE, SLOT_EXTRA_ANY, SLOT_EXTRA_APART, SLOT_EXTRA_UNIFORM, SLOT_FINAL, Serve,
 };
 
 /// One env of a worker with its episode bookkeeping (`E = ()` for the envs of an
@@ -113,13 +112,13 @@ fn do_reset(s: &mut Slot, obs: &mut [u8], ctx: &SlotCtx) -> Result<(), EnvFault>
     })
 }
 
-/// Apply one command to one env: `CMD_RESET` (`words[0]` = episode index) or `CMD_STEP`
+/// Apply one command to one env: [`Serve::Reset`] (`words[0]` = episode index) or [`Serve::Step`]
 /// (`words` = the action: an index, or `action_bytes` raw bytes), with autoreset. Writes the
 /// observation, the final observation (SAME_STEP, on an episode end) and the extra info into
 /// `out`. Returns the env's record.
 pub(crate) fn apply(
     s: &mut Slot,
-    kind: u32,
+    kind: Serve,
     words: &[u64],
     out: EnvOut<'_>,
     ctx: &SlotCtx,
@@ -133,7 +132,7 @@ pub(crate) fn apply(
     let value = words.first().copied().unwrap_or(0);
     let mut rec = EnvRecord::default();
     match kind {
-        CMD_RESET if value == KEEP_EPISODE => {
+        Serve::Reset if value == KEEP_EPISODE => {
             // Partial reset, env not selected: no state change, same observation again.
             s.env.observe(obs).map_err(|e| {
                 let c = format!(
@@ -143,16 +142,16 @@ pub(crate) fn apply(
                 fault(s, c, e)
             })?;
         }
-        CMD_RESET => {
+        Serve::Reset => {
             s.episode = value;
             do_reset(s, obs, ctx)?;
         }
-        CMD_STEP if s.needs_reset => {
+        Serve::Step if s.needs_reset => {
             // NEXT_STEP: this step only resets; the action is ignored.
             s.episode += 1;
             do_reset(s, obs, ctx)?;
         }
-        CMD_STEP => {
+        Serve::Step => {
             s.check_action(value, ctx)?;
             let result = if ctx.action_bytes > 0 {
                 let bytes = rogue_gym_ipc::words_as_bytes(words);
@@ -167,13 +166,6 @@ pub(crate) fn apply(
             rec.reward = out.reward;
             rec.flags = (u32::from(out.terminated) * FLAG_TERMINATED)
                 | (u32::from(out.truncated) * FLAG_TRUNCATED);
-        }
-        k => {
-            return Err(fault(
-                s,
-                "a command".into(),
-                format!("unknown command kind {k}"),
-            ));
         }
     }
     s.stamp(&mut rec);
@@ -341,7 +333,7 @@ mod tests {
 
     fn go(
         s: &mut Slot,
-        kind: u32,
+        kind: Serve,
         value: u64,
         obs: &mut [u8],
         fin: &mut [u8],
@@ -380,11 +372,11 @@ mod tests {
         let c = ctx(&seeds, AutoresetMode::NextStep);
         let mut s = slot();
         let (mut obs, mut fin) = ([0u8; 4], [0u8; 0]);
-        let r = go(&mut s, CMD_RESET, 0, &mut obs, &mut fin, &c).unwrap();
+        let r = go(&mut s, Serve::Reset, 0, &mut obs, &mut fin, &c).unwrap();
         assert_eq!((r.episode, r.seed, r.flags), (0, seeds.seed(5, 0, 8), 0));
         let mut total = 0.0;
         for t in 1..=3 {
-            let r = go(&mut s, CMD_STEP, 1, &mut obs, &mut fin, &c).unwrap();
+            let r = go(&mut s, Serve::Step, 1, &mut obs, &mut fin, &c).unwrap();
             total += r.reward;
             assert_eq!(r.episode_length, t);
             if r.terminated() {
@@ -394,7 +386,7 @@ mod tests {
         }
         // The episode ended: its last reward was reported; the next step only resets.
         assert_eq!(s.ret, total);
-        let r = go(&mut s, CMD_STEP, 4, &mut obs, &mut fin, &c).unwrap();
+        let r = go(&mut s, Serve::Step, 4, &mut obs, &mut fin, &c).unwrap();
         assert_eq!(r.reward, 0.0);
         assert!(!r.terminated() && !r.truncated());
         assert_eq!(
@@ -413,7 +405,7 @@ mod tests {
         let c = ctx(&seeds, AutoresetMode::SameStep);
         let mut s = slot();
         let (mut obs, mut fin) = ([0u8; 4], [0u8; 4]);
-        go(&mut s, CMD_RESET, 0, &mut obs, &mut fin, &c).unwrap();
+        go(&mut s, Serve::Reset, 0, &mut obs, &mut fin, &c).unwrap();
         // Replay the same episode on a bare env to know the final obs.
         let mut bare =
             TestEnv::from_json(&serde_json::json!({"obs_shape": [4], "max_steps": 3})).unwrap();
@@ -421,7 +413,7 @@ mod tests {
         bare.reset(seeds.seed(5, 0, 8), &mut bobs).unwrap();
         loop {
             let o = bare.step(2, &mut bobs).unwrap();
-            let r = go(&mut s, CMD_STEP, 2, &mut obs, &mut fin, &c).unwrap();
+            let r = go(&mut s, Serve::Step, 2, &mut obs, &mut fin, &c).unwrap();
             assert_eq!(r.reward, o.reward, "the final reward is kept");
             if o.terminated || o.truncated {
                 assert_eq!((r.terminated(), r.truncated()), (o.terminated, o.truncated));
@@ -436,7 +428,7 @@ mod tests {
             assert_eq!(obs, bobs);
         }
         // The next step acts normally in the new episode.
-        let r = go(&mut s, CMD_STEP, 0, &mut obs, &mut fin, &c).unwrap();
+        let r = go(&mut s, Serve::Step, 0, &mut obs, &mut fin, &c).unwrap();
         assert_eq!((r.episode, r.episode_length), (1, 1));
     }
 
@@ -446,8 +438,8 @@ mod tests {
         let c = ctx(&seeds, AutoresetMode::NextStep);
         let mut s = slot();
         let (mut obs, mut fin) = ([0u8; 4], [0u8; 0]);
-        go(&mut s, CMD_RESET, 0, &mut obs, &mut fin, &c).unwrap();
-        let e = go(&mut s, CMD_STEP, 99, &mut obs, &mut fin, &c).unwrap_err();
+        go(&mut s, Serve::Reset, 0, &mut obs, &mut fin, &c).unwrap();
+        let e = go(&mut s, Serve::Step, 99, &mut obs, &mut fin, &c).unwrap_err();
         assert_eq!(e.env, 5);
         assert!(e.message.contains("action 99"), "{}", e.message);
     }

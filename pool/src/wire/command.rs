@@ -1,0 +1,175 @@
+//! A command from the supervisor to a worker, typed: [`Command`] and its word on the wire.
+//!
+//! The command header's `kind` word holds the operation in bits 0..8, the observation target
+//! in bits 8..16 and four flags above. Only [`Command::encode`] and [`Command::decode`] know
+//! that packing; both sides build and read commands as structs.
+
+/// What a command asks of a worker.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Op {
+    /// Reset (some of) the block's envs; payload: an episode index per env, or
+    /// [`super::KEEP_EPISODE`].
+    Reset,
+    /// Step the block's envs; payload: the actions' words per env.
+    Step,
+    /// Exit cleanly.
+    Close,
+    /// Call into envs, off the hot path ([`super::calls`]); no payload.
+    Call,
+}
+
+/// The two commands that the envs serve, with a payload per env.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Serve {
+    /// [`Op::Reset`].
+    Reset,
+    /// [`Op::Step`].
+    Step,
+}
+
+/// One command, as the supervisor sends it and the worker reads it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Command {
+    /// The operation.
+    pub op: Op,
+    /// Where the answer's observations go: 0 = the block's own observation area, `s + 1` =
+    /// slot `s` of the shared batch buffer.
+    pub target: u32,
+    /// (reset) Re-read the seed schedule from the config file first.
+    pub reload_seeds: bool,
+    /// (step) Hand the envs the parts of their actions of no fixed size, in the worker's
+    /// action-extras file ([`super::calls::action_extras_path`]), before they step.
+    pub action_extras: bool,
+    /// (step) Only some envs of the block step (the async API serves envs, not blocks): the
+    /// payload carries, after the action words, one word per env of the block, 1 for an env
+    /// that steps, 0 for one left as it is (its row of the answer is not to be read).
+    pub subset: bool,
+    /// After answering, wait for the next command without polling. The async API sets it on a
+    /// machine with no core to spare: workers that poll take the CPU from the workers with
+    /// work, and first-ready-first-served then serves the pollers' envs again and again.
+    pub block_at_once: bool,
+}
+
+const OP_BITS: u32 = 0xff;
+const TARGET_SHIFT: u32 = 8;
+const TARGET_MASK: u32 = 0xff << TARGET_SHIFT;
+const RELOAD_SEEDS: u32 = 1 << 16;
+const ACTION_EXTRAS: u32 = 1 << 17;
+const SUBSET: u32 = 1 << 18;
+const BLOCK_AT_ONCE: u32 = 1 << 19;
+const KNOWN: u32 = OP_BITS | TARGET_MASK | RELOAD_SEEDS | ACTION_EXTRAS | SUBSET | BLOCK_AT_ONCE;
+
+impl Command {
+    /// A command with no flags set.
+    pub(crate) fn new(op: Op, target: u32) -> Command {
+        Command {
+            op,
+            target,
+            reload_seeds: false,
+            action_extras: false,
+            subset: false,
+            block_at_once: false,
+        }
+    }
+
+    /// The command's word on the wire. `target` must fit 8 bits
+    /// ([`super::MAX_BATCH_SLOTS`] is far below).
+    pub(crate) fn encode(self) -> u32 {
+        debug_assert!(self.target <= TARGET_MASK >> TARGET_SHIFT);
+        let op = match self.op {
+            Op::Reset => 1,
+            Op::Step => 2,
+            Op::Close => 3,
+            Op::Call => 4,
+        };
+        op | ((self.target << TARGET_SHIFT) & TARGET_MASK)
+            | flag(self.reload_seeds, RELOAD_SEEDS)
+            | flag(self.action_extras, ACTION_EXTRAS)
+            | flag(self.subset, SUBSET)
+            | flag(self.block_at_once, BLOCK_AT_ONCE)
+    }
+
+    /// The command a word on the wire holds; an error naming the word if it holds none.
+    pub(crate) fn decode(word: u32) -> Result<Command, String> {
+        let op = match word & OP_BITS {
+            1 => Op::Reset,
+            2 => Op::Step,
+            3 => Op::Close,
+            4 => Op::Call,
+            k => return Err(format!("unknown command kind {k} (word {word:#x})")),
+        };
+        if word & !KNOWN != 0 {
+            return Err(format!("unknown command flags in word {word:#x}"));
+        }
+        Ok(Command {
+            op,
+            target: (word & TARGET_MASK) >> TARGET_SHIFT,
+            reload_seeds: word & RELOAD_SEEDS != 0,
+            action_extras: word & ACTION_EXTRAS != 0,
+            subset: word & SUBSET != 0,
+            block_at_once: word & BLOCK_AT_ONCE != 0,
+        })
+    }
+
+    /// The envs' part of the command: [`Serve`] for a reset or a step, else `None`.
+    pub(crate) fn serve(self) -> Option<Serve> {
+        match self.op {
+            Op::Reset => Some(Serve::Reset),
+            Op::Step => Some(Serve::Step),
+            Op::Close | Op::Call => None,
+        }
+    }
+}
+
+fn flag(on: bool, bit: u32) -> u32 {
+    if on { bit } else { 0 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn op() -> impl Strategy<Value = Op> {
+        prop_oneof![
+            Just(Op::Reset),
+            Just(Op::Step),
+            Just(Op::Close),
+            Just(Op::Call)
+        ]
+    }
+
+    proptest! {
+        #[test]
+        fn every_command_survives_the_wire(
+            op in op(),
+            target in 0u32..=super::super::MAX_BATCH_SLOTS as u32,
+            flags in any::<[bool; 4]>(),
+        ) {
+            let c = Command {
+                op,
+                target,
+                reload_seeds: flags[0],
+                action_extras: flags[1],
+                subset: flags[2],
+                block_at_once: flags[3],
+            };
+            prop_assert_eq!(Command::decode(c.encode()), Ok(c));
+        }
+    }
+
+    #[test]
+    fn a_word_that_is_no_command_is_refused_with_the_word() {
+        assert!(
+            Command::decode(0)
+                .unwrap_err()
+                .contains("unknown command kind 0")
+        );
+        assert!(Command::decode(9).unwrap_err().contains("kind 9"));
+        assert!(
+            Command::decode(2 | (1 << 25))
+                .unwrap_err()
+                .contains("flags")
+        );
+    }
+}
