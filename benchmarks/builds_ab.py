@@ -21,16 +21,16 @@ What the pool's counters cost: build A without them (``maturin develop --release
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
-import random
 import statistics
 import subprocess
 import sys
 import time
 from pathlib import Path
 from typing import Any
+
+from common import env_fn, median_interval, write_results
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = Path(__file__).resolve().parent / "results" / "builds_ab"
@@ -42,7 +42,6 @@ DEFAULT_KINDS = ("native", "hosted")
 def make_env(kind: str, num_envs: int, workers: int) -> tuple[Any, Any]:
     """The vector env of ``kind`` under the build this process imports, and 256 batches of
     actions for it."""
-    import gymnasium as gym
     import numpy as np
     import rogue_gym
 
@@ -51,10 +50,10 @@ def make_env(kind: str, num_envs: int, workers: int) -> tuple[Any, Any]:
         env = rogue_gym.make_vec(num_envs, config="paper", num_workers=workers, seed=0)
         return env, rng.integers(0, 11, size=(256, num_envs))
     if kind == "hosted":
-        fns = [lambda: gym.make("CartPole-v1")] * num_envs
+        fns = [env_fn("cartpole")] * num_envs
         env = rogue_gym.PoolVectorEnv(fns, num_workers=workers)
         return env, rng.integers(0, 2, size=(256, num_envs))
-    fns = [lambda: gym.make("HalfCheetah-v5")] * num_envs
+    fns = [env_fn("halfcheetah")] * num_envs
     env = rogue_gym.PoolVectorEnv(fns, num_workers=workers)
     return env, rng.uniform(-1, 1, size=(256, num_envs, 6)).astype(np.float32)
 
@@ -118,13 +117,6 @@ class Side:
         except subprocess.TimeoutExpired:
             self.proc.kill()
             self.proc.wait()
-
-
-def median_interval(ratios: list[float], draws: int = 2000) -> tuple[float, float]:
-    """A 95% bootstrap interval of the median of ``ratios``."""
-    rng = random.Random(0)
-    meds = sorted(statistics.median(rng.choices(ratios, k=len(ratios))) for _ in range(draws))
-    return meds[int(0.025 * draws)], meds[int(0.975 * draws) - 1]
 
 
 def main() -> None:
@@ -199,14 +191,12 @@ def main() -> None:
             f"{r['ratio_min']:.2f}-{r['ratio_max']:.2f} |"
         )
     print("\n".join(lines))
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "builds_ab.md").write_text("\n".join(lines) + "\n")
     meta = {
         "machine": platform.node(),
         "cpus": os.cpu_count(),
         "args": {k: str(v) for k, v in vars(args).items()},
     }
-    (args.out / "builds_ab.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=1))
+    write_results(args.out, "builds_ab", "\n".join(lines), {"meta": meta, "rows": rows})
 
 
 if __name__ == "__main__":

@@ -21,7 +21,6 @@ Writes ``double_buffer.json`` and ``double_buffer.md`` under ``--out`` (default
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import statistics
@@ -32,6 +31,8 @@ from typing import Any, Callable
 import gymnasium as gym
 import numpy as np
 import rogue_gym
+
+from common import write_results
 
 WORKLOADS = {"rogue": 1024, "CartPole-v1": 16}
 
@@ -174,10 +175,8 @@ def main() -> None:
         )
     table = "\n".join(lines)
     print(table)
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "double_buffer.md").write_text(table + "\n")
     meta = {"args": {**vars(args), "out": str(args.out)}, "rows": rows}
-    (args.out / "double_buffer.json").write_text(json.dumps(meta, indent=1))
+    write_results(args.out, "double_buffer", table, meta)
 
 
 if __name__ == "__main__":

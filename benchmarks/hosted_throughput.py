@@ -40,20 +40,17 @@ Writes ``hosted_throughput.md`` and ``hosted_throughput.json`` under ``--out`` (
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import os
 import platform
-import random
-import signal
 import statistics
-import subprocess
-import sys
 import time
 from pathlib import Path
 from typing import Any, Callable, Optional
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+from common import env_fn, run_cells, write_results
 
 ENVS = ["cartpole", "rogue-py", "slow", "text"]
 BACKENDS = ["pool", "gym-sync", "gym-async-shm", "sb3-subproc", "puffer-mp", "native-pool"]
@@ -61,81 +58,6 @@ BACKENDS = ["pool", "gym-sync", "gym-async-shm", "sb3-subproc", "puffer-mp", "na
 EXTRA_BACKENDS = ["gym-async"]
 #: What runs when ``--envs``/``--backends`` are not given.
 DEFAULT_ENVS = ["cartpole", "rogue-py", "slow"]
-SLOW_STEP_S = 0.001
-
-
-def _slow_env() -> Any:
-    import gymnasium as gym
-    import numpy as np
-    from gymnasium import spaces
-
-    class SlowEnv(gym.Env):
-        """Waits ``SLOW_STEP_S`` per step (the CPU is free meanwhile)."""
-
-        observation_space = spaces.Box(-1.0, 1.0, (8,), np.float32)
-        action_space = spaces.Discrete(4)
-
-        def reset(self, *, seed: Any = None, options: Any = None) -> Any:
-            super().reset(seed=seed)
-            self.t = 0
-            return np.zeros(8, np.float32), {}
-
-        def step(self, action: Any) -> Any:
-            time.sleep(SLOW_STEP_S)
-            self.t += 1
-            return np.full(8, self.t / 1000, np.float32), 0.0, False, self.t >= 200, {}
-
-    return SlowEnv()
-
-
-def _text_env() -> Any:
-    import gymnasium as gym
-    import numpy as np
-    from gymnasium import spaces
-
-    class TextLeafEnv(gym.Env):
-        """A grid and a short mission string that changes with each episode."""
-
-        observation_space = spaces.Dict(
-            {
-                "grid": spaces.Box(0, 10, (7, 7, 3), np.uint8),
-                "mission": spaces.Text(64, charset="abcdefghijklmnopqrstuvwxyz0123456789 "),
-            }
-        )
-        action_space = spaces.Discrete(4)
-
-        def reset(self, *, seed: Any = None, options: Any = None) -> Any:
-            super().reset(seed=seed)
-            self.t = 0
-            self.mission = f"get to the {int(self.np_random.integers(100))} square"
-            return self._obs(), {}
-
-        def _obs(self) -> Any:
-            return {"grid": np.full((7, 7, 3), self.t % 10, np.uint8), "mission": self.mission}
-
-        def step(self, action: Any) -> Any:
-            self.t += 1
-            return self._obs(), 0.0, False, self.t >= 200, {}
-
-    return TextLeafEnv()
-
-
-def env_fn(env: str) -> Callable[[], Any]:
-    if env == "cartpole":
-        import gymnasium as gym
-
-        return lambda: gym.make("CartPole-v1")
-    if env == "rogue-py":
-        from rogue_gym.envs import RogueEnv
-        from rogue_gym.suites import PAPER_CONFIG
-
-        config = dict(PAPER_CONFIG)
-        return lambda: RogueEnv(config_dict=config, max_steps=500, obs="symbol_index")
-    if env == "slow":
-        return _slow_env
-    if env == "text":
-        return _text_env
-    raise ValueError(f"unknown env {env}")
 
 
 def num_actions(env: str) -> int:
@@ -247,72 +169,6 @@ def cells(args: argparse.Namespace) -> list[dict[str, Any]]:
     return out
 
 
-def run_isolated(cmd: list[str], timeout: float, env: dict[str, str]) -> tuple[Any, str, str]:
-    """Run a cell in its own session; on timeout kill the whole session (workers, forkservers
-    and all), so nothing it started loads the next cells. Returns (exit code or None, stdout,
-    stderr)."""
-    proc = subprocess.Popen(
-        cmd,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=env,
-        start_new_session=True,
-    )
-    try:
-        out, err = proc.communicate(timeout=timeout)
-        code: Any = proc.returncode
-    except subprocess.TimeoutExpired:
-        code = None
-        out, err = "", ""
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
-    return code, out, err
-
-
-def run_cells(
-    script: str,
-    todo: list[dict[str, Any]],
-    key: Callable[[dict[str, Any]], tuple[Any, ...]],
-    reps: int,
-    timeout: float,
-    env: dict[str, str],
-) -> tuple[dict[Any, list[dict[str, Any]]], dict[Any, str]]:
-    """Run every cell ``reps`` times, each in a fresh ``script --cell JSON`` process (see
-    :func:`run_isolated`), the order shuffled per repetition, printing each result. Returns
-    the results of each cell key (the JSON line each run printed) and the reason of each cell
-    that failed or timed out (not run again)."""
-    runs: dict[Any, list[dict[str, Any]]] = {}
-    failed: dict[Any, str] = {}
-    total, done = len(todo) * reps, 0
-    for rep in range(reps):
-        random.Random(rep).shuffle(todo)
-        for cell in todo:
-            done += 1
-            k = key(cell)
-            if k in failed:
-                continue
-            code, stdout, stderr = run_isolated(
-                [sys.executable, script, "--cell", json.dumps(cell)], timeout, env
-            )
-            if code is None:
-                failed[k] = f"timed out after {timeout:.0f} s"
-            elif code != 0:
-                lines = stderr.strip().splitlines()
-                failed[k] = lines[-1][:200] if lines else f"exit code {code}"
-            else:
-                runs.setdefault(k, []).append(json.loads(stdout.strip().splitlines()[-1]))
-            shown = (
-                f"{runs[k][-1]['steps_per_s']:>12,.0f} steps/s"
-                if k not in failed
-                else f"skipped: {failed[k]}"
-            )
-            print(f"[{done}/{total}] {' '.join(map(str, k)):40s} {shown}", flush=True)
-    return runs, failed
-
-
 def key(c: dict[str, Any]) -> tuple[str, str, int, int]:
     return (c["env"], c["backend"], int(c["num_envs"]), int(c["workers"]))
 
@@ -400,14 +256,13 @@ def write(args: argparse.Namespace, results: dict, failed: dict) -> None:
                 f"- slow env, {n} envs: 8 workers / 2 workers = **{eight / two:.2f}x** "
                 f"({eight / two / 4:.0%} of the ideal 4x)"
             )
-    (out / "hosted_throughput.md").write_text("\n".join(lines) + "\n")
-    plot(med, out / "hosted_throughput.png")
     raw = {
         "args": vars(args),
         "runs": [{"cell": list(k), "steps_per_s": v} for k, v in results.items()],
         "failed": [{"cell": list(k), "reason": r} for k, r in failed.items()],
     }
-    (out / "hosted_throughput.json").write_text(json.dumps(raw, indent=1) + "\n")
+    write_results(out, "hosted_throughput", "\n".join(lines), raw)
+    plot(med, out / "hosted_throughput.png")
     print("\n".join(lines))
 
 

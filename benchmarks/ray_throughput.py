@@ -22,13 +22,14 @@ Writes ``ray_throughput.md`` and ``ray_throughput.json`` under ``--out`` (defaul
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import statistics
 import time
 from pathlib import Path
 from typing import Any
+
+from common import write_results
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
@@ -138,12 +139,8 @@ def main() -> None:
             lines.append(
                 f"| {n} | {kind} | {med:,.0f} | {min(runs):,.0f}-{max(runs):,.0f} | {ratio} |"
             )
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "ray_throughput.md").write_text("\n".join(lines) + "\n")
-    (out / "ray_throughput.json").write_text(
-        json.dumps({"args": vars(args), "runs": results}, indent=1) + "\n"
-    )
+    data = {"args": vars(args), "runs": results}
+    write_results(Path(args.out), "ray_throughput", "\n".join(lines), data)
     print("\n".join(lines))
 
 

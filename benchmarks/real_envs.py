@@ -53,7 +53,6 @@ env, is listed as skipped with the reason.
 from __future__ import annotations
 
 import argparse
-import copy
 import functools
 import json
 import os
@@ -62,242 +61,30 @@ import statistics
 import sys
 import time
 from pathlib import Path
-from typing import Any, Callable, ClassVar, Optional
+from typing import Any, Optional
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from hosted_throughput import run_cells
-
-ENVS = ["pong", "pong-pre", "nethack", "halfcheetah", "minigrid", "crafter", "cartpole"]
-BACKENDS = ["pool", "gym-sync", "gym-async", "sb3-subproc", "envpool", "ale-vector", "pool-vector"]
-#: Backends run only when named: ``pool-copy`` is the pool copying every batch of observations
-#: into fresh arrays, as ``copy=True`` did before it lent the slots (the A/B of that change).
-EXTRA_BACKENDS = ["pool-copy"]
-#: Backends that run ale-py's C++ vector env (Pong only).
-ALE_BACKENDS = ("ale-vector", "pool-vector")
-#: Backends with one process per env (the worker count does not apply).
-PER_ENV_PROCESS = ("gym-async", "sb3-subproc")
-
-
-def _crafter_env() -> Any:
-    """Crafter (old gym API) as a gymnasium env."""
-    import crafter
-    import gymnasium as gym
-    import numpy as np
-    from gymnasium import spaces
-
-    class Crafter(gym.Env):
-        observation_space = spaces.Box(0, 255, (64, 64, 3), np.uint8)
-        action_space = spaces.Discrete(17)
-        metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
-
-        def __init__(self) -> None:
-            self.env: Any = None
-
-        def reset(self, *, seed: Optional[int] = None, options: Any = None) -> Any:
-            super().reset(seed=seed)
-            if self.env is None or seed is not None:
-                self.env = crafter.Env(seed=int(self.np_random.integers(2**31)))
-            return self.env.reset(), {}
-
-        def step(self, action: Any) -> Any:
-            obs, reward, done, info = self.env.step(int(action))
-            # Crafter ends an episode by time (10000 steps) or by death (health 0).
-            dead = info["inventory"]["health"] <= 0
-            return obs, float(reward), bool(done and dead), bool(done and not dead), info
-
-    return Crafter()
-
-
-def env_fn(env: str) -> Callable[[], Any]:
-    """A callable building one env (picklable by cloudpickle)."""
-    import gymnasium as gym
-
-    if env == "pong":
-
-        def pong() -> Any:
-            import ale_py
-
-            gym.register_envs(ale_py)
-            return gym.make("ALE/Pong-v5")
-
-        return pong
-    if env == "pong-pre":
-
-        def pong_pre() -> Any:
-            import ale_py
-
-            gym.register_envs(ale_py)
-            e = gym.make("ALE/Pong-v5", frameskip=1)
-            e = gym.wrappers.AtariPreprocessing(e, frame_skip=4, screen_size=84, noop_max=30)
-            return gym.wrappers.FrameStackObservation(e, 4)
-
-        return pong_pre
-    if env == "nethack":
-
-        def nethack() -> Any:
-            import nle  # noqa: F401  (registers the envs)
-
-            return gym.make("NetHackScore-v0")
-
-        return nethack
-    if env == "halfcheetah":
-        return lambda: gym.make("HalfCheetah-v5")
-    if env == "minigrid":
-
-        def minigrid() -> Any:
-            import minigrid as mg
-            from minigrid.wrappers import ImgObsWrapper
-
-            mg.register_minigrid_envs()
-            return ImgObsWrapper(gym.make("MiniGrid-DoorKey-8x8-v0"))
-
-        return minigrid
-    if env == "crafter":
-        return _crafter_env
-    if env == "cartpole":
-        return lambda: gym.make("CartPole-v1")
-    raise ValueError(f"unknown env {env}")
-
-
-def _envpool(env: str, n: int, workers: int) -> Any:
-    import envpool
-
-    common = {"num_envs": n, "num_threads": workers, "seed": 0}
-    if env == "pong":
-        raw = {"img_height": 210, "img_width": 160, "gray_scale": False, "stack_num": 1}
-        raw |= {"episodic_life": False, "reward_clip": False, "noop_max": 1}
-        raw |= {"repeat_action_probability": 0.25, "use_fire_reset": False}
-        return envpool.make_gymnasium("Pong-v5", **common, **raw)
-    if env == "pong-pre":
-        pre = {"episodic_life": False, "reward_clip": False, "repeat_action_probability": 0.25}
-        return envpool.make_gymnasium("Pong-v5", **common, **pre, use_fire_reset=False)
-    if env == "halfcheetah":
-        return envpool.make_gymnasium("HalfCheetah-v5", **common)
-    raise LookupError(f"envpool has no {env} here")
-
-
-def _ale_vector(env: str, n: int, workers: int) -> Any:
-    from ale_py.vector_env import AtariVectorEnv
-
-    common = {"num_envs": n, "num_threads": workers, "repeat_action_probability": 0.25}
-    common |= {"reward_clipping": False, "use_fire_reset": False}
-    if env == "pong":
-        raw = {"img_height": 210, "img_width": 160, "grayscale": False, "stack_num": 1}
-        return AtariVectorEnv("pong", **common, **raw, maxpool=False, noop_max=0)
-    if env == "pong-pre":
-        return AtariVectorEnv("pong", **common)
-    raise LookupError(f"ale-py's vector env runs Atari only, not {env}")
-
-
-class _Copying:
-    """A vector env whose observations are copied into fresh arrays after every call."""
-
-    def __init__(self, env: Any) -> None:
-        self.env = env
-        self.action_space = env.action_space
-
-    def reset(self, **kw: Any) -> Any:
-        obs, info = self.env.reset(**kw)
-        return copy.deepcopy(obs), info
-
-    def step(self, actions: Any) -> Any:
-        obs, *rest = self.env.step(actions)
-        return (copy.deepcopy(obs), *rest)
-
-    def close(self) -> None:
-        self.env.close()
-
-
-def build(backend: str, env: str, n: int, workers: int) -> Any:
-    """The vector env, reset (everything before the timed window)."""
-    if backend == "envpool":
-        v = _envpool(env, n, workers)
-        v.reset()
-        return v
-    if backend == "ale-vector":
-        v = _ale_vector(env, n, workers)
-        v.reset(seed=0)
-        return v
-    if backend == "pool-vector":
-        import rogue_gym
-
-        block = functools.partial(_ale_vector, env, workers=1)
-        v = rogue_gym.PoolVectorEnv.from_vector_env(block, n, num_workers=workers)
-        v.reset(seed=0)
-        return v
-    fn = env_fn(env)
-    if backend == "pool":
-        import rogue_gym
-
-        v = rogue_gym.PoolVectorEnv([fn] * n, num_workers=workers)
-    elif backend == "pool-copy":
-        import rogue_gym
-
-        v = _Copying(rogue_gym.PoolVectorEnv([fn] * n, num_workers=workers, copy=False))
-    elif backend == "gym-sync":
-        import gymnasium as gym
-
-        v = gym.vector.SyncVectorEnv([fn] * n)
-    elif backend == "gym-async":
-        import gymnasium as gym
-
-        v = gym.vector.AsyncVectorEnv([fn] * n, shared_memory=True)
-    elif backend == "sb3-subproc":
-        import multiprocessing as mp
-
-        from stable_baselines3.common.vec_env import SubprocVecEnv
-
-        mp.set_forkserver_preload(["stable_baselines3.common.vec_env.subproc_vec_env", "gymnasium"])
-        v = SubprocVecEnv([fn] * n, start_method="forkserver")
-        v.seed(0)
-        v.reset()
-        return v
-    else:
-        raise ValueError(f"unknown backend {backend}")
-    v.reset(seed=0)
-    return v
-
-
-def run_cell(cell: dict[str, Any]) -> dict[str, Any]:
-    n, env, backend = int(cell["num_envs"]), cell["env"], cell["backend"]
-    import numpy as np
-
-    v = build(backend, env, n, int(cell["workers"]))
-    space = v.action_space
-    space.seed(12345)
-    if backend in ("envpool", "sb3-subproc"):  # their action_space is one env's
-        dtype = np.int32 if backend == "envpool" and space.dtype.kind == "i" else space.dtype
-        acts = [np.stack([space.sample() for _ in range(n)]).astype(dtype) for _ in range(32)]
-    else:
-        acts = [space.sample() for _ in range(32)]
-    step = v.step
-    try:
-        for i in range(int(cell["warmup"])):
-            step(acts[i % 32])
-        i, start = 0, time.perf_counter()
-        deadline = start + float(cell["seconds"])
-        cpu0 = time.process_time()
-        while time.perf_counter() < deadline or i < 3:
-            step(acts[i % 32])
-            i += 1
-        wall = time.perf_counter() - start
-        caller_cpu = time.process_time() - cpu0
-    finally:
-        v.close()
-    return {**cell, "steps_per_s": i * n / wall, "batches": i, "caller_cpu": caller_cpu / wall}
-
+from common import env_fn, run_cells, write_results
+from real_envs_backends import (
+    ALE_BACKENDS,
+    BACKENDS,
+    ENVS,
+    EXTRA_BACKENDS,
+    PER_ENV_PROCESS,
+    ale_vector,
+    run_cell,
+)
 
 #: Where a sample's time goes, by its innermost Python frame (first match wins). The pool's
 #: Rust code runs under the worker's module frame and under the caller's native calls.
 PROFILE_GROUPS = [
     ("the pool's Rust loop (waiting, polling, transport)", ("rogue_gym/worker/__main__.py",)),
-    ("waiting for the workers (native call)", ("call (rogue_gym/front/core.py",)),
+    ("waiting for the workers (native call)", ("native (rogue_gym/front/core.py",)),
     ("rogue_gym: infos", ("rogue_gym/protocol/infos.py",)),
     ("rogue_gym: observations, actions", ("rogue_gym/protocol/layout.py",)),
     ("rogue_gym: adapter and front end", ("rogue_gym/",)),
-    ("the benchmark loop", ("real_envs.py",)),
+    ("the benchmark loop", ("benchmarks/",)),
 ]
 
 
@@ -447,9 +234,9 @@ def parity(env: str, steps: int, num_envs: int = 5, hosted_vector: bool = False)
     import rogue_gym
 
     if hosted_vector:
-        block = functools.partial(_ale_vector, env, workers=1)
+        block = functools.partial(ale_vector, env, workers=1)
         ours = rogue_gym.PoolVectorEnv.from_vector_env(block, num_envs, num_workers=2)
-        ref = _ale_vector(env, num_envs, 2)
+        ref = ale_vector(env, num_envs, 2)
     else:
         fn = env_fn(env)
         ours = rogue_gym.PoolVectorEnv([fn] * num_envs, num_workers=2)
@@ -636,14 +423,13 @@ def write(args: argparse.Namespace, runs: dict[Key, list[dict[str, Any]]], faile
             cols = [f"{mine / med[(env, b, n)]:.2f}x" if (env, b, n) in med else "" for b in others]
             lines.append(f"| {env} | {n} | " + " | ".join(cols) + " |")
     lines.append("")
-    (out / "real_envs.md").write_text("\n".join(lines) + "\n")
     raw = {
         "args": {k: v for k, v in vars(args).items() if k not in ("cell", "from_json")},
         "machine": {"cpus": os.cpu_count(), "python": platform.python_version()},
         "runs": [{"cell": list(k), "runs": v} for k, v in runs.items()],
         "failed": [{"cell": list(k), "reason": r} for k, r in failed.items()],
     }
-    (out / "real_envs.json").write_text(json.dumps(raw, indent=1) + "\n")
+    write_results(out, "real_envs", "\n".join(lines), raw)
     plot(med, out / "real_envs.png")
     print("\n".join(lines))
 

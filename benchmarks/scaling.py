@@ -37,6 +37,8 @@ import gymnasium as gym
 import numpy as np
 import rogue_gym
 
+from common import write_results
+
 
 def make(env: str, num_envs: int, workers: int) -> Any:
     if env == "rogue":
@@ -147,20 +149,13 @@ def model(args: argparse.Namespace) -> None:
                 lines.append(f"| {e} | {per} | {k} | {t_w * 1e6:.1f} | {o * 1e6:.1f} | {eff:.0%} |")
     text = "\n".join(lines)
     print(text)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "model.md").write_text(text + "\n")
-    (out / "model.json").write_text(
-        json.dumps(
-            {
-                "seconds": args.seconds,
-                "reps": args.reps,
-                "cells": {f"{e}/{n}": v for (e, n), v in cells.items()},
-                "projected": projected,
-            },
-            indent=1,
-        )
-    )
+    data = {
+        "seconds": args.seconds,
+        "reps": args.reps,
+        "cells": {f"{e}/{n}": v for (e, n), v in cells.items()},
+        "projected": projected,
+    }
+    write_results(Path(args.out), "model", text, data)
 
 
 def available(env: str) -> bool:

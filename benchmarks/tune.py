@@ -32,9 +32,7 @@ from typing import Any
 import rogue_gym
 from rogue_gym.tuning import Candidate
 
-from builds_ab import median_interval
-from hosted_throughput import env_fn as hosted_env_fn
-from real_envs import env_fn as real_env_fn
+from common import env_fn, median_interval
 
 RESULTS = Path(__file__).resolve().parent / "results" / "tune"
 ENVS = ("cartpole", "halfcheetah", "pong", "sleep")
@@ -45,8 +43,8 @@ def env_of(name: str) -> Any:
     if name == "cartpole":
         return "CartPole-v1"
     if name == "sleep":
-        return hosted_env_fn("slow")
-    return real_env_fn(name)
+        return env_fn("slow")
+    return env_fn(name)
 
 
 def puffer_autotune(name: str, n: int, seconds: float) -> dict[str, Any]:

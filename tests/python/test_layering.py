@@ -124,3 +124,25 @@ def test_a_kind_has_at_most_nine_members() -> None:
 
     assert len(members(Kind)) <= 9, sorted(members(Kind))
     assert len(members(PoolView)) <= 10, sorted(members(PoolView))
+
+
+def test_no_benchmark_imports_another() -> None:
+    """Benchmark scripts share ``common.py`` and their own ``*_backends.py`` only."""
+    bench = Path(__file__).resolve().parents[2] / "benchmarks"
+    scripts = {p.stem for p in bench.glob("*.py")}
+    assert {"common", "real_envs_backends", "vecenv_backends"} <= scripts
+    libraries = {s for s in scripts if s == "common" or s.endswith("_backends")}
+    wrong = {}
+    for path in bench.glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            names = (
+                [a.name for a in node.names]
+                if isinstance(node, ast.Import)
+                else [node.module or ""]
+                if isinstance(node, ast.ImportFrom) and not node.level
+                else []
+            )
+            bad = [n for n in names if n.split(".")[0] in scripts - libraries]
+            if bad:
+                wrong[path.name] = bad
+    assert wrong == {}
