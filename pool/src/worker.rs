@@ -26,12 +26,12 @@ use crate::wire::{
 };
 
 mod block;
+mod env_state;
 mod envs;
-mod slot;
 
 use block::BlockHost;
+use env_state::{BlockOut, EnvState, Rows, ServeCtx};
 use envs::{WorkerEnvs, answer_calls, take_action_extras};
-use slot::{BlockOut, Rows, Slot, SlotCtx};
 
 #[derive(Debug, thiserror::Error)]
 enum WorkerError {
@@ -232,7 +232,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         Built::Envs(list) => WorkerEnvs::Each(
             list.into_iter()
                 .zip(globals)
-                .map(|(env, g)| Slot::new(env, g))
+                .map(|(env, g)| EnvState::new(env, g))
                 .collect(),
         ),
         Built::Block(block) => WorkerEnvs::Block(BlockHost::new(block, globals)),
@@ -367,7 +367,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
         if command.reload_seeds {
             seeds = read_config(&a.config).map_err(WorkerError::Msg)?.seeds;
         }
-        let ctx = SlotCtx {
+        let ctx = ServeCtx {
             seeds: &seeds,
             num_envs: cfg.num_envs as u64,
             autoreset: cfg.autoreset,

@@ -39,7 +39,7 @@ class ToyKind:
             single_action_space=spaces.Discrete(NUM_ACTIONS),
             metadata={"render_modes": []},
             render_mode=None,
-            spec=None,
+            env_spec=None,
             worker_command=[sys.executable, "-m", "rogue_gym.worker"],
             who="the toy env",
             ops=frozenset({"call"}),
@@ -86,7 +86,7 @@ class ToyKind:
         # SAME_STEP: the slot's final observations, as they are, with no info of their own.
         return add_final_obs(infos, self.view, result, self.batch_views, lambda e, o: (o, {}))
 
-    def call(
+    def run_ops(
         self,
         op: str,
         name: str,

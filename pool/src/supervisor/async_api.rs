@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 use super::async_envs::{Received, Turn};
 use super::stepping::Actions;
-use super::workers::SlotState;
+use super::workers::LinkState;
 use super::{Pool, Supervisor};
 use crate::error::PoolError;
 use crate::wire::{SLOT_ANSWER_WORDS, SLOT_EXTRA_APART};
@@ -45,7 +45,7 @@ impl Pool {
         self.begin_call()?;
         self.drain()?;
         self.sup.async_api.on = true;
-        for k in 0..self.sup.slots.len() {
+        for k in 0..self.sup.workers.len() {
             self.sup.send_reset(k, 0)?;
             let envs = self.sup.blocks[k].clone();
             self.sup.async_api.envs.all_in_flight(k, envs);
@@ -224,8 +224,8 @@ impl Supervisor {
                 .async_api
                 .ready_order
                 .drain(..)
-                .map(|k| match &self.slots[k].state {
-                    SlotState::Ready(s) => (s.user_header().ready_ns, k),
+                .map(|k| match &self.workers[k].state {
+                    LinkState::Ready(s) => (s.user_header().ready_ns, k),
                     _ => (u64::MAX, k),
                 })
                 .collect();
@@ -233,15 +233,15 @@ impl Supervisor {
             // Keep one sample of each worker for the next answer and one for the caller's.
             let keep = self.cfg.max_borrowed.saturating_sub(2);
             for (_, k) in arrived {
-                let target = self.slots[k].target;
-                if target != 0 && !self.slots[k].restarted {
+                let target = self.workers[k].target;
+                if target != 0 && !self.workers[k].restarted {
                     let apart = self.take_in_place(k)?;
                     self.async_api
                         .envs
                         .arrive_in_slot(k, target as usize - 1, apart);
                     continue;
                 }
-                let recycled = self.slots[k].recycled && self.slots[k].restarted;
+                let recycled = self.workers[k].recycled && self.workers[k].restarted;
                 let block = self.take_block(k)?;
                 self.async_api.envs.arrive(k, block, keep, recycled);
             }
@@ -253,7 +253,7 @@ impl Supervisor {
     /// that travelled beside it as `(env, bytes)`.
     fn take_in_place(&mut self, k: usize) -> Result<Vec<(usize, Vec<u8>)>, PoolError> {
         let sample = self.take_answer(k)?;
-        self.slots[k].recycled = false;
+        self.workers[k].recycled = false;
         let bits = sample.payload()[..SLOT_ANSWER_WORDS][0];
         let seq = sample.user_header().seq;
         drop(sample);
@@ -268,13 +268,13 @@ impl Supervisor {
         if self.async_api.envs.num_staged == 0 {
             return Ok(());
         }
-        for k in 0..self.slots.len() {
+        for k in 0..self.workers.len() {
             if !self.async_api.envs.has_staged(k) {
                 continue;
             }
             // Planned replacements happen here, between two commands (see `recycling`); a
             // worker replaced now takes its staged envs once it is back.
-            if self.recycle_if_due(k)? || !matches!(self.slots[k].state, SlotState::Idle) {
+            if self.recycle_if_due(k)? || !matches!(self.workers[k].state, LinkState::Idle) {
                 continue;
             }
             let envs = self.blocks[k].clone();

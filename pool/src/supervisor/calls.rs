@@ -1,7 +1,7 @@
 //! Env calls: requests to chosen envs answered by their workers off the hot path (attribute
 //! reads and writes, method calls, renders), through files in the pool's directory.
 
-use super::workers::SlotState;
+use super::workers::LinkState;
 use super::{Pool, Supervisor};
 use crate::error::PoolError;
 use crate::wire::{Command, Op, calls};
@@ -43,7 +43,7 @@ impl Pool {
         let per_worker = self.sup.per_worker(extras)?;
         for (k, entries) in per_worker.iter().enumerate() {
             if !entries.is_empty() {
-                self.sup.slots[k].action_extras = Some(calls::encode(entries));
+                self.sup.workers[k].action_extras = Some(calls::encode(entries));
             }
         }
         Ok(())
@@ -67,7 +67,7 @@ impl Pool {
             if entries.is_empty() {
                 continue;
             }
-            let s = &mut c.slots[k];
+            let s = &mut c.workers[k];
             calls::write(
                 &calls::request_path(&c.id, k, s.generation),
                 &calls::encode(entries),
@@ -76,24 +76,26 @@ impl Pool {
             s.seq += 1;
             s.ports
                 .send_cmd(s.seq, Command::new(Op::Call, 0).encode(), 0, |_| {})?;
-            s.state = SlotState::Pending {
+            s.state = LinkState::Pending {
                 since: std::time::Instant::now(),
             };
             asked.push((k, s.generation));
         }
         self.wait_until(|c| {
             asked.iter().all(|&(k, _)| {
-                !(c.slots[k].state.coming_back()
-                    || matches!(c.slots[k].state, SlotState::Pending { .. }))
+                !(c.workers[k].state.coming_back()
+                    || matches!(c.workers[k].state, LinkState::Pending { .. }))
             })
         })?;
         let c = &mut self.sup;
         let mut replies = Vec::with_capacity(requests.len());
         for &(k, generation) in &asked {
-            if c.slots[k].generation != generation || !matches!(c.slots[k].state, SlotState::Idle) {
+            if c.workers[k].generation != generation
+                || !matches!(c.workers[k].state, LinkState::Idle)
+            {
                 // Restarted meanwhile: its envs were rebuilt and reset; that reset's block is
                 // dropped, so the caller must reset.
-                c.slots[k].state = SlotState::Idle;
+                c.workers[k].state = LinkState::Idle;
                 c.async_api.ready_order.retain(|&w| w != k);
                 c.failures.must_reset = true;
                 return Err(PoolError::State(format!(

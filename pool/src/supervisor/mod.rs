@@ -37,7 +37,7 @@ pub use async_api::RecvWant;
 pub use async_envs::Received;
 use state::{AsyncState, CallInFlight, Failures, Recycling};
 pub use stepping::{Actions, validate_actions};
-use workers::{SlotState, WorkerSlot};
+use workers::{LinkState, WorkerLink};
 
 /// The supervisor proper: the workers (their processes, blocks, channels and layouts), the
 /// shared batch buffer and the bookkeeping of the call in flight, grouped by concern
@@ -52,7 +52,7 @@ struct Supervisor {
     id: PoolId,
     config_path: PathBuf,
     settings: ChannelSettings,
-    slots: Vec<WorkerSlot>,
+    workers: Vec<WorkerLink>,
     /// Each worker's current pid, readable from other threads during a call
     /// ([`Pool::pids_handle`]).
     pids: std::sync::Arc<[std::sync::atomic::AtomicU32]>,
@@ -202,7 +202,7 @@ impl Pool {
                 id,
                 config_path,
                 settings,
-                slots: Vec::new(),
+                workers: Vec::new(),
                 pids: (0..num_workers).map(|_| Default::default()).collect(),
                 node: None,
                 cores: std::thread::available_parallelism().map_or(1, |c| c.get()),
@@ -274,13 +274,13 @@ impl Pool {
             // An action per env, and for a SUBSET step one word per env more.
             let words = c.blocks[k].len() * (c.spec.action_words() + 1);
             let ports = SupervisorPorts::new(&node, k, words, &c.settings)?;
-            c.slots.push(WorkerSlot {
+            c.workers.push(WorkerLink {
                 ports,
                 child: None,
                 pid: 0,
                 generation: 0,
                 seq: 0,
-                state: SlotState::Idle,
+                state: LinkState::Idle,
                 restarted: false,
                 served: 0,
                 successor: None,
@@ -304,7 +304,7 @@ impl Pool {
         for k in 0..c.cfg.num_workers {
             c.spawn(k, false)?;
         }
-        self.wait_until(|c| !c.slots.iter().any(|s| s.state.coming_back()))?;
+        self.wait_until(|c| !c.workers.iter().any(|s| s.state.coming_back()))?;
         self.sup.started = true;
         rogue_gym_ipc::verify_pool_files(&self.sup.id)?;
         Ok(())
@@ -333,7 +333,7 @@ impl Pool {
         rogue_gym_ipc::private::write_private_file(&c.config_path, json.as_bytes())?;
         c.cfg.seeds = seeds;
         c.worker_config = Some(wcfg);
-        c.slots.iter_mut().for_each(|s| s.first_episodes = true);
+        c.workers.iter_mut().for_each(|s| s.first_episodes = true);
         c.reload_seeds.iter_mut().for_each(|r| *r = true);
         c.failures.must_reset = true;
         Ok(())
@@ -382,7 +382,7 @@ impl Pool {
     }
     /// Current worker pids (index = worker).
     pub fn worker_pids(&self) -> Vec<u32> {
-        self.sup.slots.iter().map(|s| s.pid).collect()
+        self.sup.workers.iter().map(|s| s.pid).collect()
     }
     /// The workers' current pids (index = worker) as a shared handle that other threads may
     /// read at any time, even while a call runs (a monitor, a chaos test); a worker is 0 before
@@ -457,12 +457,12 @@ impl Pool {
     fn all_idle(&mut self) -> Result<(), PoolError> {
         // Respawned workers (raise policy, or a call that outlived its bound) may still be
         // coming back.
-        self.wait_until(|c| !c.slots.iter().any(|s| s.state.coming_back()))?;
+        self.wait_until(|c| !c.workers.iter().any(|s| s.state.coming_back()))?;
         if self
             .sup
-            .slots
+            .workers
             .iter()
-            .any(|s| !matches!(s.state, SlotState::Idle))
+            .any(|s| !matches!(s.state, LinkState::Idle))
         {
             return Err(PoolError::State(
                 "async requests are outstanding: recv() them before a sync reset/step".into(),
@@ -479,15 +479,15 @@ impl Pool {
         self.sup.call.faults.clear();
         self.sup.call.discard_faults = true;
         let drained = self.wait_until(|c| {
-            !c.slots
+            !c.workers
                 .iter()
-                .any(|s| s.state.coming_back() || matches!(s.state, SlotState::Pending { .. }))
+                .any(|s| s.state.coming_back() || matches!(s.state, LinkState::Pending { .. }))
         });
         self.sup.call.discard_faults = false;
         drained?;
-        for s in &mut self.sup.slots {
-            if matches!(s.state, SlotState::Ready(_)) {
-                s.state = SlotState::Idle;
+        for s in &mut self.sup.workers {
+            if matches!(s.state, LinkState::Ready(_)) {
+                s.state = LinkState::Idle;
             }
             s.restarted = false;
         }
@@ -504,18 +504,18 @@ impl Pool {
             return Ok(());
         }
         self.sup.closed = true;
-        for k in 0..self.sup.slots.len() {
+        for k in 0..self.sup.workers.len() {
             self.sup.drop_successor(k, None);
         }
         let c = &mut self.sup;
-        for s in &c.slots {
+        for s in &c.workers {
             if s.child.is_some() {
                 let close = Command::new(Op::Close, 0).encode();
                 let _ = s.ports.send_cmd(u64::MAX, close, 0, |_| {});
             }
         }
         let deadline = Instant::now() + Duration::from_millis(300);
-        for s in &mut c.slots {
+        for s in &mut c.workers {
             if let Some(mut ch) = s.child.take() {
                 loop {
                     match ch.try_wait() {
@@ -534,7 +534,7 @@ impl Pool {
         }
         c.async_api.ready_order.clear();
         c.async_api.envs.clear();
-        c.slots.clear();
+        c.workers.clear();
         c.pids
             .iter()
             .for_each(|p| p.store(0, std::sync::atomic::Ordering::Relaxed));
@@ -550,7 +550,7 @@ impl Supervisor {
     /// Env `i` (of worker `k`)'s episode index and seed as the worker last answered, or
     /// `None` before its first answer under the current seed schedule.
     fn book(&self, k: usize, i: usize) -> Option<(u64, u64)> {
-        let s = &self.slots[k];
+        let s = &self.workers[k];
         match (&self.books, s.delivered) {
             (Some(b), Some(seq)) if !s.first_episodes => Some(b.read(seq, i)),
             _ => None,

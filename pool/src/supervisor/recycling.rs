@@ -18,7 +18,7 @@ use std::process::Child;
 use std::time::{Duration, Instant};
 
 use super::Supervisor;
-use super::workers::{SlotState, Successor};
+use super::workers::{LinkState, Successor};
 use crate::error::PoolError;
 use crate::wire::{Command, Op, successor_go, successor_marker};
 
@@ -68,7 +68,7 @@ impl Supervisor {
     /// one more command (growing as it last grew), each over its bound, the larger (1.0: at
     /// the bound).
     fn progress(&mut self, k: usize) -> f64 {
-        let s = &mut self.slots[k];
+        let s = &mut self.workers[k];
         let mut p = 0.0f64;
         if let Some(n) = self.cfg.recycle_after_steps {
             p = s.served as f64 / n.max(1) as f64;
@@ -94,12 +94,12 @@ impl Supervisor {
     /// breaks the bound). Returns whether `k` was replaced: it is then starting, and its next
     /// command resets its envs.
     pub(super) fn recycle_if_due(&mut self, k: usize) -> Result<bool, PoolError> {
-        if !self.recycling() || !matches!(self.slots[k].state, SlotState::Idle) {
+        if !self.recycling() || !matches!(self.workers[k].state, LinkState::Idle) {
             return Ok(false);
         }
         let progress = self.progress(k);
-        if self.slots[k].successor.is_none() {
-            let paused = self.slots[k]
+        if self.workers[k].successor.is_none() {
+            let paused = self.workers[k]
                 .recycle_pause
                 .is_some_and(|t| Instant::now() < t);
             if progress < START_AT || paused {
@@ -118,7 +118,10 @@ impl Supervisor {
                 self.drop_successor(k, Some(why));
                 return Ok(false);
             }
-            let generation = self.slots[k].successor.as_ref().map_or(0, |s| s.generation);
+            let generation = self.workers[k]
+                .successor
+                .as_ref()
+                .map_or(0, |s| s.generation);
             if successor_marker(&self.id, k, generation).exists() {
                 self.hand_over(k)?;
                 return Ok(true);
@@ -130,7 +133,7 @@ impl Supervisor {
     /// Why worker `k`'s successor is of no use, if it is not: it exited, or did not build its
     /// envs within `start_timeout`.
     fn successor_failed(&mut self, k: usize) -> Option<&'static str> {
-        let succ = self.slots[k].successor.as_mut()?;
+        let succ = self.workers[k].successor.as_mut()?;
         if !matches!(succ.child.try_wait(), Ok(None)) {
             Some("exited while building its envs")
         } else if succ.since.elapsed() > self.cfg.start_timeout {
@@ -141,9 +144,9 @@ impl Supervisor {
     }
 
     fn start_successor(&mut self, k: usize) -> Result<(), PoolError> {
-        let generation = self.slots[k].generation + 1;
+        let generation = self.workers[k].generation + 1;
         let (child, stderr_path) = self.start_process(k, generation, true)?;
-        self.slots[k].successor = Some(Successor {
+        self.workers[k].successor = Some(Successor {
             child,
             generation,
             since: Instant::now(),
@@ -155,7 +158,7 @@ impl Supervisor {
     /// Stop worker `k`'s successor, if any (`why`: it failed, said in the statistics, and the
     /// next try waits half of `start_timeout`). Returns the generation it had.
     pub(super) fn drop_successor(&mut self, k: usize, why: Option<&str>) -> Option<u64> {
-        let succ = self.slots[k].successor.take()?;
+        let succ = self.workers[k].successor.take()?;
         let mut child = succ.child;
         let _ = child.kill();
         let _ = child.wait();
@@ -172,7 +175,7 @@ impl Supervisor {
                     format!(": {}", &tail[tail.len().saturating_sub(500)..])
                 }
             ));
-            self.slots[k].recycle_pause = Some(Instant::now() + self.cfg.start_timeout / 2);
+            self.workers[k].recycle_pause = Some(Instant::now() + self.cfg.start_timeout / 2);
         }
         let _ = fs::remove_file(&succ.stderr_path);
         Some(succ.generation)
@@ -180,10 +183,10 @@ impl Supervisor {
 
     /// Close worker `k` (idle) and let its successor take over its ports and envs.
     fn hand_over(&mut self, k: usize) -> Result<(), PoolError> {
-        let Some(succ) = self.slots[k].successor.take() else {
+        let Some(succ) = self.workers[k].successor.take() else {
             return Ok(());
         };
-        let s = &mut self.slots[k];
+        let s = &mut self.workers[k];
         if s.child.is_some() {
             s.seq += 1;
             let close = Command::new(Op::Close, 0).encode();
@@ -194,7 +197,7 @@ impl Supervisor {
         }
         rogue_gym_ipc::cleanup_dead_nodes(&self.id)?;
         rogue_gym_ipc::private::create_private_file(&successor_go(&self.id, k, succ.generation))?;
-        let s = &mut self.slots[k];
+        let s = &mut self.workers[k];
         while s.ports.try_recv()?.is_some() {}
         self.async_api.ready_order.retain(|&w| w != k);
         let _ = fs::remove_file(&s.stderr_path);
@@ -203,7 +206,7 @@ impl Supervisor {
         s.pid = succ.child.id();
         s.child = Some(succ.child);
         s.stderr_path = succ.stderr_path;
-        s.state = SlotState::Starting {
+        s.state = LinkState::Starting {
             since: Instant::now(),
             then_reset: false,
         };

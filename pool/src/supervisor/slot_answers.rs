@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use rogue_gym_ipc::BlockSample;
 
 use super::Supervisor;
-use super::workers::SlotState;
+use super::workers::LinkState;
 use crate::batch::{SlotAnswer, SlotExtras};
 use crate::error::PoolError;
 use crate::wire::slot_layout::{RowWriter, SlotLayout};
@@ -63,7 +63,7 @@ impl Supervisor {
         let writer = self.writer_of(acc.answer.slot)?;
         while let Some(k) = self.async_api.ready_order.pop_front() {
             let sample = self.take_answer(k)?;
-            let s = &mut self.slots[k];
+            let s = &mut self.workers[k];
             acc.answered += 1;
             let restarted = std::mem::take(&mut s.restarted);
             let block = self.blocks[k].clone();
@@ -102,7 +102,7 @@ impl Supervisor {
             }
             acc.uniform = Some(key);
         }
-        if acc.answered == self.slots.len() {
+        if acc.answered == self.workers.len() {
             acc.answer.extras = self.slot_extras(acc, &writer, &layout);
         }
         Ok(())
@@ -110,9 +110,9 @@ impl Supervisor {
 
     /// Worker `k`'s answer, which has arrived (it is idle again).
     pub(super) fn take_answer(&mut self, k: usize) -> Result<BlockSample, PoolError> {
-        let s = &mut self.slots[k];
-        match std::mem::replace(&mut s.state, SlotState::Idle) {
-            SlotState::Ready(sample) => Ok(sample),
+        let s = &mut self.workers[k];
+        match std::mem::replace(&mut s.state, LinkState::Idle) {
+            LinkState::Ready(sample) => Ok(sample),
             other => {
                 s.state = other;
                 Err(PoolError::State(format!("worker {k} has no answer ready")))
@@ -127,7 +127,7 @@ impl Supervisor {
         k: usize,
         seq: u64,
     ) -> Result<Vec<(usize, Vec<u8>)>, PoolError> {
-        let path = extra_apart_path(&self.id, k, self.slots[k].generation, seq);
+        let path = extra_apart_path(&self.id, k, self.workers[k].generation, seq);
         let entries = calls::take(&path).map_err(|e| {
             PoolError::Io(format!(
                 "worker {k}: the extra info beside answer {seq}: {e}"
@@ -193,7 +193,7 @@ impl Supervisor {
     /// answer is seen without a wake-up. `None`: the pool's own policy.
     pub(super) fn expected_wait(&self) -> Option<rogue_gym_ipc::WaitPolicy> {
         let expected = self.call.expected_answer?;
-        if self.slots.len() >= self.cores || expected > Duration::from_millis(50) {
+        if self.workers.len() >= self.cores || expected > Duration::from_millis(50) {
             return None;
         }
         if expected < FULL_POLL {

@@ -104,7 +104,7 @@ impl Pool {
     /// Send each worker its block of `actions`, to be answered into slot `target - 1`.
     fn send_steps(&mut self, actions: Actions<'_>, target: u32) -> Result<(), PoolError> {
         let ab = self.sup.spec.action_bytes;
-        for k in 0..self.sup.slots.len() {
+        for k in 0..self.sup.workers.len() {
             let rows = self.sup.env_range(k);
             self.sup.send_step(k, actions.rows(rows, ab), target)?;
         }
@@ -166,7 +166,7 @@ impl Pool {
         }
         self.all_idle()?;
         let slot = self.sup.next_slot;
-        for k in 0..self.sup.slots.len() {
+        for k in 0..self.sup.workers.len() {
             self.sup.send_reset_masked(k, slot as u32 + 1, Some(mask))?;
         }
         self.sup.call.split = Some(slot);
@@ -244,7 +244,7 @@ impl Pool {
         self.begin_call()?;
         self.drain()?;
         let slot = self.sup.next_slot;
-        for k in 0..self.sup.slots.len() {
+        for k in 0..self.sup.workers.len() {
             self.sup.send_reset(k, slot as u32 + 1)?;
         }
         self.sup.failures.must_reset = false;
@@ -280,7 +280,7 @@ impl Pool {
             ));
         };
         let until = timeout.map(|t| std::time::Instant::now() + t);
-        let workers = self.sup.slots.len();
+        let workers = self.sup.workers.len();
         let mut acc = self
             .sup
             .call
@@ -484,7 +484,7 @@ impl Pool {
         self.all_idle()?;
         // Planned replacements happen here, between two commands (see `recycling`).
         let mut replaced = false;
-        for k in 0..self.sup.slots.len() {
+        for k in 0..self.sup.workers.len() {
             replaced |= self.sup.recycle_if_due(k)?;
         }
         if replaced {

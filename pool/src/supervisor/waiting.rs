@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use rogue_gym_ipc::{WaitCall, WaitOutcome, hybrid_wait};
 
-use super::workers::SlotState;
+use super::workers::LinkState;
 use super::{Pool, Supervisor};
 use crate::error::PoolError;
 
@@ -81,9 +81,9 @@ impl Pool {
             }
             if !sup.call.faults.is_empty() {
                 if !sup
-                    .slots
+                    .workers
                     .iter()
-                    .any(|s| matches!(s.state, SlotState::Pending { .. }))
+                    .any(|s| matches!(s.state, LinkState::Pending { .. }))
                 {
                     // Every worker of the call has answered or was handled: raise all its
                     // failures at once, so that one reset clears them.
@@ -119,14 +119,14 @@ impl Supervisor {
     pub(super) fn not_back_in_time(&mut self) -> PoolError {
         self.failures.must_reset = true;
         let waiting = self
-            .slots
+            .workers
             .iter()
             .enumerate()
             .filter_map(|(k, s)| {
                 let what = match s.state {
-                    SlotState::Down { .. } => "waiting out its restart backoff",
-                    SlotState::Starting { .. } => "starting",
-                    SlotState::Pending { .. } => "not answering",
+                    LinkState::Down { .. } => "waiting out its restart backoff",
+                    LinkState::Starting { .. } => "starting",
+                    LinkState::Pending { .. } => "not answering",
                     _ => return None,
                 };
                 Some((k, what))

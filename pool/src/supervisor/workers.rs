@@ -22,7 +22,7 @@ use crate::wire::{
     env_fault_path, extra_apart_path,
 };
 
-pub(super) enum SlotState {
+pub(super) enum LinkState {
     /// Dead, waiting out its restart backoff; respawned at `until` (restart policy).
     Down { until: Instant, then_reset: bool },
     /// Process started, waiting for its READY block.
@@ -35,10 +35,10 @@ pub(super) enum SlotState {
     Ready(BlockSample),
 }
 
-impl SlotState {
+impl LinkState {
     /// Lost and not back yet: waiting out its backoff, or starting.
     pub(super) fn coming_back(&self) -> bool {
-        matches!(self, SlotState::Down { .. } | SlotState::Starting { .. })
+        matches!(self, LinkState::Down { .. } | LinkState::Starting { .. })
     }
 }
 
@@ -50,13 +50,13 @@ pub(super) struct Successor {
     pub(super) stderr_path: PathBuf,
 }
 
-pub(super) struct WorkerSlot {
+pub(super) struct WorkerLink {
     pub(super) ports: SupervisorPorts,
     pub(super) child: Option<Child>,
     pub(super) pid: u32,
     pub(super) generation: u64,
     pub(super) seq: u64,
-    pub(super) state: SlotState,
+    pub(super) state: LinkState,
     pub(super) restarted: bool,
     /// It died while idle and was replaced (restart policy): its envs' episodes were cut, so
     /// its next command resets them (and they report `restarted`).
@@ -137,9 +137,9 @@ impl Supervisor {
     /// and again).
     fn command(&self, op: Op, target: u32) -> Command {
         let past = if self.async_api.on {
-            self.slots.len() >= self.cores
+            self.workers.len() >= self.cores
         } else {
-            self.slots.len() > self.cores
+            self.workers.len() > self.cores
         };
         Command {
             block_at_once: past,
@@ -150,10 +150,10 @@ impl Supervisor {
     /// Write the action extras staged for worker `k`'s next step to its file; whether there
     /// were any ([`Command::action_extras`]).
     fn write_action_extras(&mut self, k: usize) -> Result<bool, PoolError> {
-        let Some(extras) = self.slots[k].action_extras.take() else {
+        let Some(extras) = self.workers[k].action_extras.take() else {
             return Ok(false);
         };
-        let path = calls::action_extras_path(&self.id, k, self.slots[k].generation);
+        let path = calls::action_extras_path(&self.id, k, self.workers[k].generation);
         calls::write(&path, &extras).map_err(PoolError::Io)?;
         Ok(true)
     }
@@ -198,9 +198,9 @@ impl Supervisor {
     }
 
     pub(super) fn spawn(&mut self, k: usize, then_reset: bool) -> Result<(), PoolError> {
-        let (child, log) = self.start_process(k, self.slots[k].generation, false)?;
+        let (child, log) = self.start_process(k, self.workers[k].generation, false)?;
         self.pids[k].store(child.id(), std::sync::atomic::Ordering::Relaxed);
-        let s = &mut self.slots[k];
+        let s = &mut self.workers[k];
         s.pid = child.id();
         s.child = Some(child);
         s.stderr_path = log;
@@ -208,7 +208,7 @@ impl Supervisor {
         s.rss_read = None;
         s.rss = 0;
         s.rss_growth = 0;
-        s.state = SlotState::Starting {
+        s.state = LinkState::Starting {
             since: Instant::now(),
             then_reset,
         };
@@ -228,10 +228,10 @@ impl Supervisor {
         mask: Option<&[bool]>,
     ) -> Result<(), PoolError> {
         let range = self.env_range(k);
-        self.slots[k].action_extras = None; // staged for a step that a reset replaces
+        self.workers[k].action_extras = None; // staged for a step that a reset replaces
         // A replaced worker resets all its envs; in a partial reset they say why.
-        let cut = std::mem::take(&mut self.slots[k].cut);
-        self.slots[k].restarted |= cut && mask.is_some();
+        let cut = std::mem::take(&mut self.workers[k].cut);
+        self.workers[k].restarted |= cut && mask.is_some();
         let mask = mask.filter(|_| !cut);
         let eps: Vec<u64> = range
             .map(|i| {
@@ -246,27 +246,27 @@ impl Supervisor {
             reload_seeds: std::mem::take(&mut self.reload_seeds[k]),
             ..self.command(Op::Reset, target)
         };
-        let s = &mut self.slots[k];
+        let s = &mut self.workers[k];
         s.seq = next_seq(s.seq, s.delivered);
         s.target = target;
         s.ports
             .send_cmd(s.seq, cmd.encode(), eps.len(), |p| p.copy_from_slice(&eps))?;
-        s.state = SlotState::Pending {
+        s.state = LinkState::Pending {
             since: Instant::now(),
         };
         Ok(())
     }
 
     /// Step command to worker `k`; `actions` holds exactly its block's actions. A replaced
-    /// worker ([`WorkerSlot::cut`]) resets its envs instead, which report `restarted`.
+    /// worker ([`WorkerLink::cut`]) resets its envs instead, which report `restarted`.
     pub(super) fn send_step(
         &mut self,
         k: usize,
         actions: Actions<'_>,
         target: u32,
     ) -> Result<(), PoolError> {
-        if self.slots[k].cut {
-            self.slots[k].restarted = true;
+        if self.workers[k].cut {
+            self.workers[k].restarted = true;
             return self.send_reset(k, target);
         }
         let aw = self.spec.action_words();
@@ -274,7 +274,7 @@ impl Supervisor {
             action_extras: self.write_action_extras(k)?,
             ..self.command(Op::Step, target)
         };
-        let s = &mut self.slots[k];
+        let s = &mut self.workers[k];
         s.seq = next_seq(s.seq, s.delivered);
         s.target = target;
         s.served += self.blocks[k].len() as u64;
@@ -295,7 +295,7 @@ impl Supervisor {
                     }
                 }
             })?;
-        s.state = SlotState::Pending {
+        s.state = LinkState::Pending {
             since: Instant::now(),
         };
         Ok(())
@@ -304,7 +304,7 @@ impl Supervisor {
     /// Step command to worker `k` from action words (`aw` per env of its block); with `only`
     /// (one word per env, 0 = left alone), a [`Command::subset`] step of the envs it names; answered
     /// into batch slot `target - 1` in place, or by block (`target` 0). A replaced
-    /// worker ([`WorkerSlot::cut`]) resets all its envs instead, which report `restarted`.
+    /// worker ([`WorkerLink::cut`]) resets all its envs instead, which report `restarted`.
     pub(super) fn send_words(
         &mut self,
         k: usize,
@@ -312,8 +312,8 @@ impl Supervisor {
         only: Option<&[u64]>,
         target: u32,
     ) -> Result<(), PoolError> {
-        if self.slots[k].cut {
-            self.slots[k].restarted = true;
+        if self.workers[k].cut {
+            self.workers[k].restarted = true;
             return self.send_reset(k, 0);
         }
         let served = only.map_or(self.blocks[k].len(), |o| {
@@ -325,7 +325,7 @@ impl Supervisor {
             subset: !only.is_empty(),
             ..self.command(Op::Step, target)
         };
-        let s = &mut self.slots[k];
+        let s = &mut self.workers[k];
         s.seq = next_seq(s.seq, s.delivered);
         s.target = target;
         s.served += served as u64;
@@ -335,16 +335,16 @@ impl Supervisor {
                 a.copy_from_slice(words);
                 o.copy_from_slice(only);
             })?;
-        s.state = SlotState::Pending {
+        s.state = LinkState::Pending {
             since: Instant::now(),
         };
         Ok(())
     }
 
     pub(super) fn take_block(&mut self, k: usize) -> Result<Block, PoolError> {
-        let s = &mut self.slots[k];
-        match std::mem::replace(&mut s.state, SlotState::Idle) {
-            SlotState::Ready(sample) => {
+        let s = &mut self.workers[k];
+        match std::mem::replace(&mut s.state, LinkState::Idle) {
+            LinkState::Ready(sample) => {
                 let restarted = std::mem::take(&mut s.restarted);
                 if std::mem::take(&mut s.recycled) && restarted {
                     self.recycling.replaced_envs.extend(self.blocks[k].clone());
@@ -383,12 +383,12 @@ impl Supervisor {
 
     /// Take every available block of starting and pending workers.
     pub(super) fn poll_all(&mut self) -> Result<(), PoolError> {
-        for k in 0..self.slots.len() {
+        for k in 0..self.workers.len() {
             loop {
-                let s = &mut self.slots[k];
+                let s = &mut self.workers[k];
                 if !matches!(
                     s.state,
-                    SlotState::Starting { .. } | SlotState::Pending { .. }
+                    LinkState::Starting { .. } | LinkState::Pending { .. }
                 ) {
                     break;
                 }
@@ -400,7 +400,7 @@ impl Supervisor {
                     continue; // from a dead incarnation
                 }
                 match (&s.state, h.kind) {
-                    (SlotState::Starting { then_reset, .. }, BLOCK_READY) => {
+                    (LinkState::Starting { then_reset, .. }, BLOCK_READY) => {
                         if *then_reset {
                             drop(sample);
                             // Same observation target as the interrupted command; in the
@@ -408,25 +408,25 @@ impl Supervisor {
                             let target = if self.async_api.on { 0 } else { s.target };
                             self.send_reset(k, target)?;
                         } else {
-                            s.state = SlotState::Idle;
+                            s.state = LinkState::Idle;
                         }
                     }
-                    (SlotState::Pending { .. }, BLOCK_DATA) if h.seq == s.seq => {
+                    (LinkState::Pending { .. }, BLOCK_DATA) if h.seq == s.seq => {
                         s.restart_streak = 0;
                         // The worker wrote its envs' books for this answer.
                         s.delivered = Some(h.seq);
                         s.first_episodes = false;
-                        s.state = SlotState::Ready(sample);
+                        s.state = LinkState::Ready(sample);
                         self.async_api.ready_order.push_back(k);
                     }
-                    (SlotState::Pending { .. }, BLOCK_CALL) if h.seq == s.seq => {
+                    (LinkState::Pending { .. }, BLOCK_CALL) if h.seq == s.seq => {
                         s.restart_streak = 0;
-                        s.state = SlotState::Idle;
+                        s.state = LinkState::Idle;
                     }
-                    (SlotState::Pending { .. }, BLOCK_ERROR) if h.seq == s.seq => {
+                    (LinkState::Pending { .. }, BLOCK_ERROR) if h.seq == s.seq => {
                         drop(sample);
                         s.restart_streak = 0;
-                        s.state = SlotState::Idle;
+                        s.state = LinkState::Idle;
                         let path = env_fault_path(&self.id, k, s.generation);
                         let fault = EnvFault::take(&path).unwrap_or_else(|e| {
                             EnvFault::new(
@@ -454,26 +454,26 @@ impl Supervisor {
     /// the caller must hear of is queued in `self.faults`; only a spent restart budget, and a
     /// SIGBUS during the pool's first start, return at once.
     pub(super) fn check_liveness(&mut self) -> Result<(), PoolError> {
-        for k in 0..self.slots.len() {
+        for k in 0..self.workers.len() {
             let range = self.env_range(k);
-            let s = &mut self.slots[k];
-            if let SlotState::Down { until, then_reset } = s.state {
+            let s = &mut self.workers[k];
+            if let LinkState::Down { until, then_reset } = s.state {
                 if Instant::now() >= until {
                     self.respawn_now(k, then_reset)?;
                 }
                 continue;
             }
             let (since, starting, then_reset) = match s.state {
-                SlotState::Starting { since, then_reset } => (since, true, then_reset),
-                SlotState::Pending { since } => (since, false, true),
+                LinkState::Starting { since, then_reset } => (since, true, then_reset),
+                LinkState::Pending { since } => (since, false, true),
                 // Restart policy: an idle worker that died is replaced now, not at its next
                 // command, so that it comes back while others are waited for.
-                SlotState::Idle if self.cfg.on_worker_failure == FailurePolicy::Restart => {
+                LinkState::Idle if self.cfg.on_worker_failure == FailurePolicy::Restart => {
                     (Instant::now(), false, false)
                 }
                 _ => continue,
             };
-            let idle = matches!(s.state, SlotState::Idle);
+            let idle = matches!(s.state, LinkState::Idle);
             let exited = match s.child.as_mut() {
                 Some(ch) => ch.try_wait().ok().flatten(),
                 None => None,
@@ -590,22 +590,22 @@ impl Supervisor {
     fn respawn_now(&mut self, k: usize, then_reset: bool) -> Result<(), PoolError> {
         rogue_gym_ipc::cleanup_dead_nodes(&self.id)?;
         // Drop whatever the dead incarnation left in the queue.
-        while self.slots[k].ports.try_recv()?.is_some() {}
+        while self.workers[k].ports.try_recv()?.is_some() {}
         self.async_api.ready_order.retain(|&w| w != k);
         // Its stderr's tail is in the failure report already: a storm must not pile up files.
-        let _ = fs::remove_file(&self.slots[k].stderr_path);
+        let _ = fs::remove_file(&self.workers[k].stderr_path);
         // A successor being built (recycling) is of no use now: the next generation is after it.
         if let Some(g) = self.drop_successor(k, None) {
-            self.slots[k].generation = g;
+            self.workers[k].generation = g;
         }
-        self.slots[k].recycled = false;
-        self.slots[k].generation += 1;
+        self.workers[k].recycled = false;
+        self.workers[k].generation += 1;
         self.spawn(k, then_reset)
     }
 
     /// A worker died or hung (while starting, restarting or stepping). Restart policy: count it
     /// against the budget and respawn it once its own backoff has passed (at once for a first
-    /// failure; meanwhile it is [`SlotState::Down`] and the other workers go on); its envs, if
+    /// failure; meanwhile it is [`LinkState::Down`] and the other workers go on); its envs, if
     /// an episode was cut (`then_reset`), restart theirs and are flagged. Raise policy: respawn
     /// it and queue [`PoolError::WorkerFailed`]. Either way the pool steps again after one
     /// reset.
@@ -641,14 +641,14 @@ impl Supervisor {
                     });
                 }
                 self.failures.last_failure = Some(Box::new(failure));
-                let s = &mut self.slots[k];
+                let s = &mut self.workers[k];
                 let backoff = restart_backoff(s.restart_streak, self.cfg.start_timeout);
                 s.restart_streak = s.restart_streak.saturating_add(1);
                 s.restarted |= then_reset;
                 if backoff.is_zero() {
                     self.respawn_now(k, then_reset)
                 } else {
-                    s.state = SlotState::Down {
+                    s.state = LinkState::Down {
                         until: Instant::now() + backoff,
                         then_reset,
                     };

@@ -9,13 +9,13 @@ use crate::env::{EnvBlock, EnvSpec, StepOutcome};
 use crate::wire::layout::{EnvRecord, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED};
 use crate::wire::{EnvFault, KEEP_EPISODE, Serve};
 
-use super::slot::{BlockOut, Slot, SlotCtx, fault, place_extra};
+use super::env_state::{BlockOut, EnvState, ServeCtx, fault, place_extra};
 
 /// An [`EnvBlock`] with the bookkeeping of its envs and the buffers of its calls.
 pub(crate) struct BlockHost {
     block: Box<dyn EnvBlock>,
     /// Each env's episode bookkeeping (the block owns the envs themselves).
-    books: Vec<Slot<()>>,
+    books: Vec<EnvState<()>>,
     mask: Vec<bool>,
     seeds: Vec<u64>,
     episodes: Vec<u64>,
@@ -25,7 +25,7 @@ pub(crate) struct BlockHost {
 impl BlockHost {
     /// Host `block`, the envs `globals` of the pool.
     pub(crate) fn new(block: Box<dyn EnvBlock>, globals: Range<u64>) -> Self {
-        let books: Vec<Slot<()>> = globals.map(|g| Slot::new((), g)).collect();
+        let books: Vec<EnvState<()>> = globals.map(|g| EnvState::new((), g)).collect();
         let n = books.len();
         BlockHost {
             block,
@@ -43,7 +43,7 @@ impl BlockHost {
     }
 
     /// Each env's episode bookkeeping.
-    pub(crate) fn books(&self) -> &[Slot<()>] {
+    pub(crate) fn books(&self) -> &[EnvState<()>] {
         &self.books
     }
 
@@ -95,7 +95,7 @@ impl BlockHost {
         kind: Serve,
         payload: &[u64],
         out: &mut BlockOut<'_>,
-        ctx: &SlotCtx,
+        ctx: &ServeCtx,
     ) -> Result<(), EnvFault> {
         let n = self.books.len();
         match kind {
@@ -183,7 +183,7 @@ mod tests {
     use crate::kinds::test_env::TestEnv;
     use crate::seeds::SeedSchedule;
     use crate::wire::layout::BlockLayout;
-    use crate::worker::slot::{EnvOut, apply};
+    use crate::worker::env_state::{EnvOut, apply};
 
     const N: usize = 3;
     const OB: usize = 4;
@@ -260,8 +260,8 @@ mod tests {
         }
     }
 
-    fn ctx(seeds: &SeedSchedule, autoreset: AutoresetMode) -> SlotCtx<'_> {
-        SlotCtx {
+    fn ctx(seeds: &SeedSchedule, autoreset: AutoresetMode) -> ServeCtx<'_> {
+        ServeCtx {
             seeds,
             num_envs: NUM_ENVS,
             autoreset,
@@ -286,7 +286,7 @@ mod tests {
         host: &mut BlockHost,
         kind: Serve,
         payload: &[u64],
-        ctx: &SlotCtx,
+        ctx: &ServeCtx,
     ) -> Result<(BlockLayout, Vec<u64>), EnvFault> {
         let same_step = ctx.autoreset == AutoresetMode::SameStep;
         let layout = BlockLayout {
@@ -299,7 +299,7 @@ mod tests {
         let areas = layout.split_mut(&mut block);
         let (mut info, mut apart) = (Vec::new(), Vec::new());
         let mut out = BlockOut {
-            records: crate::worker::slot::Rows::Block(areas.records),
+            records: crate::worker::env_state::Rows::Block(areas.records),
             summary: Default::default(),
             obs: areas.obs,
             final_obs: areas.final_obs,
@@ -325,8 +325,8 @@ mod tests {
         let seeds = SeedSchedule::from_base(9);
         let ctx = ctx(&seeds, mode);
         let mut host = host(&seeds);
-        let mut slots: Vec<Slot> = (0..N as u64)
-            .map(|j| Slot::new(Box::new(test_env()) as Box<dyn Env>, FIRST + j))
+        let mut slots: Vec<EnvState> = (0..N as u64)
+            .map(|j| EnvState::new(Box::new(test_env()) as Box<dyn Env>, FIRST + j))
             .collect();
         let mut commands = vec![(Serve::Reset, vec![0u64; N])];
         commands.extend(

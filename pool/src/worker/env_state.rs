@@ -15,7 +15,7 @@ use crate::wire::{
 
 /// One env of a worker with its episode bookkeeping (`E = ()` for the envs of an
 /// [`crate::EnvBlock`], which owns them).
-pub(crate) struct Slot<E = Box<dyn Env>> {
+pub(crate) struct EnvState<E = Box<dyn Env>> {
     pub(crate) env: E,
     /// Global env id.
     pub(crate) global: u64,
@@ -26,9 +26,9 @@ pub(crate) struct Slot<E = Box<dyn Env>> {
     pub(crate) needs_reset: bool,
 }
 
-impl<E> Slot<E> {
+impl<E> EnvState<E> {
     pub(crate) fn new(env: E, global: u64) -> Self {
-        Slot {
+        EnvState {
             env,
             global,
             episode: 0,
@@ -40,7 +40,7 @@ impl<E> Slot<E> {
     }
 
     /// Begin the episode `self.episode` (its seed from the schedule; return and length 0).
-    pub(crate) fn begin_episode(&mut self, ctx: &SlotCtx) {
+    pub(crate) fn begin_episode(&mut self, ctx: &ServeCtx) {
         self.seed = ctx.seeds.seed(self.global, self.episode, ctx.num_envs);
         self.ret = 0.0;
         self.len = 0;
@@ -57,7 +57,7 @@ impl<E> Slot<E> {
 
     /// Fail if `value` is an action index out of range (envs of raw action bytes check their
     /// actions themselves).
-    pub(crate) fn check_action(&self, value: u64, ctx: &SlotCtx) -> Result<(), EnvFault> {
+    pub(crate) fn check_action(&self, value: u64, ctx: &ServeCtx) -> Result<(), EnvFault> {
         if ctx.action_bytes > 0 || value < ctx.num_actions as u64 {
             return Ok(());
         }
@@ -75,7 +75,7 @@ impl<E> Slot<E> {
 }
 
 /// What [`apply`] needs besides the slot.
-pub(crate) struct SlotCtx<'a> {
+pub(crate) struct ServeCtx<'a> {
     pub(crate) seeds: &'a SeedSchedule,
     pub(crate) num_envs: u64,
     pub(crate) autoreset: AutoresetMode,
@@ -97,11 +97,15 @@ pub(crate) struct EnvOut<'a> {
     pub(crate) info: &'a mut Vec<u8>,
 }
 
-pub(crate) fn fault<E>(s: &Slot<E>, context: String, message: impl std::fmt::Display) -> EnvFault {
+pub(crate) fn fault<E>(
+    s: &EnvState<E>,
+    context: String,
+    message: impl std::fmt::Display,
+) -> EnvFault {
     EnvFault::new(s.global, context, message)
 }
 
-fn do_reset(s: &mut Slot, obs: &mut [u8], ctx: &SlotCtx) -> Result<(), EnvFault> {
+fn do_reset(s: &mut EnvState, obs: &mut [u8], ctx: &ServeCtx) -> Result<(), EnvFault> {
     s.begin_episode(ctx);
     s.env.reset_episode(s.seed, s.episode, obs).map_err(|e| {
         fault(
@@ -117,11 +121,11 @@ fn do_reset(s: &mut Slot, obs: &mut [u8], ctx: &SlotCtx) -> Result<(), EnvFault>
 /// observation, the final observation (SAME_STEP, on an episode end) and the extra info into
 /// `out`. Returns the env's record.
 pub(crate) fn apply(
-    s: &mut Slot,
+    s: &mut EnvState,
     kind: Serve,
     words: &[u64],
     out: EnvOut<'_>,
-    ctx: &SlotCtx,
+    ctx: &ServeCtx,
 ) -> Result<EnvRecord, EnvFault> {
     let EnvOut {
         obs,
@@ -325,19 +329,19 @@ mod tests {
     use super::*;
     use crate::kinds::test_env::TestEnv;
 
-    fn slot() -> Slot {
+    fn env_state() -> EnvState {
         let env =
             TestEnv::from_json(&serde_json::json!({"obs_shape": [4], "max_steps": 3})).unwrap();
-        Slot::new(Box::new(env), 5)
+        EnvState::new(Box::new(env), 5)
     }
 
     fn go(
-        s: &mut Slot,
+        s: &mut EnvState,
         kind: Serve,
         value: u64,
         obs: &mut [u8],
         fin: &mut [u8],
-        c: &SlotCtx,
+        c: &ServeCtx,
     ) -> Result<EnvRecord, EnvFault> {
         let extra: &mut [u8] = &mut [];
         let info = &mut Vec::new();
@@ -355,8 +359,8 @@ mod tests {
         )
     }
 
-    fn ctx(seeds: &SeedSchedule, autoreset: AutoresetMode) -> SlotCtx<'_> {
-        SlotCtx {
+    fn ctx(seeds: &SeedSchedule, autoreset: AutoresetMode) -> ServeCtx<'_> {
+        ServeCtx {
             seeds,
             num_envs: 8,
             autoreset,
@@ -370,7 +374,7 @@ mod tests {
     fn next_step_autoreset_ignores_action_and_keeps_last_reward() {
         let seeds = SeedSchedule::from_base(1);
         let c = ctx(&seeds, AutoresetMode::NextStep);
-        let mut s = slot();
+        let mut s = env_state();
         let (mut obs, mut fin) = ([0u8; 4], [0u8; 0]);
         let r = go(&mut s, Serve::Reset, 0, &mut obs, &mut fin, &c).unwrap();
         assert_eq!((r.episode, r.seed, r.flags), (0, seeds.seed(5, 0, 8), 0));
@@ -403,7 +407,7 @@ mod tests {
     fn same_step_autoreset_returns_reset_obs_and_final_obs() {
         let seeds = SeedSchedule::from_base(1);
         let c = ctx(&seeds, AutoresetMode::SameStep);
-        let mut s = slot();
+        let mut s = env_state();
         let (mut obs, mut fin) = ([0u8; 4], [0u8; 4]);
         go(&mut s, Serve::Reset, 0, &mut obs, &mut fin, &c).unwrap();
         // Replay the same episode on a bare env to know the final obs.
@@ -436,7 +440,7 @@ mod tests {
     fn bad_action_is_an_error_not_a_panic() {
         let seeds = SeedSchedule::from_base(1);
         let c = ctx(&seeds, AutoresetMode::NextStep);
-        let mut s = slot();
+        let mut s = env_state();
         let (mut obs, mut fin) = ([0u8; 4], [0u8; 0]);
         go(&mut s, Serve::Reset, 0, &mut obs, &mut fin, &c).unwrap();
         let e = go(&mut s, Serve::Step, 99, &mut obs, &mut fin, &c).unwrap_err();

@@ -4,13 +4,13 @@
 use rogue_gym_ipc::PoolId;
 
 use super::block::BlockHost;
-use super::slot::{BlockOut, Slot, SlotCtx, apply};
+use super::env_state::{BlockOut, EnvState, ServeCtx, apply};
 use crate::wire::books::Books;
 use crate::wire::{EnvFault, Serve, calls};
 
 /// A worker's envs: one [`Env`] each, or one [`crate::EnvBlock`] for them all.
 pub(super) enum WorkerEnvs {
-    Each(Vec<Slot>),
+    Each(Vec<EnvState>),
     Block(BlockHost),
 }
 
@@ -50,7 +50,7 @@ impl WorkerEnvs {
         per_env: usize,
         only: Option<&[u64]>,
         out: &mut BlockOut<'_>,
-        ctx: &SlotCtx,
+        ctx: &ServeCtx,
     ) -> Result<usize, EnvFault> {
         let slots = match (self, only) {
             (WorkerEnvs::Block(host), None) => {

@@ -161,8 +161,8 @@ class Core:
         if self.closed:
             raise PoolClosedError(CLOSED_MESSAGE)
 
-    def call(self, fn: Callable[..., Any], *args: Any) -> Any:
-        """Run a native call; an env's own exception is re-raised as itself."""
+    def native(self, fn: Callable[..., Any], *args: Any) -> Any:
+        """Run a call of the native pool; an env's own exception is re-raised as itself."""
         try:
             return fn(*args)
         except EnvFailedError as err:
@@ -173,7 +173,7 @@ class Core:
         if self.lender is not None:
             free = self.lender.steer()
             if free is not None:
-                self.call(self.pool.select_slot, free)
+                self.native(self.pool.select_slot, free)
 
     def _took(self, r: tuple[int, int, Extras]) -> Result:
         """The result of a whole-batch call, from the native ``(slot, summary, extras)``
@@ -190,32 +190,32 @@ class Core:
     def step(self, actions: np.ndarray) -> Result:
         """A whole sync step."""
         self._steer()
-        return self._took(self.call(self.pool.step, actions))
+        return self._took(self.native(self.pool.step, actions))
 
     def send_step(self, actions: np.ndarray) -> None:
         """The first half of :meth:`step`: the workers step while the caller goes on."""
         self._steer()
-        self.call(self.pool.step_send, actions)
+        self.native(self.pool.step_send, actions)
 
     def send_reset(self) -> None:
         """The first half of a full reset."""
         self._steer()
-        self.call(self.pool.reset_send)
+        self.native(self.pool.reset_send)
 
     def wait(self, timeout: Optional[float]) -> Optional[Result]:
         """The second half of :meth:`send_step` or :meth:`send_reset`, or ``None`` when
         ``timeout`` seconds passed first (the call stays pending)."""
-        r = self.call(self.pool.wait, timeout)
+        r = self.native(self.pool.wait, timeout)
         return None if r is None else self._took(r)
 
     def reset_envs(self, mask: np.ndarray) -> Result:
         """A partial reset (the envs of ``mask``; the others' observations written again)."""
         self._steer()
-        return self._took(self.call(self.pool.reset_envs, mask))
+        return self._took(self.native(self.pool.reset_envs, mask))
 
     def set_seeds(self, schedule: dict[str, Any]) -> None:
         """Replace the episode-seed schedule (applies from the next reset)."""
-        self.call(self.pool.set_seeds, json.dumps(schedule))
+        self.native(self.pool.set_seeds, json.dumps(schedule))
 
     def observations(self, slot: int) -> Any:
         """The observations of ``slot`` as the facade returns them: lent, copied
@@ -237,12 +237,12 @@ class Core:
 
     def async_reset(self) -> None:
         """Start resetting every env; collect with :meth:`recv`."""
-        self.call(self.pool.async_reset)
+        self.native(self.pool.async_reset)
 
     def send(self, actions: np.ndarray, env_ids: Any) -> None:
         """Send actions to any envs (``env_ids``: an int64 array or a sequence of ints, each
         env at most once until received)."""
-        self.call(self.pool.send, actions, env_ids)
+        self.native(self.pool.send, actions, env_ids)
 
     def recv(
         self,
@@ -255,7 +255,7 @@ class Core:
         observations copied with ``copy``), valid until the next call; other rows are
         gathered: columns in the ``recv`` buffer (valid until the next ``recv``), observations
         a fresh copy."""
-        got = self.call(self.pool.recv, min_batch, max_batch, timeout)
+        got = self.native(self.pool.recv, min_batch, max_batch, timeout)
         rows, summary, extras, ids, raw, view = got
         if view is not None:
             # Written in place as one run of envs: views of the slot (a copy with ``copy``).

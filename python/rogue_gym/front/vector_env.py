@@ -83,7 +83,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.metadata = {**facts.metadata, "autoreset_mode": self.autoreset_mode}
         self.render_mode = facts.render_mode
-        self.spec = facts.spec
+        self.spec = facts.env_spec
         self.copy = bool(copy)
         self._kind = kind
         self._fill = facts.obs_filler
@@ -393,7 +393,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         facts = self._kind.facts
         if op not in facts.ops:
             raise refuse_op(facts.who, op)
-        return self._kind.call(op, name, arguments, envs)
+        return self._kind.run_ops(op, name, arguments, envs)
 
     def call_async(self, name: str, *args: Any, **kwargs: Any) -> None:
         """The first half of :meth:`call` (gymnasium's ``AsyncVectorEnv.call_async``). Env

@@ -231,7 +231,7 @@ class HostedKind:
             "spec": spec,
             "adapter": adapter,
         }
-        self._spec = spec
+        self._pool_spec = spec
         self._decoder = InfoDecoder()
         #: (SAME_STEP) each ended env's final dynamic leaves and last step info, until read.
         self._finals: dict[int, tuple[list[Any], dict[str, Any]]] = {}
@@ -243,7 +243,7 @@ class HostedKind:
             single_action_space=self.single_action_space,
             metadata=metadata,
             render_mode=render_mode,
-            spec=env_spec,
+            env_spec=env_spec,
             worker_command=checked["worker_command"],
             who=who,
             ops=SERVED_BY[who],
@@ -258,7 +258,7 @@ class HostedKind:
         return {
             **self.options.pool_json(self.num_envs, HOSTED_WORKER_POLL_US),
             "env": self._env,
-            "spec": self._spec,
+            "spec": self._pool_spec,
             "seeds": self._seeds(None),
             "block_unit": self._block_unit,
         }
@@ -405,7 +405,7 @@ class HostedKind:
             args: list[tuple[tuple[Any, ...], dict[str, Any]]] = [
                 ((int(s),), {}) for s in chosen.values()
             ]
-            self.call("set_reset_seed", "", args, list(chosen))
+            self.run_ops("set_reset_seed", "", args, list(chosen))
 
     # -- infos -----------------------------------------------------------------------------
 
@@ -470,7 +470,7 @@ class HostedKind:
 
     # -- calls and render ------------------------------------------------------------------
 
-    def call(
+    def run_ops(
         self,
         op: str,
         name: str,
@@ -483,4 +483,4 @@ class HostedKind:
     def render(self) -> Optional[tuple[Any, ...]]:
         """Every env's ``render()``."""
         n = self.num_envs
-        return tuple(self.call("render", "", [((), {})] * n, range(n)))
+        return tuple(self.run_ops("render", "", [((), {})] * n, range(n)))

@@ -88,7 +88,7 @@ class NativeKind:
             single_action_space=self.single_action_space,
             metadata={"render_modes": list(RENDER_MODES)},
             render_mode=render_mode,
-            spec=None,
+            env_spec=None,
             worker_command=list(st.worker_command or []),
             who=WHO,
             ops=frozenset(self._ops),
@@ -289,7 +289,7 @@ class NativeKind:
             )
         return table[name]
 
-    def call(
+    def run_ops(
         self,
         op: str,
         name: str,

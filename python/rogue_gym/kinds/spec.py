@@ -15,7 +15,7 @@ The order of calls:
 3. per call: :meth:`Kind.seeds` (resets), :meth:`Kind.actions` (steps and sends) before the
    pool call; after it :meth:`Kind.infos`, then ``facts.obs_filler`` (it may use what the
    infos brought), then :meth:`Kind.batch_views` where the front needs fresh views;
-4. :meth:`Kind.call` and :meth:`Kind.render` between calls, off the hot path.
+4. :meth:`Kind.run_ops` and :meth:`Kind.render` between calls, off the hot path.
 
 A new kind is one module of this package implementing :class:`Kind`;
 ``tests/python/test_kind_spec.py`` builds a small one (the pool's built-in test env) to show
@@ -53,10 +53,10 @@ class KindFacts:
     #: One env's spaces.
     single_observation_space: spaces.Space
     single_action_space: spaces.Space
-    #: The envs' ``metadata`` (render modes), render mode and ``EnvSpec`` (if any).
+    #: The envs' ``metadata`` (render modes), render mode and gymnasium ``EnvSpec`` (if any).
     metadata: dict[str, Any]
     render_mode: Optional[str]
-    spec: Any
+    env_spec: Any
     #: Program and leading args of a worker process.
     worker_command: Sequence[str]
     #: Who serves the env operations (named in refusals), and the operations served
@@ -116,7 +116,7 @@ class Kind(Protocol):
         adds what every kind reports (``worker_restarted``, ``env_id``)."""
         ...
 
-    def call(
+    def run_ops(
         self,
         op: str,
         name: str,
