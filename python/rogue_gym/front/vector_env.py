@@ -257,7 +257,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
             state.log.record(res, actions, self._same_step)
         infos = self._infos(res)
         terminated, truncated = cols["terminated"].copy(), cols["truncated"].copy()
-        np.bitwise_or(terminated, truncated, out=state.ended)
+        state.ended = terminated | truncated
         return self._observations(res), cols["reward"].copy(), terminated, truncated, infos
 
     def _infos(self, res: Result, only: Optional[np.ndarray] = None) -> dict[str, Any]:

@@ -24,7 +24,7 @@ from ..errors import out_of_range, scalar_actions
 from ..protocol.ops import Interpreter, op_table, run_op
 from ..settings import PoolSettings
 from .final_obs import add_final_obs
-from .result import Result
+from .result import SUMMARY_FINAL, Result
 from .seed_sets import seed_set
 from .spec import EnvIds, KindFacts
 from .view import PoolView
@@ -81,6 +81,7 @@ class NativeKind:
         self._masks: dict[str, np.ndarray] = {}
         self._actions = np.zeros(self.num_envs, np.int64)
         self._view: Optional[PoolView] = None
+        self._copy = self._same_step = False
         self._ops = op_table(self, WHO)
         self.facts = KindFacts(
             num_envs=self.num_envs,
@@ -116,6 +117,8 @@ class NativeKind:
         """Check the pool's observation and build one info template per slot over its
         columns (the step path copies a template, nothing per env)."""
         self._view = view
+        # Read on every step: kept as plain attributes.
+        self._copy, self._same_step = view.copy, view.same_step
         layout = view.layout
         if layout.obs_shape != self.obs_shape or np.dtype(layout.obs_dtype) != self.obs_dtype:
             raise RuntimeError(
@@ -218,19 +221,18 @@ class NativeKind:
         the env hands out copies), and SAME_STEP's final observations. A partial reset
         (``only``) or a ``recv``: fresh arrays, the rows not reset zero and unmasked."""
         if only is None and result.slot is not None:
-            view = self._bound()
             template = self._templates[result.slot]
             infos = template.copy()
             infos.update(self._masks)
-            if view.copy:
+            if self._copy:
                 for key in self._info_keys:
                     infos[key] = infos[key].copy()
-            if result.has_final:
+            if self._same_step and result.summary & SUMMARY_FINAL:
                 # The step's row of an ended episode describes it: its info is the last step's.
                 keys = self._info_keys
                 add_final_obs(
                     infos,
-                    view,
+                    self._bound(),
                     result,
                     self.batch_views,
                     lambda env, obs: (obs, {key: template[key][env] for key in keys}),
