@@ -120,7 +120,7 @@ fn do_reset(s: &mut EnvState, obs: &mut [u8], ctx: &ServeCtx) -> Result<(), EnvF
 /// (`words` = the action: an index, or `action_bytes` raw bytes), with autoreset. Writes the
 /// observation, the final observation (SAME_STEP, on an episode end) and the extra info into
 /// `out`. Returns the env's record.
-#[inline(never)]
+#[inline(always)]
 pub(crate) fn apply(
     s: &mut EnvState,
     kind: Serve,
