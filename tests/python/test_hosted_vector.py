@@ -219,3 +219,23 @@ def test_env_operations_run_once_per_env_in_hosted_pools() -> None:
         assert env.get_attr("spam") == (1, 2, 3, 4)
     finally:
         env.close()
+
+
+def test_env_operations_run_once_per_env_of_the_native_game() -> None:
+    """The third kind: the native game answers env operations in the caller, once per env."""
+    import rogue_gym
+
+    env = rogue_gym.make_vec(4, config="paper", num_workers=2, seed=0)
+    try:
+        kind = env._kind
+        seen: list[int] = []
+        real = kind._attribute
+        kind._attribute = lambda name, e: (seen.append(e), real(name, e))[1]
+        env.reset(seed=0)
+        assert env.call("max_steps") == (500,) * 4
+        assert sorted(seen) == [0, 1, 2, 3]
+        seen.clear()
+        assert len(env.get_attr("episode_seed")) == 4
+        assert sorted(seen) == [0, 1, 2, 3]
+    finally:
+        env.close()
