@@ -67,10 +67,13 @@ def rate(env: str, per_worker: int, workers: int, seconds: float) -> float:
         vec.close()
 
 
-def split(env: str, num_envs: int, seconds: float) -> tuple[float, float]:
-    """``(caller's own time, worker's env time)`` per sync ``step()`` in seconds, for one
-    worker with ``num_envs`` envs: the wall time per call minus the worker's env time (from
-    ``stats()``), which it spends while the caller waits."""
+def split(env: str, num_envs: int, seconds: float) -> tuple[float, float, float, float]:
+    """``(caller's own time, worker's env time, worker idle, caller between calls)`` per sync
+    ``step()`` in seconds, for one worker with ``num_envs`` envs: the wall time per call minus
+    the worker's env time (from ``stats()``), which it spends while the caller waits; of that
+    own time, how long the worker waited for its next command (the caller's turnaround: its
+    Python between calls, and its Rust before the command and after the answer) and how long
+    the caller spent between pool calls."""
     vec = make(env, num_envs, 1)
     try:
         vec.reset(seed=0)
@@ -87,8 +90,9 @@ def split(env: str, num_envs: int, seconds: float) -> tuple[float, float]:
             vec.step(acts[calls % 8])
             calls += 1
         wall = time.perf_counter() - t0
-        env_s = vec.stats().workers[0].env_s
-        return (wall - env_s) / calls, env_s / calls
+        st = vec.stats()
+        w = st.workers[0]
+        return (wall - w.env_s) / calls, w.env_s / calls, w.wait_s / calls, st.caller_s / calls
     finally:
         vec.close()
 
@@ -109,15 +113,16 @@ def model(args: argparse.Namespace) -> None:
         (QUICK_BATCHES, QUICK_PER_WORKER) if args.quick else (MODEL_BATCHES, MODEL_PER_WORKER)
     )
     envs = [e for e in batches if e in args.envs or e == "rogue"]
-    cells: dict[tuple[str, int], list[tuple[float, float]]] = {}
+    cells: dict[tuple[str, int], list[tuple[float, float, float, float]]] = {}
     for rep in range(args.reps):
         for e in envs:
             for n in batches[e]:
-                o, t = split(e, n, args.seconds)
-                cells.setdefault((e, n), []).append((o, t))
+                cell = split(e, n, args.seconds)
+                cells.setdefault((e, n), []).append(cell)
+                o, t = cell[0], cell[1]
                 print(f"rep {rep + 1}: {e} x {n}: caller {o * 1e6:.1f} us, worker {t * 1e6:.1f} us")
     med = {
-        key: (statistics.median(v[0] for v in vals), statistics.median(v[1] for v in vals))
+        key: tuple(statistics.median(v[i] for v in vals) for i in range(4))
         for key, vals in cells.items()
     }
     lines = [
@@ -125,11 +130,15 @@ def model(args: argparse.Namespace) -> None:
         f"{len(os.sched_getaffinity(0))} cores, 1 worker, {args.seconds:g} s x {args.reps} runs, "
         "medians)",
         "",
-        "| env | envs | caller's own time (us) | ns per env-step | worker's env time (us) |",
-        "|---|---|---|---|---|",
+        "| env | envs | caller's own time (us) | ns per env-step | worker's env time (us) "
+        "| of the own time: worker idle (us) | caller between calls (us) |",
+        "|---|---|---|---|---|---|---|",
     ]
-    for (e, n), (o, t) in sorted(med.items()):
-        lines.append(f"| {e} | {n} | {o * 1e6:.1f} | {o * 1e9 / n:.1f} | {t * 1e6:.1f} |")
+    for (e, n), (o, t, idle, between) in sorted(med.items()):
+        lines.append(
+            f"| {e} | {n} | {o * 1e6:.1f} | {o * 1e9 / n:.1f} | {t * 1e6:.1f} "
+            f"| {idle * 1e6:.1f} | {between * 1e6:.1f} |"
+        )
     lines += [
         "",
         "Projected efficiency against linear, t_w / (t_w + o(k·n)):",

@@ -59,6 +59,9 @@ impl Supervisor {
     /// else there is to read. The one case the supervisor writes rows: a restarted worker's
     /// envs are marked restarted (their episodes were cut).
     pub(super) fn take_slot_answers(&mut self, acc: &mut SlotCollect) -> Result<(), PoolError> {
+        if self.async_api.ready_order.is_empty() && acc.answered < self.workers.len() {
+            return Ok(()); // nothing new: the usual poll while the workers step
+        }
         let layout = self.slot_layout;
         let writer = self.writer_of(acc.answer.slot)?;
         while let Some(k) = self.async_api.ready_order.pop_front() {
