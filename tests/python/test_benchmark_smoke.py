@@ -95,10 +95,15 @@ def test_the_device_script_runs_every_part_in_its_quick_mode(tmp_path: Path) -> 
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     scaling = json.loads((tmp_path / "scaling.json").read_text())
     assert all(v[0] > 0 for t in scaling["runs"].values() for v in t.values())
-    # The model: the caller's own time and the worker's env time for each batch size, and
-    # the efficiency it projects (a fraction) for the native game at 1 to 16 workers.
+    # The model: the caller's own time, the worker's env time, and of the own time the
+    # worker's idle time and the caller's time between calls, for each batch size; and the
+    # efficiency it projects (a fraction) for the native game at 1 to 16 workers.
     model = json.loads((tmp_path / "model.json").read_text())
-    assert all(o >= 0 and t > 0 for cells in model["cells"].values() for o, t in cells)
+    assert all(
+        o >= 0 and t > 0 and idle >= 0 and between >= 0
+        for cells in model["cells"].values()
+        for o, t, idle, between in cells
+    )
     assert 0 < model["projected"]["rogue/16"] < 1
     pools = json.loads((tmp_path / "async_pools.json").read_text())
     rows = pools["runs"]["dispatch"]

@@ -4,8 +4,8 @@
 
 use std::time::{Duration, Instant};
 
+use super::actions::Actions;
 use super::async_envs::{Received, Turn};
-use super::stepping::Actions;
 use super::workers::LinkState;
 use super::{Pool, Supervisor};
 use crate::error::PoolError;

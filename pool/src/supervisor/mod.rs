@@ -2,9 +2,11 @@
 //!
 //! The rest of its job is split by concern: [`stepping`] (sync reset/step, into the caller's
 //! buffer or the shared batch slots), [`async_api`] (EnvPool-style `send`/`recv`), [`calls`]
-//! (env calls off the hot path) and [`workers`] (spawning, commanding and watching the worker
-//! processes).
+//! (env calls off the hot path), [`workers`] (spawning, commanding and watching the worker
+//! processes), [`actions`] (a step's actions and their check), [`waiting`] and [`state`] (the
+//! supervisor's state by concern).
 
+mod actions;
 mod async_api;
 mod async_envs;
 mod calls;
@@ -33,10 +35,10 @@ use crate::wire::layout::BlockLayout;
 use crate::wire::slot_layout::SlotLayout;
 use crate::wire::{BATCH_BUFFER, Command, Op, WorkerConfig, block_range_of, shm_need};
 
+pub use actions::{Actions, validate_actions};
 pub use async_api::RecvWant;
 pub use async_envs::Received;
 use state::{AsyncState, CallInFlight, Failures, Recycling};
-pub use stepping::{Actions, validate_actions};
 use workers::{LinkState, WorkerLink};
 
 /// The supervisor proper: the workers (their processes, blocks, channels and layouts), the

@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 use rogue_gym_ipc::{BlockSample, SupervisorPorts};
 
 use super::Supervisor;
-use super::stepping::Actions;
+use super::actions::Actions;
 use crate::batch::Block;
 use crate::config::FailurePolicy;
 use crate::error::{FailureCause, PoolError, WorkerFailure};
