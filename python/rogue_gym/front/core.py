@@ -32,7 +32,7 @@ from ..protocol.infos import HEAD
 from . import leases, sigterm
 from .pool_view import CoreView
 from .stats import PoolStats, WorkerStats
-from .worker_errors import reraise
+from .worker_errors import native_call, reraise
 
 if TYPE_CHECKING:
     from ..kinds.spec import Kind
@@ -163,10 +163,7 @@ class Core:
 
     def native(self, fn: Callable[..., Any], *args: Any) -> Any:
         """Run a call of the native pool; an env's own exception is re-raised as itself."""
-        try:
-            return fn(*args)
-        except EnvFailedError as err:
-            reraise(err)
+        return native_call(fn, *args)
 
     def _steer(self) -> None:
         """Make the next slot-writing call write a slot no lent array still uses."""

@@ -12,9 +12,8 @@ from typing import Any, Optional, Sequence
 
 import numpy as np
 
-from ..errors import EnvFailedError
 from ..kinds.view import CallState, PoolLayout
-from .worker_errors import raised_in_worker, reraise
+from .worker_errors import native_call, raised_in_worker
 
 __all__ = ["CoreView"]
 
@@ -56,10 +55,7 @@ class CoreView:
 
     def stage_action_extras(self, extras: Sequence[tuple[int, bytes]]) -> None:
         """Stage the pickled parts of no fixed size of the next step's actions."""
-        try:
-            self._pool.stage_action_extras(list(extras))
-        except EnvFailedError as err:
-            reraise(err)
+        native_call(self._pool.stage_action_extras, list(extras))
 
     def call_envs(self, op: str, name: str, requests: Sequence[tuple[int, Any]]) -> list[Any]:
         """Run env operation ``op`` in the workers, one result per ``(env, (args, kwargs))``;
@@ -68,12 +64,8 @@ class CoreView:
             (env, pickle.dumps((op, name, *call), protocol=pickle.HIGHEST_PROTOCOL))
             for env, call in requests
         ]
-        try:
-            answers = self._pool.call_envs(encoded)
-        except EnvFailedError as err:
-            reraise(err)
         results = []
-        for env, data in answers:
+        for env, data in native_call(self._pool.call_envs, encoded):
             status, value = pickle.loads(data)
             if status == "err":
                 exc = raised_in_worker(value, f"env {env} during {op}({name!r})")

@@ -2,12 +2,20 @@
 
 from __future__ import annotations
 
-from typing import NoReturn, Optional
+from typing import Any, Callable, NoReturn, Optional
 
 from ..errors import EnvFailedError
 from ..protocol.exceptions import decode_exception
 
-__all__ = ["env_exception", "raised_in_worker", "reraise"]
+__all__ = ["env_exception", "native_call", "raised_in_worker", "reraise"]
+
+
+def native_call(fn: Callable[..., Any], *args: Any) -> Any:
+    """Run a call of the native pool; an env's own exception is re-raised as itself."""
+    try:
+        return fn(*args)
+    except EnvFailedError as err:
+        reraise(err)
 
 
 def raised_in_worker(detail: str, where: str) -> Optional[BaseException]:
