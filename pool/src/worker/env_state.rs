@@ -119,8 +119,8 @@ fn do_reset(s: &mut EnvState, obs: &mut [u8], ctx: &ServeCtx) -> Result<(), EnvF
 /// Apply one command to one env: [`Serve::Reset`] (`words[0]` = episode index) or [`Serve::Step`]
 /// (`words` = the action: an index, or `action_bytes` raw bytes), with autoreset. Writes the
 /// observation, the final observation (SAME_STEP, on an episode end) and the extra info into
-/// `out`. Returns the env's record. Inlined into the block loop: laid out apart, the native
-/// game's env loop took 3% longer (`benchmarks/builds_ab.py`).
+/// `out`. Returns the env's record. Inlined into the block loop: apart, the native game's env
+/// loop takes 3-15% longer (`benchmarks/builds_ab.py`).
 #[inline(always)]
 pub(crate) fn apply(
     s: &mut EnvState,
