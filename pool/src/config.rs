@@ -107,6 +107,11 @@ pub struct PoolConfig {
     /// pool's process may use (wrapping around), as EnvPool's `thread_affinity_offset` does.
     /// `None` (the default): the kernel places them.
     pub cpu_affinity: Option<usize>,
+    /// Write the observation rows with streaming (non-temporal) stores, which bypass the
+    /// cache: `Some(true)` always, `Some(false)` never, `None` (the default) when the
+    /// observations of all the batch slots take more than a third of the last-level cache (the
+    /// worker's `streaming` module says why).
+    pub streaming_stores: Option<bool>,
     /// Slots of the shared batch buffer the synchronous `*_shared` calls write, 2 to
     /// [`crate::MAX_BATCH_SLOTS`]: 2 is double buffering; more let the caller keep several
     /// batches of observations without copying them (see [`crate::Pool::select_slot`]).
@@ -146,6 +151,7 @@ impl PoolConfig {
             batch_slots: crate::BATCH_SLOTS,
             block_unit: 1,
             cpu_affinity: None,
+            streaming_stores: None,
             worker,
             wait: WaitPolicy {
                 poll_budget: Duration::from_micros(50),

@@ -28,6 +28,7 @@ use crate::wire::{
 mod block;
 mod env_state;
 mod envs;
+mod streaming;
 
 use block::BlockHost;
 use env_state::{BlockOut, EnvState, Rows, ServeCtx};
@@ -293,6 +294,9 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
     // One env's extra info, and the block's infos that did not fit its room.
     let mut info: Vec<u8> = Vec::new();
     let mut apart: Vec<(u32, Vec<u8>)> = Vec::new();
+    // Envs write their observation here first when the rows are streamed (see `streaming`).
+    let streamed = streaming::wanted(cfg.streaming_stores, cfg.batch_slots * cfg.num_envs * ob);
+    let mut stage: Vec<u8> = if streamed { vec![0; ob] } else { Vec::new() };
     // The last command asked to wait for the next one without polling (`block_at_once`).
     let blocking = WaitPolicy {
         poll_budget: Duration::ZERO,
@@ -394,6 +398,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
                 extra_bytes: layout.extra_bytes,
                 info: &mut info,
                 apart: &mut apart,
+                stage: &mut stage,
             }
         } else {
             let rows = first_env..first_env + epw;
@@ -424,6 +429,7 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
                 extra_bytes: layout.extra_bytes,
                 info: &mut info,
                 apart: &mut apart,
+                stage: &mut stage,
             }
         };
         let serving = stamp();
@@ -437,6 +443,11 @@ fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), Worke
                 Ok(served) => (None, served),
                 Err(f) => (Some(f), 0),
             };
+        if streamed {
+            // Streamed rows land before the answer that publishes them (an env that failed
+            // midway included: its rows are written again before anyone reads them).
+            streaming::fence();
+        }
         if failed.is_none() {
             hosted.write_books(&books, h.seq, first_env);
         }

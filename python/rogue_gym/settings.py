@@ -54,6 +54,7 @@ class PoolOptions:
     recycle_above_rss: Optional[int] = None
     batch_slots: Optional[int] = None
     cpu_affinity: Optional[int] = None
+    streaming_stores: Optional[bool] = None
 
     @classmethod
     def from_kwargs(cls, options: Mapping[str, Any]) -> Any:
@@ -95,6 +96,11 @@ class PoolOptions:
                 f"cpu_affinity must be a core offset >= 0 (or None: no pinning), got "
                 f"{self.cpu_affinity!r}"
             )
+        if self.streaming_stores not in (None, True, False):
+            raise ValueError(
+                "streaming_stores must be True, False or None (by the batch's size), got "
+                f"{self.streaming_stores!r}"
+            )
         for name in ("recycle_after_steps", "recycle_above_rss"):
             value = getattr(self, name)
             if value is not None and int(value) < 1:
@@ -114,6 +120,7 @@ class PoolOptions:
             "recycle_above_rss": _optional_int(self.recycle_above_rss),
             "batch_slots": _optional_int(self.batch_slots),
             "cpu_affinity": _optional_int(self.cpu_affinity),
+            "streaming_stores": self.streaming_stores,
         }
 
     def pool_json(self, num_envs: int, worker_poll_us: Optional[int] = None) -> dict[str, Any]:
@@ -135,6 +142,7 @@ class PoolOptions:
             "recycle_above_rss": self.recycle_above_rss,
             "batch_slots": self.batch_slots,
             "cpu_affinity": self.cpu_affinity,
+            "streaming_stores": self.streaming_stores,
             "runtime_dir": None if self.runtime_dir is None else os.fspath(self.runtime_dir),
         }
 
@@ -196,6 +204,11 @@ class PoolSettings(PoolOptions):
             ``(cpu_affinity + k)``-th core this process may use, wrapping around (EnvPool's
             ``thread_affinity_offset``). ``None`` (the default): the kernel places them. On a
             machine of several NUMA nodes run one pool per node (docs/performance.md).
+        streaming_stores: write the observation rows with streaming (non-temporal) stores,
+            which bypass the cache: ``True`` always, ``False`` never, ``None`` (the default)
+            when the observations of all the ``batch_slots`` take more than a third of the
+            last-level cache (the native game's from 643 envs on a 32 MB cache with two
+            slots; docs/performance.md, "Scaling"). Only the speed changes.
     """
 
     num_envs: int = 8

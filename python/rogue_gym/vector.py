@@ -122,10 +122,11 @@ class PoolVectorEnv(FrontVectorEnv):
         autoreset_mode: ``NEXT_STEP`` (default), ``SAME_STEP`` or ``DISABLED``.
         on_worker_failure, step_timeout, start_timeout, max_restarts, batch_size,
             worker_command, poll_us, runtime_dir, recycle_after_steps, recycle_above_rss,
-            batch_slots, cpu_affinity: the pool's options (see
+            batch_slots, cpu_affinity, streaming_stores: the pool's options (see
             :class:`rogue_gym.settings.PoolSettings`: ``recycle_*`` replace a worker by plan,
             for envs that leak; ``batch_slots`` trades ``/dev/shm`` for lent instead of copied
-            batches; ``cpu_affinity`` pins the workers to cores).
+            batches; ``cpu_affinity`` pins the workers to cores; ``streaming_stores`` writes
+            large batches past the cache).
         worker_poll_us: how long the workers poll before they block, in µs (default
             :data:`rogue_gym.kinds.hosted.HOSTED_WORKER_POLL_US`; in the async API on a
             machine with no core to spare, workers block at once whatever it says).
@@ -175,6 +176,7 @@ class PoolVectorEnv(FrontVectorEnv):
         recycle_above_rss: Optional[int] = None,
         batch_slots: Optional[int] = None,
         cpu_affinity: Optional[int] = None,
+        streaming_stores: Optional[bool] = None,
     ) -> None:
         del context, daemon  # always spawned workers
         if not (observation_mode in ("same", "different") or _is_space_pair(observation_mode)):
@@ -198,6 +200,7 @@ class PoolVectorEnv(FrontVectorEnv):
             recycle_above_rss=recycle_above_rss,
             batch_slots=batch_slots,
             cpu_affinity=cpu_affinity,
+            streaming_stores=streaming_stores,
         )
         kind = HostedKind(
             env_fns,

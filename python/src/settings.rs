@@ -60,6 +60,9 @@ pub(crate) struct PyPoolSettings {
     /// Pin worker `k` to the `(offset + k)`-th usable core (`PoolConfig::cpu_affinity`).
     #[serde(default)]
     cpu_affinity: Option<usize>,
+    /// Observation rows written with streaming stores (`PoolConfig::streaming_stores`).
+    #[serde(default)]
+    streaming_stores: Option<bool>,
 }
 
 pub(crate) fn duration(what: &str, secs: f64) -> PyResult<Duration> {
@@ -119,5 +122,6 @@ pub(crate) fn pool_config(
         cfg.worker_wait.poll_budget = Duration::from_micros(us);
     }
     cfg.cpu_affinity = s.cpu_affinity;
+    cfg.streaming_stores = s.streaming_stores;
     Ok(cfg)
 }

@@ -73,11 +73,14 @@ def test_the_native_pool_steps_and_serves_envs_async() -> None:
         _closed(env)
 
 
-def test_a_hosted_env_matches_sync_vector_env() -> None:
+@pytest.mark.parametrize("streaming", [None, True])
+def test_a_hosted_env_matches_sync_vector_env(streaming: Any) -> None:
     def cartpole() -> gym.Env:
         return gym.make("CartPole-v1")
 
-    pool = rogue_gym.PoolVectorEnv([cartpole] * 4, num_workers=2, **SLOW)
+    pool = rogue_gym.PoolVectorEnv(
+        [cartpole] * 4, num_workers=2, streaming_stores=streaming, **SLOW
+    )
     ref = gym.vector.SyncVectorEnv([cartpole] * 4)
     try:
         a, _ = pool.reset(seed=11)
@@ -149,6 +152,44 @@ def test_a_pool_larger_than_dev_shm_fails_at_once_with_the_fixes() -> None:
 
 def test_trajectories_are_the_same_with_one_or_two_workers() -> None:
     assert _digest(6, 1, 40) == _digest(6, 2, 40)
+
+
+def _played(streaming: Any) -> list[bytes]:
+    """Everything a caller reads of a short SAME_STEP run: sync steps (final observations,
+    episode ends every 5 steps), a partial reset, then async recv/send rounds."""
+    env = _native(6, 2, max_steps=5, autoreset_mode="same_step", streaming_stores=streaming)
+    try:
+        rng = np.random.default_rng(5)
+        obs, _ = env.reset()
+        out = [obs.tobytes()]
+        for t in range(14):
+            obs, rew, term, trunc, infos = env.step(rng.integers(0, 11, 6))
+            out.append(obs.tobytes() + rew.tobytes() + term.tobytes() + trunc.tobytes())
+            if "final_obs" in infos:
+                done = np.flatnonzero(infos["_final_obs"])
+                out += [infos["final_obs"][i].tobytes() for i in done]
+            if t == 8:
+                obs, _ = env.reset(options={"reset_mask": np.array([1, 0, 0, 1, 1, 0], bool)})
+                out.append(obs.tobytes())
+        env.async_reset()
+        for _ in range(6):
+            obs, rew, term, trunc, infos = env.recv()
+            ids = infos["env_id"]
+            order = np.argsort(ids)  # rows come in completion order
+            out.append(ids[order].tobytes() + obs[order].tobytes() + rew[order].tobytes())
+            env.send(rng.integers(0, 11, len(ids))[ids], ids)
+        return out
+    finally:
+        _closed(env)
+
+
+def test_streaming_stores_change_nothing_a_caller_reads() -> None:
+    plain = _played(False)
+    assert len(plain) > 20
+    assert _played(True) == plain
+    assert _played(None) == plain  # by the batch's size: plain here
+    with pytest.raises(ValueError, match="streaming_stores"):
+        _native(2, 1, streaming_stores="yes")
 
 
 def test_rows_stay_whole_through_many_steps_and_kills() -> None:

@@ -189,6 +189,7 @@ impl Pool {
             batch_slots: cfg.batch_slots,
             block_unit: cfg.block_unit,
             cpu_affinity: cfg.cpu_affinity,
+            streaming_stores: cfg.streaming_stores,
         };
         let config_path = id.aux_dir().join("worker.json");
         let num_workers = cfg.num_workers;

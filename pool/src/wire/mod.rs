@@ -168,6 +168,9 @@ pub struct WorkerConfig {
     /// Pin worker `k` to the `(offset + k)`-th usable core ([`crate::PoolConfig::cpu_affinity`]).
     #[serde(default)]
     pub cpu_affinity: Option<usize>,
+    /// Observation rows written with streaming stores ([`crate::PoolConfig::streaming_stores`]).
+    #[serde(default)]
+    pub streaming_stores: Option<bool>,
 }
 
 fn default_block_unit() -> usize {

@@ -309,6 +309,7 @@ mod tests {
             extra_bytes: 0,
             info: &mut info,
             apart: &mut apart,
+            stage: &mut [],
         };
         host.serve(kind, payload, &mut out, ctx)?;
         Ok((layout, block))

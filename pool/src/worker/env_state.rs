@@ -296,6 +296,9 @@ pub(crate) struct BlockOut<'a> {
     pub(crate) info: &'a mut Vec<u8>,
     /// The envs whose info did not fit their room, with that info.
     pub(crate) apart: &'a mut Vec<(u32, Vec<u8>)>,
+    /// Where each env writes its observation first when the rows are written with streaming
+    /// stores ([`super::streaming`]; one observation long), or empty: envs write their rows.
+    pub(crate) stage: &'a mut [u8],
 }
 
 impl BlockOut<'_> {
@@ -303,7 +306,11 @@ impl BlockOut<'_> {
     pub(crate) fn env(&mut self, j: usize) -> EnvOut<'_> {
         let (ob, fb, xb) = (self.obs_bytes, self.final_bytes, self.extra_bytes);
         EnvOut {
-            obs: &mut self.obs[j * ob..(j + 1) * ob],
+            obs: if self.stage.is_empty() {
+                &mut self.obs[j * ob..(j + 1) * ob]
+            } else {
+                &mut *self.stage
+            },
             fin: &mut self.final_obs[j * fb..(j + 1) * fb],
             extra: &mut self.extra[j * xb..(j + 1) * xb],
             info: &mut *self.info,
@@ -312,6 +319,10 @@ impl BlockOut<'_> {
 
     /// Write env `j`'s record; keep its info apart if the record says it did not fit.
     pub(crate) fn finish(&mut self, j: usize, rec: &EnvRecord) {
+        if !self.stage.is_empty() {
+            let ob = self.obs_bytes;
+            super::streaming::copy(&mut self.obs[j * ob..(j + 1) * ob], self.stage);
+        }
         match &mut self.records {
             Rows::Block(words) => write_record_words(words, j, rec),
             Rows::Slot { writer, first } => {
