@@ -265,6 +265,18 @@ def write_results(out: Path, stem: str, markdown: str, data: Any) -> tuple[Path,
     return md, js
 
 
+def timed_steps(vec: Any, actions: list[Any], seconds: float) -> tuple[int, float]:
+    """Sync ``step()`` through ``actions`` in turn for ``seconds`` after ``stats(reset=True)``
+    (the vector env is reset and warmed up): ``(calls, wall seconds)``; ``vec.stats()`` then
+    covers exactly these calls."""
+    vec.stats(reset=True)
+    calls, t0 = 0, time.perf_counter()
+    while time.perf_counter() - t0 < seconds:
+        vec.step(actions[calls % len(actions)])
+        calls += 1
+    return calls, time.perf_counter() - t0
+
+
 def median_interval(ratios: list[float], draws: int = 2000) -> tuple[float, float]:
     """A 95% bootstrap interval of the median of ``ratios``."""
     rng = random.Random(0)

@@ -37,7 +37,7 @@ import gymnasium as gym
 import numpy as np
 import rogue_gym
 
-from common import write_results
+from common import timed_steps, write_results
 
 
 def make(env: str, num_envs: int, workers: int) -> Any:
@@ -84,12 +84,7 @@ def split(env: str, num_envs: int, seconds: float) -> tuple[float, float, float,
             acts = [np.stack([vec.single_action_space.sample() for _ in range(num_envs)])] * 8
         for a in acts * 4:  # warm-up
             vec.step(a)
-        vec.stats(reset=True)
-        calls, t0 = 0, time.perf_counter()
-        while time.perf_counter() - t0 < seconds:
-            vec.step(acts[calls % 8])
-            calls += 1
-        wall = time.perf_counter() - t0
+        calls, wall = timed_steps(vec, acts, seconds)
         st = vec.stats()
         w = st.workers[0]
         return (wall - w.env_s) / calls, w.env_s / calls, w.wait_s / calls, st.caller_s / calls

@@ -25,14 +25,13 @@ import argparse
 import os
 import platform
 import statistics
-import time
 from pathlib import Path
 from typing import Optional
 
 import numpy as np
 import rogue_gym
 
-from common import write_results
+from common import timed_steps, write_results
 
 DEFAULT_CELLS = (
     "1x384",
@@ -59,14 +58,9 @@ def run(workers: int, num_envs: int, streaming: Optional[bool], seconds: float) 
         vec.reset(seed=0)
         for a in acts * 2:
             vec.step(a)
-        vec.stats(reset=True)
-        calls, t0 = 0, time.perf_counter()
-        while time.perf_counter() - t0 < seconds:
-            vec.step(acts[calls % 8])
-            calls += 1
-        wall = (time.perf_counter() - t0) / calls
+        calls, wall = timed_steps(vec, acts, seconds)
         env = max(w.env_s for w in vec.stats().workers) / calls
-        return wall, env, wall - env
+        return wall / calls, env, wall / calls - env
     finally:
         vec.close()
 
