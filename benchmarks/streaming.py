@@ -67,7 +67,9 @@ def run(workers: int, num_envs: int, streaming: Optional[bool], seconds: float) 
 
 def main(argv: Optional[list[str]] = None) -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    p.add_argument("--cells", nargs="+", default=list(DEFAULT_CELLS), help="WORKERSxENVS")
+    p.add_argument(
+        "--cells", nargs="+", default=list(DEFAULT_CELLS), help="WORKERSxENVS (envs in all)"
+    )
     p.add_argument("--reps", type=int, default=5, help="pairs per cell")
     p.add_argument("--seconds", type=float, default=0.7, help="per run")
     p.add_argument("--out", default="benchmarks/results/streaming")
