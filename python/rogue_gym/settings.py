@@ -208,7 +208,7 @@ class PoolSettings(PoolOptions):
             which bypass the cache: ``True`` always, ``False`` never, ``None`` (the default)
             when the observations of all the ``batch_slots`` take more than a third of the
             last-level cache (the native game's from 643 envs on a 32 MB cache with two
-            slots; docs/performance.md, "Scaling"). Only the speed changes.
+            slots; docs/performance.md, "Memory traffic"). Only the speed changes.
     """
 
     num_envs: int = 8
