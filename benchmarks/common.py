@@ -265,16 +265,25 @@ def write_results(out: Path, stem: str, markdown: str, data: Any) -> tuple[Path,
     return md, js
 
 
-def timed_steps(vec: Any, actions: list[Any], seconds: float) -> tuple[int, float]:
+def timed_steps(
+    vec: Any, actions: list[Any], seconds: float, pause: float = 0.0
+) -> tuple[int, float, float]:
     """Sync ``step()`` through ``actions`` in turn for ``seconds`` after ``stats(reset=True)``
-    (the vector env is reset and warmed up): ``(calls, wall seconds)``; ``vec.stats()`` then
-    covers exactly these calls."""
+    (the vector env is reset and warmed up): ``(calls, wall seconds, paused seconds)``;
+    ``vec.stats()`` then covers exactly these calls. ``pause``: spin that long before each
+    call (the caller busy with something else, touching nothing of the pool's), counted apart
+    from the wall time."""
     vec.stats(reset=True)
-    calls, t0 = 0, time.perf_counter()
-    while time.perf_counter() - t0 < seconds:
+    calls, paused, t0 = 0, 0.0, time.perf_counter()
+    while time.perf_counter() - t0 - paused < seconds:
+        if pause:
+            p0 = time.perf_counter()
+            while time.perf_counter() - p0 < pause:
+                pass
+            paused += time.perf_counter() - p0
         vec.step(actions[calls % len(actions)])
         calls += 1
-    return calls, time.perf_counter() - t0
+    return calls, time.perf_counter() - t0 - paused, paused
 
 
 def median_interval(ratios: list[float], draws: int = 2000) -> tuple[float, float]:

@@ -59,7 +59,8 @@ fi
 if part 3; then
 echo "== 3. trainer ($((SECONDS - t0)) s)"
 device=$("$py" -c "import torch; print('cuda' if torch.cuda.is_available() else 'cpu')")
-frames=$([[ ${#quick[@]} -gt 0 ]] && echo 8000 || echo 120000)
+# Quick: one update (32 envs x 125 steps, the paper layout).
+frames=$([[ ${#quick[@]} -gt 0 ]] && echo 4000 || echo 120000)
 run=$(mktemp -d)
 trap 'rm -rf "$run"' EXIT
 timeout 240 "$py" -m rogue_gym.train --device "$device" --frames "$frames" \

@@ -40,10 +40,12 @@ import rogue_gym
 from common import timed_steps, write_results
 
 
-def make(env: str, num_envs: int, workers: int) -> Any:
+def make(env: str, num_envs: int, workers: int, **options: Any) -> Any:
     if env == "rogue":
-        return rogue_gym.make_vec("RogueGym-v0", num_envs=num_envs, num_workers=workers)
-    return rogue_gym.PoolVectorEnv([lambda: gym.make(env)] * num_envs, num_workers=workers)
+        return rogue_gym.make_vec("RogueGym-v0", num_envs=num_envs, num_workers=workers, **options)
+    return rogue_gym.PoolVectorEnv(
+        [lambda: gym.make(env)] * num_envs, num_workers=workers, **options
+    )
 
 
 def rate(env: str, per_worker: int, workers: int, seconds: float) -> float:
@@ -67,14 +69,19 @@ def rate(env: str, per_worker: int, workers: int, seconds: float) -> float:
         vec.close()
 
 
-def split(env: str, num_envs: int, seconds: float) -> tuple[float, float, float, float]:
+def split(
+    env: str, num_envs: int, seconds: float, pause: float = 0.0
+) -> tuple[float, float, float, float]:
     """``(caller's own time, worker's env time, worker idle, caller between calls)`` per sync
     ``step()`` in seconds, for one worker with ``num_envs`` envs: the wall time per call minus
     the worker's env time (from ``stats()``), which it spends while the caller waits; of that
     own time, how long the worker waited for its next command (the caller's turnaround: its
     Python between calls, and its Rust before the command and after the answer) and how long
-    the caller spent between pool calls."""
-    vec = make(env, num_envs, 1)
+    the caller spent between pool calls. ``pause``: the caller spins that long before each
+    call (see :func:`model`'s control), left out of all four figures; the worker then polls
+    through it, as it stays busy through the same wait with a larger batch."""
+    options = {"worker_poll_us": int(pause * 2e6) + 1000} if pause else {}
+    vec = make(env, num_envs, 1, **options)
     try:
         vec.reset(seed=0)
         rng = np.random.default_rng(0)
@@ -84,10 +91,15 @@ def split(env: str, num_envs: int, seconds: float) -> tuple[float, float, float,
             acts = [np.stack([vec.single_action_space.sample() for _ in range(num_envs)])] * 8
         for a in acts * 4:  # warm-up
             vec.step(a)
-        calls, wall = timed_steps(vec, acts, seconds)
+        calls, wall, paused = timed_steps(vec, acts, seconds, pause)
         st = vec.stats()
         w = st.workers[0]
-        return (wall - w.env_s) / calls, w.env_s / calls, w.wait_s / calls, st.caller_s / calls
+        return (
+            (wall - w.env_s) / calls,
+            w.env_s / calls,
+            (w.wait_s - paused) / calls,
+            (st.caller_s - paused) / calls,
+        )
     finally:
         vec.close()
 
@@ -96,68 +108,112 @@ def split(env: str, num_envs: int, seconds: float) -> tuple[float, float, float,
 #: workers (native 256 a worker, hosted 8).
 MODEL_BATCHES = {"rogue": (64, 256, 512, 1024, 2048, 4096), "CartPole-v1": (8, 16, 32, 64, 128)}
 MODEL_PER_WORKER = {"rogue": 256, "CartPole-v1": 8}
-#: The same, a sixteenth of the size (``--quick``).
-QUICK_BATCHES = {"rogue": (16, 32, 64, 128, 256), "CartPole-v1": (2, 4, 8, 16, 32)}
+#: The same, a sixteenth of the size and at 1, 4 and 16 workers only (``--quick``).
+QUICK_BATCHES = {"rogue": (16, 64, 256), "CartPole-v1": (2, 8, 32)}
 QUICK_PER_WORKER = {"rogue": 16, "CartPole-v1": 2}
 
 
 def model(args: argparse.Namespace) -> None:
     """Measure the caller's own time and the worker's env time per call for each batch size
-    (cells interleaved, medians of ``--reps``), and project the efficiency at k workers."""
+    (cells interleaved, medians of ``--reps``), and project the efficiency at k workers.
+
+    The control: each batch size's worker time makes the caller wait that long, and a cache
+    left alone that long goes cold on a shared host whatever the batch (another tenant's
+    thread on the same core, the hypervisor). So for every batch but the smallest, the
+    smallest batch is measured again with the caller spinning as long as that batch's worker
+    step before each call: the same wait, without the envs. What the batch itself costs the
+    caller is its own time beyond the control's."""
     batches, per_worker = (
         (QUICK_BATCHES, QUICK_PER_WORKER) if args.quick else (MODEL_BATCHES, MODEL_PER_WORKER)
     )
     envs = [e for e in batches if e in args.envs or e == "rogue"]
-    cells: dict[tuple[str, int], list[tuple[float, float, float, float]]] = {}
+    Cell = tuple[float, float, float, float]
+    cells: dict[tuple[str, int], list[Cell]] = {}
+    controls: dict[tuple[str, int], list[Cell]] = {}
     for rep in range(args.reps):
         for e in envs:
+            smallest = batches[e][0]
             for n in batches[e]:
                 cell = split(e, n, args.seconds)
                 cells.setdefault((e, n), []).append(cell)
-                o, t = cell[0], cell[1]
-                print(f"rep {rep + 1}: {e} x {n}: caller {o * 1e6:.1f} us, worker {t * 1e6:.1f} us")
-    med = {
-        key: tuple(statistics.median(v[i] for v in vals) for i in range(4))
-        for key, vals in cells.items()
-    }
+                line = f"rep {rep + 1}: {e} x {n}: caller {cell[0] * 1e6:.1f} us"
+                if n != smallest:
+                    control = split(e, smallest, args.seconds, pause=cell[1])
+                    controls.setdefault((e, n), []).append(control)
+                    line += f" ({smallest} envs after the same wait: {control[0] * 1e6:.1f} us)"
+                print(f"{line}, worker {cell[1] * 1e6:.1f} us")
+
+    def medians(table: dict[tuple[str, int], list[Cell]]) -> dict[tuple[str, int], Cell]:
+        return {
+            key: (
+                statistics.median(v[0] for v in vals),
+                statistics.median(v[1] for v in vals),
+                statistics.median(v[2] for v in vals),
+                statistics.median(v[3] for v in vals),
+            )
+            for key, vals in table.items()
+        }
+
+    med, ctl = medians(cells), medians(controls)
     lines = [
         f"# The caller's own time per sync step() ({platform.node()}, "
         f"{len(os.sched_getaffinity(0))} cores, 1 worker, {args.seconds:g} s x {args.reps} runs, "
         "medians)",
         "",
+        "Control: the smallest batch again, the caller spinning as long as this batch's worker "
+        "step before each call (the same wait, without the envs).",
+        "",
         "| env | envs | caller's own time (us) | ns per env-step | worker's env time (us) "
-        "| of the own time: worker idle (us) | caller between calls (us) |",
-        "|---|---|---|---|---|---|---|",
+        "| of the own time: worker idle (us) | caller between calls (us) "
+        "| control: own time (us) | control: between calls (us) |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for (e, n), (o, t, idle, between) in sorted(med.items()):
+        c = ctl.get((e, n))
+        shown = ("-", "-") if c is None else (f"{c[0] * 1e6:.1f}", f"{c[3] * 1e6:.1f}")
         lines.append(
             f"| {e} | {n} | {o * 1e6:.1f} | {o * 1e9 / n:.1f} | {t * 1e6:.1f} "
-            f"| {idle * 1e6:.1f} | {between * 1e6:.1f} |"
+            f"| {idle * 1e6:.1f} | {between * 1e6:.1f} | {shown[0]} | {shown[1]} |"
         )
     lines += [
         "",
-        "Projected efficiency against linear, t_w / (t_w + o(k·n)):",
+        "Projected efficiency against linear, t_w / (t_w + o(k·n)). With k workers the caller "
+        "waits about t_w, not the k·t_w of one worker stepping the whole batch; the last two "
+        "columns take out what the longer wait alone costs (the control at k·n less the "
+        "control at n, or the smallest batch's own time where n is the smallest):",
         "",
-        "| env | envs a worker | workers | t_w (us) | o(k·n) (us) | projected |",
-        "|---|---|---|---|---|---|",
+        "| env | envs a worker | workers | t_w (us) | o(k·n) (us) | projected "
+        "| the longer wait's cost (us) | projected at a wait of t_w |",
+        "|---|---|---|---|---|---|---|---|",
     ]
-    projected = {}
+    projected, at_t_w = {}, {}
     for e in envs:
         per = per_worker[e]
         t_w = med[(e, per)][1]
+        base = ctl[(e, per)][0] if (e, per) in ctl else med[(e, batches[e][0])][0]
         for k in (1, 2, 4, 8, 16):
             if (e, k * per) in med:
                 o = med[(e, k * per)][0]
                 eff = t_w / (t_w + o)
                 projected[f"{e}/{k}"] = eff
-                lines.append(f"| {e} | {per} | {k} | {t_w * 1e6:.1f} | {o * 1e6:.1f} | {eff:.0%} |")
+                cost = (
+                    max(ctl[(e, k * per)][0] - base, 0.0) if k > 1 and (e, k * per) in ctl else 0.0
+                )
+                fair = t_w / (t_w + max(o - cost, 0.0))
+                at_t_w[f"{e}/{k}"] = fair
+                lines.append(
+                    f"| {e} | {per} | {k} | {t_w * 1e6:.1f} | {o * 1e6:.1f} | {eff:.0%} "
+                    f"| {cost * 1e6:.1f} | {fair:.0%} |"
+                )
     text = "\n".join(lines)
     print(text)
     data = {
         "seconds": args.seconds,
         "reps": args.reps,
         "cells": {f"{e}/{n}": v for (e, n), v in cells.items()},
+        "controls": {f"{e}/{n}": v for (e, n), v in controls.items()},
         "projected": projected,
+        "projected_at_t_w": at_t_w,
     }
     write_results(Path(args.out), "model", text, data)
 

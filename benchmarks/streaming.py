@@ -58,7 +58,7 @@ def run(workers: int, num_envs: int, streaming: Optional[bool], seconds: float) 
         vec.reset(seed=0)
         for a in acts * 2:
             vec.step(a)
-        calls, wall = timed_steps(vec, acts, seconds)
+        calls, wall, _ = timed_steps(vec, acts, seconds)
         env = max(w.env_s for w in vec.stats().workers) / calls
         return wall / calls, env, wall / calls - env
     finally:

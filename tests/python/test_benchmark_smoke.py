@@ -105,6 +105,15 @@ def test_the_device_script_runs_every_part_in_its_quick_mode(tmp_path: Path) -> 
         for o, t, idle, between in cells
     )
     assert 0 < model["projected"]["rogue/16"] < 1
+    # Its control: every batch but the smallest measured again as the smallest batch after
+    # an equally long wait, and the projection at one worker's wait.
+    assert model["controls"].keys() == {
+        k for k in model["cells"] if k not in ("rogue/16", "CartPole-v1/2")
+    }
+    assert all(
+        o >= 0 and between >= 0 for c in model["controls"].values() for o, _, _, between in c
+    )
+    assert 0 < model["projected_at_t_w"]["rogue/16"] < 1
     pools = json.loads((tmp_path / "async_pools.json").read_text())
     rows = pools["runs"]["dispatch"]
     assert any(k.startswith("rogue_gym async") and v and v[0] > 0 for k, v in rows.items())
