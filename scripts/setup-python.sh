@@ -51,7 +51,7 @@ else
     pip_install -r python/requirements-dev.txt
 fi
 
-echo "== maturin develop --release (rogue_gym._native)"
+echo "== maturin develop --release (rogue_gym._native) ($SECONDS s into the set-up)"
 # maturin installs into the active virtualenv, with the package's own dependencies.
 VIRTUAL_ENV="$ROOT/.venv" PATH="$ROOT/.venv/bin:$PATH" \
     "$VPY" -m maturin develop --release --quiet -m python/Cargo.toml
