@@ -52,8 +52,10 @@ fi
 
 if part 2; then
     echo "== 2. async head-to-head ($((SECONDS - t0)) s)"
+    # Quick: the dispatch workload only (slow_reset's 32-worker pools take long to start).
+    if ((${#quick[@]})); then pools=(--quick --workloads dispatch); else pools=(); fi
     timeout 300 "$py" benchmarks/async_pools.py --reps 1 --seconds 4 --out "$out" \
-        ${quick[@]+"${quick[@]}"}
+        ${pools[@]+"${pools[@]}"}
 fi
 
 if part 3; then

@@ -11,7 +11,8 @@ cargo test --workspace --exclude rogue-gym-python
 # The model-checked handshake between worker and supervisor (loom: every interleaving and
 # every reordering the C11 memory model allows; docs/platforms.md).
 echo "== loom ($SECONDS s in)"
-cargo test -p rogue-gym-pool --features loom --lib loom
+# The same packages as above, so that only this crate and its dependents are built again.
+cargo test --workspace --exclude rogue-gym-python --features rogue-gym-pool/loom --lib loom
 
 echo "== Python package (setup, types, stubs, pytest, ruff) ($SECONDS s in)"
 bash scripts/setup-python.sh
