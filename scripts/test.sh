@@ -16,7 +16,24 @@ cargo test --workspace --exclude rogue-gym-python --features rogue-gym-pool/loom
 
 echo "== Python package (setup, types, stubs, pytest, ruff) ($SECONDS s in)"
 bash scripts/setup-python.sh
+# Ray's venv is installed meanwhile: its pip runs on one core while the type checks run on the
+# other, and it is done before pytest starts (its output is shown then; killed if a check fails).
+ray_log=$(mktemp)
+setsid bash scripts/setup-ray.sh >"$ray_log" 2>&1 &
+ray_setup=$!
+# (Its process group; or itself, before setsid has made the group.)
+trap 'if [[ -n ${ray_setup:-} ]]; then kill -- -"$ray_setup" 2>/dev/null ||
+    kill "$ray_setup" 2>/dev/null || true; fi; rm -f "$ray_log"' EXIT
 (cd python && ../.venv/bin/python -m mypy && ../.venv/bin/python -m mypy.stubtest rogue_gym._native)
+echo "== waiting for Ray's set-up ($SECONDS s in)"
+if ! wait "$ray_setup"; then
+    ray_setup=
+    cat "$ray_log"
+    echo "error: bash scripts/setup-ray.sh failed (its output is above)" >&2
+    exit 1
+fi
+ray_setup=
+cat "$ray_log"
 # Every test runs under a time limit (tests/python/conftest.py), so no test can hang the run.
 echo "== pytest ($SECONDS s in)"
 .venv/bin/python -m pytest tests/python -q
@@ -24,6 +41,5 @@ echo "== pytest ($SECONDS s in)"
 .venv/bin/ruff format --check python tests/python tests/ray benchmarks scripts
 
 echo "== Ray (RLlib through pools, actor-backed vector env) on a local 2-CPU cluster ($SECONDS s in)"
-bash scripts/setup-ray.sh
 # Each test has a time limit (pytest-timeout); the whole run has one too.
 timeout 1200 .venv-ray/bin/python -m pytest tests/ray -q -p no:cacheprovider
