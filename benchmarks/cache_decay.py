@@ -25,16 +25,10 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from common import write_results
+from common import spin, write_results
 
 #: Bytes the "own writes" wait writes (a cache line at a time), about half this VM's L3.
 OWN_BYTES = 16 << 20
-
-
-def _spin(seconds: float) -> None:
-    t = time.perf_counter()
-    while time.perf_counter() - t < seconds:
-        pass
 
 
 def _yield(seconds: float) -> None:
@@ -54,7 +48,7 @@ def waits() -> dict[str, Callable[[], None]]:
         "none (back to back)": lambda: None,
         "sleep 0.5 ms": lambda: time.sleep(0.0005),
         "sleep 8 ms": lambda: time.sleep(0.008),
-        "spin 8 ms": lambda: _spin(0.008),
+        "spin 8 ms": lambda: spin(0.008),
         "sched_yield 8 ms": lambda: _yield(0.008),
         f"write {OWN_BYTES >> 20} MB of its own": write_own,
     }

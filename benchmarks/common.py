@@ -265,6 +265,13 @@ def write_results(out: Path, stem: str, markdown: str, data: Any) -> tuple[Path,
     return md, js
 
 
+def spin(seconds: float) -> None:
+    """Keep the CPU busy for ``seconds``, touching nothing but the clock."""
+    t = time.perf_counter()
+    while time.perf_counter() - t < seconds:
+        pass
+
+
 def timed_steps(
     vec: Any, actions: list[Any], seconds: float, pause: float = 0.0
 ) -> tuple[int, float, float]:
@@ -278,8 +285,7 @@ def timed_steps(
     while time.perf_counter() - t0 - paused < seconds:
         if pause:
             p0 = time.perf_counter()
-            while time.perf_counter() - p0 < pause:
-                pass
+            spin(pause)
             paused += time.perf_counter() - p0
         vec.step(actions[calls % len(actions)])
         calls += 1
