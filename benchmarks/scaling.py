@@ -199,7 +199,7 @@ def model(args: argparse.Namespace) -> None:
                 cost = (
                     max(ctl[(e, k * per)][0] - base, 0.0) if k > 1 and (e, k * per) in ctl else 0.0
                 )
-                fair = t_w / (t_w + max(o - cost, 0.0))
+                fair = t_w / (t_w + max(o - cost, base))
                 at_t_w[f"{e}/{k}"] = fair
                 lines.append(
                     f"| {e} | {per} | {k} | {t_w * 1e6:.1f} | {o * 1e6:.1f} | {eff:.0%} "
