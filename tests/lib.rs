@@ -10,9 +10,111 @@ use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
 
 use rogue_gym_pool::{
-    AutoresetMode, BatchOutput, EnvRegistry, Pool, PoolConfig, PoolError, WorkerCommand,
-    seeds::splitmix,
+    Actions, AutoresetMode, BatchOutput, EnvRegistry, Pool, PoolConfig, PoolError, Received,
+    WorkerCommand, seeds::splitmix,
 };
+
+/// The pool's whole-batch calls with their rows copied out ([`Pool::read_slot`]): into
+/// `obs` and `out` (`*_into`), or into `out` alone, returning the slot (`*_read`).
+pub trait Copying {
+    /// [`Pool::reset`], copied out.
+    fn reset_into(&mut self, obs: &mut [u8], out: &mut BatchOutput) -> Result<(), PoolError>;
+    /// [`Pool::step`], copied out.
+    fn step_into<'a>(
+        &mut self,
+        actions: impl Into<Actions<'a>>,
+        obs: &mut [u8],
+        out: &mut BatchOutput,
+    ) -> Result<(), PoolError>;
+    /// [`Pool::reset_envs`], copied out.
+    fn reset_envs_into(
+        &mut self,
+        mask: &[bool],
+        obs: &mut [u8],
+        out: &mut BatchOutput,
+    ) -> Result<(), PoolError>;
+    /// [`Pool::reset`], records read into `out`; the slot.
+    fn reset_read(&mut self, out: &mut BatchOutput) -> Result<usize, PoolError>;
+    /// [`Pool::step`], records read into `out`; the slot.
+    fn step_read<'a>(
+        &mut self,
+        actions: impl Into<Actions<'a>>,
+        out: &mut BatchOutput,
+    ) -> Result<usize, PoolError>;
+    /// [`Pool::reset_envs`], records read into `out`; the slot.
+    fn reset_envs_read(&mut self, mask: &[bool], out: &mut BatchOutput)
+    -> Result<usize, PoolError>;
+}
+
+impl Copying for Pool {
+    fn reset_into(&mut self, obs: &mut [u8], out: &mut BatchOutput) -> Result<(), PoolError> {
+        let a = self.reset()?;
+        self.read_slot(&a, Some(obs), out)
+    }
+    fn step_into<'a>(
+        &mut self,
+        actions: impl Into<Actions<'a>>,
+        obs: &mut [u8],
+        out: &mut BatchOutput,
+    ) -> Result<(), PoolError> {
+        let a = self.step(actions)?;
+        self.read_slot(&a, Some(obs), out)
+    }
+    fn reset_envs_into(
+        &mut self,
+        mask: &[bool],
+        obs: &mut [u8],
+        out: &mut BatchOutput,
+    ) -> Result<(), PoolError> {
+        let a = self.reset_envs(mask)?;
+        self.read_slot(&a, Some(obs), out)
+    }
+    fn reset_read(&mut self, out: &mut BatchOutput) -> Result<usize, PoolError> {
+        let a = self.reset()?;
+        self.read_slot(&a, None, out)?;
+        Ok(a.slot)
+    }
+    fn step_read<'a>(
+        &mut self,
+        actions: impl Into<Actions<'a>>,
+        out: &mut BatchOutput,
+    ) -> Result<usize, PoolError> {
+        let a = self.step(actions)?;
+        self.read_slot(&a, None, out)?;
+        Ok(a.slot)
+    }
+    fn reset_envs_read(
+        &mut self,
+        mask: &[bool],
+        out: &mut BatchOutput,
+    ) -> Result<usize, PoolError> {
+        let a = self.reset_envs(mask)?;
+        self.read_slot(&a, None, out)?;
+        Ok(a.slot)
+    }
+}
+
+/// A `recv`'s rows as per-env arrays (no final observations: the async API returns none).
+pub fn received_output(got: &Received, n_info: usize) -> BatchOutput {
+    let mut out = BatchOutput::default();
+    for (&e, r) in got.env_ids.iter().zip(&got.records) {
+        out.env_ids.push(e);
+        out.reward.push(r.reward);
+        out.terminated.push(r.terminated());
+        out.truncated.push(r.truncated());
+        out.restarted.push(r.restarted());
+        out.episode_return.push(r.episode_return);
+        out.episode_length.push(r.episode_length);
+        out.episode.push(r.episode);
+        out.seed.push(r.seed);
+        out.info.extend_from_slice(&r.info[..n_info]);
+        out.has_final_obs.push(false);
+    }
+    for (row, bytes) in &got.extras {
+        out.extras.push((got.env_ids[*row], bytes.clone()));
+    }
+    out
+}
 
 /// Runtime directory of the pools created by the tests (short: unix socket paths < 108
 /// bytes), created private (0700) if missing.
@@ -84,11 +186,11 @@ pub fn run_sync(pool: &mut Pool, steps: u64) -> Result<Digests, PoolError> {
     let mut obs = vec![0u8; n * ob];
     let mut out = BatchOutput::default();
     let mut d = Digests::new(n);
-    pool.reset(&mut obs, &mut out)?;
+    pool.reset_into(&mut obs, &mut out)?;
     d.add_batch(&obs, ob, &out);
     for t in 0..steps {
         let actions: Vec<i64> = (0..n).map(|i| action(i, t, na)).collect();
-        pool.step(&actions, &mut obs, &mut out)?;
+        pool.step_into(&actions, &mut obs, &mut out)?;
         d.add_batch(&obs, ob, &out);
     }
     Ok(d)
@@ -102,12 +204,12 @@ pub fn run_sync_shared(pool: &mut Pool, steps: u64) -> Result<Digests, PoolError
     let na = pool.spec().num_actions;
     let mut out = BatchOutput::default();
     let mut d = Digests::new(n);
-    let mut slot = pool.reset_shared(&mut out)?;
+    let mut slot = pool.reset_read(&mut out)?;
     d.add_batch(pool.shared_obs(slot), ob, &out);
     for t in 0..steps {
         let actions: Vec<i64> = (0..n).map(|i| action(i, t, na)).collect();
         let (prev, snapshot) = (slot, pool.shared_obs(slot).to_vec());
-        slot = pool.step_shared(&actions, &mut out)?;
+        slot = pool.step_read(&actions, &mut out)?;
         assert_ne!(slot, prev, "slots alternate");
         assert!(
             pool.shared_obs(prev) == &snapshot[..],
@@ -129,11 +231,10 @@ pub fn run_async(pool: &mut Pool, steps: u64) -> Result<Digests, PoolError> {
     let mut d = Digests::new(n);
     // Results received per env (the reset counts as the first).
     let mut got = vec![0u64; n];
-    let mut out = BatchOutput::default();
     pool.async_reset()?;
     while got.iter().any(|&g| g < steps + 1) {
         let got_now = pool.recv()?;
-        got_now.fill(n_info, &mut out);
+        let out = received_output(&got_now, n_info);
         let obs = match got_now.view {
             // Rows in place (`set_async_in_place`): envs `first..` of the slot.
             Some((slot, first)) => {

@@ -5,6 +5,7 @@
 use std::time::{Duration, Instant};
 
 use nix::sys::signal::Signal;
+use rogue_gym_e2e::Copying;
 use rogue_gym_e2e::*;
 use rogue_gym_pool::{BatchOutput, PoolError};
 
@@ -37,11 +38,11 @@ fn a_worker_that_dies_at_every_start_makes_the_call_raise_within_its_bound() {
     let mut guard = PidGuard(p.worker_pids());
     let mut obs = vec![0u8; 4 * p.obs_bytes()];
     let mut out = BatchOutput::default();
-    p.reset(&mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
     die_at_start(&p, true);
     signal(p.worker_pids()[1], Signal::SIGKILL);
     let t0 = Instant::now();
-    let e = p.step(&[0; 4], &mut obs, &mut out).unwrap_err();
+    let e = p.step_into(&[0; 4], &mut obs, &mut out).unwrap_err();
     let took = t0.elapsed();
     assert!(
         took <= bound,
@@ -69,15 +70,15 @@ fn a_worker_that_dies_at_every_start_makes_the_call_raise_within_its_bound() {
     // Still dying: the reset raises within the same bound.
     let t0 = Instant::now();
     assert!(matches!(
-        p.reset(&mut obs, &mut out),
+        p.reset_into(&mut obs, &mut out),
         Err(PoolError::NotBackInTime { .. })
     ));
     assert!(t0.elapsed() <= bound);
     die_at_start(&p, false);
-    p.reset(&mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
     for t in 0..5 {
         let actions: Vec<i64> = (0..4).map(|i| action(i, t, 5)).collect();
-        p.step(&actions, &mut obs, &mut out).unwrap();
+        p.step_into(&actions, &mut obs, &mut out).unwrap();
         assert!(!out.restarted.iter().any(|&r| r));
     }
     guard.0.extend(p.worker_pids());
@@ -95,7 +96,7 @@ fn dead_workers_come_back_side_by_side() {
     let mut guard = PidGuard(p.worker_pids());
     let mut obs = vec![0u8; 6 * p.obs_bytes()];
     let mut out = BatchOutput::default();
-    p.reset(&mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
     die_at_start_marker(&p, "die-at-start.0", true);
     signal(p.worker_pids()[0], Signal::SIGKILL);
     let pids = p.pids_handle();
@@ -110,7 +111,7 @@ fn dead_workers_come_back_side_by_side() {
         }
         (t0.elapsed(), pids[1].load(Relaxed))
     });
-    let e = p.step(&[0; 6], &mut obs, &mut out).unwrap_err();
+    let e = p.step_into(&[0; 6], &mut obs, &mut out).unwrap_err();
     let (back_after, new_pid) = killer.join().unwrap();
     guard.0.push(new_pid);
     assert!(
@@ -123,8 +124,8 @@ fn dead_workers_come_back_side_by_side() {
     };
     assert_eq!(waiting.iter().map(|w| w.0).collect::<Vec<_>>(), [0], "{e}");
     die_at_start_marker(&p, "die-at-start.0", false);
-    p.reset(&mut obs, &mut out).unwrap();
-    p.step(&[0; 6], &mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
+    p.step_into(&[0; 6], &mut obs, &mut out).unwrap();
     assert!(
         !out.restarted.iter().any(|&r| r),
         "a reset starts every env afresh"
@@ -172,7 +173,7 @@ fn recv_and_calls_keep_their_bound_when_a_worker_dies_at_every_start() {
     die_at_start(&p, false);
     let mut obs = vec![0u8; 4 * p.obs_bytes()];
     let mut out = BatchOutput::default();
-    p.reset(&mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
     assert_eq!(p.call_envs(&[(3, b"t".to_vec())]).unwrap().len(), 1);
     guard.0.extend(p.worker_pids());
 }
@@ -187,11 +188,11 @@ fn a_worker_that_dies_at_every_start_spends_the_budget_and_says_so() {
     let mut guard = PidGuard(p.worker_pids());
     let mut obs = vec![0u8; 4 * p.obs_bytes()];
     let mut out = BatchOutput::default();
-    p.reset(&mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
     die_at_start(&p, true);
     signal(p.worker_pids()[0], Signal::SIGKILL);
     let t0 = Instant::now();
-    let e = p.step(&[0; 4], &mut obs, &mut out).unwrap_err();
+    let e = p.step_into(&[0; 4], &mut obs, &mut out).unwrap_err();
     assert!(
         t0.elapsed() < Duration::from_secs(2),
         "the budget ends it early"
@@ -214,7 +215,7 @@ fn a_worker_that_dies_at_every_start_spends_the_budget_and_says_so() {
     // A spent budget stays spent.
     die_at_start(&p, false);
     assert!(matches!(
-        p.reset(&mut obs, &mut out),
+        p.reset_into(&mut obs, &mut out),
         Err(PoolError::RestartBudgetExceeded { .. })
     ));
     guard.0.extend(p.worker_pids());

@@ -4,6 +4,7 @@
 
 use std::time::Duration;
 
+use rogue_gym_e2e::Copying;
 use rogue_gym_e2e::*;
 use rogue_gym_pool::{BatchOutput, EnvRegistry, Pool, PoolError, RecvWant, SeedPolicy, SeedSet};
 use serde_json::json;
@@ -95,10 +96,10 @@ fn same_step_mode_is_deterministic_and_returns_final_obs() {
     let ob = a.obs_bytes();
     let mut obs = vec![0u8; 4 * ob];
     let mut out = BatchOutput::default();
-    a.reset(&mut obs, &mut out).unwrap();
+    a.reset_into(&mut obs, &mut out).unwrap();
     let mut seen_final = false;
     for _ in 0..13 {
-        a.step(&[1, 1, 1, 1], &mut obs, &mut out).unwrap();
+        a.step_into(&[1, 1, 1, 1], &mut obs, &mut out).unwrap();
         for r in 0..4 {
             let done = out.terminated[r] || out.truncated[r];
             assert_eq!(out.has_final_obs[r], done);
@@ -123,9 +124,9 @@ fn seed_sets_sequential_policy_through_the_pool() {
     let mut p = pool(c);
     let mut obs = vec![0u8; 4 * p.obs_bytes()];
     let mut out = BatchOutput::default();
-    p.reset(&mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
     assert_eq!(out.seed, vec![1000, 1001, 1002, 1003]);
-    p.reset(&mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
     assert_eq!(out.seed, vec![1004, 1005, 1006, 1007]);
     assert_eq!(out.episode, vec![1, 1, 1, 1]);
 }
@@ -135,20 +136,21 @@ fn bad_input_is_an_error_value() {
     let mut p = pool(config(EXE, test_env(), 4, 2));
     let mut obs = vec![0u8; 4 * p.obs_bytes()];
     let mut out = BatchOutput::default();
-    let e = p.step(&[0, 0, 0, 0], &mut obs, &mut out).unwrap_err();
+    let e = p.step_into(&[0, 0, 0, 0], &mut obs, &mut out).unwrap_err();
     assert!(e.to_string().contains("reset()"), "{e}");
-    p.reset(&mut obs, &mut out).unwrap();
-    let e = p.step(&[0, 0, 0], &mut obs, &mut out).unwrap_err();
+    p.reset_into(&mut obs, &mut out).unwrap();
+    let e = p.step_into(&[0, 0, 0], &mut obs, &mut out).unwrap_err();
     assert_eq!(
         e.to_string(),
         "got 3 actions for 4 envs: pass exactly one action per env"
     );
-    let e = p.step(&[0, 0, 7, 0], &mut obs, &mut out).unwrap_err();
+    let e = p.step_into(&[0, 0, 7, 0], &mut obs, &mut out).unwrap_err();
     assert_eq!(
         e.to_string(),
         "env 2: action 7 is out of range; valid actions are 0 to 4 (range(5))"
     );
-    let e = p.step(&[0; 4], &mut obs[1..], &mut out).unwrap_err();
+    let a = p.step(&[0; 4]).unwrap();
+    let e = p.read_slot(&a, Some(&mut obs[1..]), &mut out).unwrap_err();
     assert!(matches!(e, PoolError::BadBuffer { .. }));
     // Async misuse.
     let e = p.send(&[0, 0], &[1, 1]).unwrap_err();
@@ -158,7 +160,7 @@ fn bad_input_is_an_error_value() {
     let e = p.recv().unwrap_err();
     assert!(e.to_string().contains("send()"), "{e}");
     // The pool still works.
-    p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
+    p.step_into(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
 
     // Config errors.
     let reg = EnvRegistry::with_defaults();
@@ -255,14 +257,14 @@ fn two_pools_at_once_do_not_interfere() {
 fn shared_slots_stay_mapped_through_their_arc_after_close() {
     let mut p = pool(config(EXE, test_env(), 4, 2));
     let mut out = BatchOutput::default();
-    let slot = p.reset_shared(&mut out).unwrap();
+    let slot = p.reset_read(&mut out).unwrap();
     let snapshot = p.shared_obs(slot).to_vec();
     let buf = p.shared_buffer().unwrap();
-    let offset = slot * p.shared_slot_bytes();
+    let offset = slot * p.slot_layout().bytes();
     let id = p.id().clone();
     p.close().unwrap();
     assert!(pool_files_gone(&id));
-    assert!(p.shared_obs_ptr(slot).is_null());
+    assert!(p.slot_rows(slot).is_none() && p.shared_obs(slot).is_empty());
     // SAFETY: the Arc keeps the mapping alive; the range lies inside it.
     let view = unsafe { std::slice::from_raw_parts(buf.as_ptr().add(offset), snapshot.len()) };
     assert_eq!(view, &snapshot[..]);
@@ -275,15 +277,15 @@ fn select_slot_steers_the_next_shared_batch_and_leaves_the_others_alone() {
     let mut p = pool(c);
     assert_eq!(p.batch_slots(), 4);
     let mut out = BatchOutput::default();
-    assert_eq!(p.reset_shared(&mut out).unwrap(), 0);
+    assert_eq!(p.reset_read(&mut out).unwrap(), 0);
     let kept = p.shared_obs(0).to_vec();
     // The slots take turns, and a selected slot is written next; slot 0 is never touched.
-    assert_eq!(p.step_shared(&[1; 4], &mut out).unwrap(), 1);
+    assert_eq!(p.step_read(&[1; 4], &mut out).unwrap(), 1);
     p.select_slot(3).unwrap();
-    assert_eq!(p.step_shared(&[2; 4], &mut out).unwrap(), 3);
+    assert_eq!(p.step_read(&[2; 4], &mut out).unwrap(), 3);
     p.select_slot(1).unwrap();
-    assert_eq!(p.step_shared(&[3; 4], &mut out).unwrap(), 1);
-    assert_eq!(p.step_shared(&[4; 4], &mut out).unwrap(), 2);
+    assert_eq!(p.step_read(&[3; 4], &mut out).unwrap(), 1);
+    assert_eq!(p.step_read(&[4; 4], &mut out).unwrap(), 2);
     assert_eq!(
         p.shared_obs(0),
         &kept[..],
@@ -313,7 +315,7 @@ fn set_seeds_then_reset_replays_a_fresh_pool() {
     let mut obs = vec![0u8; 4 * p.obs_bytes()];
     let mut out = BatchOutput::default();
     assert!(
-        p.step(&[0; 4], &mut obs, &mut out).is_err(),
+        p.step_into(&[0; 4], &mut obs, &mut out).is_err(),
         "reset required"
     );
     assert_eq!(run_sync(&mut p, 20).unwrap(), reference);
@@ -336,19 +338,19 @@ fn masked_run(workers: usize, steps: u64, mask: Option<(u64, &[bool])>, copy: bo
         frames.push((o, out.clone()));
     };
     if copy {
-        p.reset(&mut obs, &mut out).unwrap();
+        p.reset_into(&mut obs, &mut out).unwrap();
         grab(&p, None, &obs, &out);
     } else {
-        let s = p.reset_shared(&mut out).unwrap();
+        let s = p.reset_read(&mut out).unwrap();
         grab(&p, Some(s), &obs, &out);
     }
     for t in 0..steps {
         let actions: Vec<i64> = (0..n).map(|i| action(i, t, 5)).collect();
         if copy {
-            p.step(&actions, &mut obs, &mut out).unwrap();
+            p.step_into(&actions, &mut obs, &mut out).unwrap();
             grab(&p, None, &obs, &out);
         } else {
-            let s = p.step_shared(&actions, &mut out).unwrap();
+            let s = p.step_read(&actions, &mut out).unwrap();
             grab(&p, Some(s), &obs, &out);
         }
         if let Some((at, m)) = mask
@@ -358,7 +360,7 @@ fn masked_run(workers: usize, steps: u64, mask: Option<(u64, &[bool])>, copy: bo
                 p.reset_envs_into(m, &mut obs, &mut out).unwrap();
                 grab(&p, None, &obs, &out);
             } else {
-                let s = p.reset_envs(m, &mut out).unwrap();
+                let s = p.reset_envs_read(m, &mut out).unwrap();
                 grab(&p, Some(s), &obs, &out);
             }
         }
@@ -457,19 +459,19 @@ fn partial_reset_needs_a_started_pool_and_a_full_mask() {
     let mut out = BatchOutput::default();
     let m = [true, false, true, false];
     assert!(matches!(
-        p.reset_envs(&m, &mut out),
+        p.reset_envs_read(&m, &mut out),
         Err(PoolError::State(_))
     ));
-    p.reset_shared(&mut out).unwrap();
+    p.reset_read(&mut out).unwrap();
     assert!(matches!(
-        p.reset_envs(&m[..3], &mut out),
+        p.reset_envs_read(&m[..3], &mut out),
         Err(PoolError::BadBuffer { .. })
     ));
-    p.reset_envs(&m, &mut out).unwrap();
+    p.reset_envs_read(&m, &mut out).unwrap();
     assert_eq!(out.episode, vec![1, 0, 1, 0]);
-    p.reset_envs(&[false; 4], &mut out).unwrap();
+    p.reset_envs_read(&[false; 4], &mut out).unwrap();
     assert_eq!(out.episode, vec![1, 0, 1, 0]);
-    p.step_shared(&[0; 4], &mut out).unwrap();
+    p.step_read(&[0; 4], &mut out).unwrap();
 }
 
 #[test]
@@ -479,17 +481,17 @@ fn action_extras_reach_their_envs_with_the_step_even_by_send() {
     let mut out = BatchOutput::default();
     let extra =
         |p: &mut Pool, env: usize| p.call_envs(&[(env, b"x".to_vec())]).unwrap()[0].1.clone();
-    p.reset_shared(&mut out).unwrap();
+    p.reset_read(&mut out).unwrap();
     p.stage_action_extras(&[(1, b"one".to_vec()), (4, b"four".to_vec())])
         .unwrap();
-    p.step_shared(&[0; 5], &mut out).unwrap();
+    p.step_read(&[0; 5], &mut out).unwrap();
     assert_eq!(extra(&mut p, 1), b"one");
     assert_eq!(extra(&mut p, 4), b"four");
     assert_eq!(extra(&mut p, 0), b"");
     // A reset drops what is staged; the next step carries nothing.
     p.stage_action_extras(&[(0, b"zero".to_vec())]).unwrap();
-    p.reset_shared(&mut out).unwrap();
-    p.step_shared(&[0; 5], &mut out).unwrap();
+    p.reset_read(&mut out).unwrap();
+    p.step_read(&[0; 5], &mut out).unwrap();
     assert_eq!(extra(&mut p, 0), b"");
     // EnvPool-style: one worker's envs at a time, each send with its own staged extras.
     p.stage_action_extras(&[(3, b"three".to_vec())]).unwrap();
@@ -501,7 +503,7 @@ fn action_extras_reach_their_envs_with_the_step_even_by_send() {
     assert_eq!(extra(&mut p, 1), b"uno");
     // An env that refuses its extra fails the step, naming it; a reset recovers.
     p.stage_action_extras(&[(2, b"bad".to_vec())]).unwrap();
-    let e = p.step_shared(&[0; 5], &mut out).unwrap_err();
+    let e = p.step_read(&[0; 5], &mut out).unwrap_err();
     assert!(
         matches!(&e, PoolError::EnvFailed { fault, .. } if fault.env == 2),
         "{e}"
@@ -509,8 +511,8 @@ fn action_extras_reach_their_envs_with_the_step_even_by_send() {
     assert!(e.to_string().contains("a bad action extra"), "{e}");
     let e = p.stage_action_extras(&[(7, b"x".to_vec())]).unwrap_err();
     assert!(e.to_string().contains("env 7 does not exist"), "{e}");
-    p.reset_shared(&mut out).unwrap();
-    p.step_shared(&[0; 5], &mut out).unwrap();
+    p.reset_read(&mut out).unwrap();
+    p.step_read(&[0; 5], &mut out).unwrap();
 }
 
 #[test]
@@ -521,9 +523,9 @@ fn env_calls_reach_the_chosen_envs_in_order_and_errors_name_the_env() {
     // Before any reset: the envs exist.
     let r = p.call_envs(&[(4, b"t".to_vec())]).unwrap();
     assert_eq!(r, vec![(4, 0u32.to_le_bytes().to_vec())]);
-    p.reset_shared(&mut out).unwrap();
+    p.reset_read(&mut out).unwrap();
     for _ in 0..3 {
-        p.step_shared(&[0; 5], &mut out).unwrap();
+        p.step_read(&[0; 5], &mut out).unwrap();
     }
     let t = |env: usize| out.episode_length[env];
     let r = p
@@ -542,6 +544,6 @@ fn env_calls_reach_the_chosen_envs_in_order_and_errors_name_the_env() {
     assert!(e.to_string().contains("unknown call"), "{e}");
     let e = p.call_envs(&[(9, b"t".to_vec())]).unwrap_err();
     assert!(e.to_string().contains("env 9 does not exist"), "{e}");
-    p.reset_shared(&mut out).unwrap();
-    p.step_shared(&[0; 5], &mut out).unwrap();
+    p.reset_read(&mut out).unwrap();
+    p.step_read(&[0; 5], &mut out).unwrap();
 }

@@ -7,6 +7,7 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use nix::sys::signal::Signal;
+use rogue_gym_e2e::Copying;
 use rogue_gym_e2e::*;
 use rogue_gym_pool::{BatchOutput, EnvRegistry, FailurePolicy, Pool, PoolError, RecvWant};
 use serde_json::json;
@@ -37,10 +38,10 @@ fn killed_worker_case(shared: bool) {
     let mut out = BatchOutput::default();
     let mut d = Digests::new(n);
     if shared {
-        let slot = p.reset_shared(&mut out).unwrap();
+        let slot = p.reset_read(&mut out).unwrap();
         obs.copy_from_slice(p.shared_obs(slot));
     } else {
-        p.reset(&mut obs, &mut out).unwrap();
+        p.reset_into(&mut obs, &mut out).unwrap();
     }
     d.add_batch(&obs, ob, &out);
     let victim = p.worker_pids()[0];
@@ -53,10 +54,10 @@ fn killed_worker_case(shared: bool) {
         }
         let actions: Vec<i64> = (0..n).map(|i| action(i, t, 5)).collect();
         if shared {
-            let slot = p.step_shared(&actions, &mut out).unwrap();
+            let slot = p.step_read(&actions, &mut out).unwrap();
             obs.copy_from_slice(p.shared_obs(slot));
         } else {
-            p.step(&actions, &mut obs, &mut out).unwrap();
+            p.step_into(&actions, &mut obs, &mut out).unwrap();
         }
         d.add_batch(&obs, ob, &out);
         #[allow(clippy::needless_range_loop)]
@@ -98,16 +99,16 @@ fn hung_worker_is_restarted_after_step_timeout() {
     let _guard = PidGuard(p.worker_pids());
     let mut obs = vec![0u8; 4 * p.obs_bytes()];
     let mut out = BatchOutput::default();
-    p.reset(&mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
     let victim = p.worker_pids()[1];
     signal(victim, Signal::SIGSTOP);
     let t0 = Instant::now();
-    p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
+    p.step_into(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
     assert!(t0.elapsed() >= Duration::from_millis(300));
     assert_eq!(out.restarted, vec![false, false, true, true]);
     assert_eq!(out.truncated[2..], [true, true]);
     assert!(!alive(victim), "the hung worker was killed");
-    p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
+    p.step_into(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
     assert_eq!(out.restarted, vec![false; 4]);
 }
 
@@ -120,33 +121,33 @@ fn raise_policy_reports_hangs_and_kills_then_recovers_after_reset() {
     let _guard = PidGuard(p.worker_pids());
     let mut obs = vec![0u8; 4 * p.obs_bytes()];
     let mut out = BatchOutput::default();
-    p.reset(&mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
 
     let victim = p.worker_pids()[0];
     signal(victim, Signal::SIGSTOP);
-    let e = p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap_err();
+    let e = p.step_into(&[0, 1, 2, 3], &mut obs, &mut out).unwrap_err();
     let msg = e.to_string();
     assert!(matches!(e, PoolError::WorkerFailed(_)), "{msg}");
     assert!(msg.contains(&format!("pid {victim}")), "{msg}");
     assert!(msg.contains("envs 0..2") && msg.contains("hung"), "{msg}");
     // The pool respawned the worker; it needs a reset.
     assert!(matches!(
-        p.step(&[0, 1, 2, 3], &mut obs, &mut out),
+        p.step_into(&[0, 1, 2, 3], &mut obs, &mut out),
         Err(PoolError::State(_))
     ));
-    p.reset(&mut obs, &mut out).unwrap();
-    p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
+    p.step_into(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
 
     let victim = p.worker_pids()[1];
     signal(victim, Signal::SIGKILL);
-    let e = p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap_err();
+    let e = p.step_into(&[0, 1, 2, 3], &mut obs, &mut out).unwrap_err();
     let msg = e.to_string();
     assert!(
         msg.contains("signal 9 (SIGKILL)") && msg.contains("envs 2..4"),
         "{msg}"
     );
-    p.reset(&mut obs, &mut out).unwrap();
-    p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
+    p.step_into(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
 }
 
 #[test]
@@ -162,8 +163,8 @@ fn env_failure_is_raised_with_its_env_and_message_and_reset_recovers() {
     let _guard = PidGuard(pids.clone());
     let mut obs = vec![0u8; 4 * p.obs_bytes()];
     let mut out = BatchOutput::default();
-    p.reset(&mut obs, &mut out).unwrap();
-    let e = p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap_err();
+    p.reset_into(&mut obs, &mut out).unwrap();
+    let e = p.step_into(&[0, 1, 2, 3], &mut obs, &mut out).unwrap_err();
     let PoolError::EnvFailed { fault, worker, .. } = &e else {
         panic!("expected EnvFailed, got {e}");
     };
@@ -173,10 +174,10 @@ fn env_failure_is_raised_with_its_env_and_message_and_reset_recovers() {
     assert!(msg.contains("env 3 failed in step (episode 0"), "{msg}");
     // The env failed, not its worker: no restart, and step needs a reset first.
     assert_eq!((p.worker_pids(), p.restarts()), (pids, 0));
-    let e = p.step(&[0, 0, 0, 0], &mut obs, &mut out).unwrap_err();
+    let e = p.step_into(&[0, 0, 0, 0], &mut obs, &mut out).unwrap_err();
     assert!(e.to_string().contains("call reset()"), "{e}");
-    p.reset(&mut obs, &mut out).unwrap();
-    p.step(&[0, 1, 2, 0], &mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
+    p.step_into(&[0, 1, 2, 0], &mut obs, &mut out).unwrap();
     assert_eq!(out.episode_length, vec![1; 4]);
 }
 
@@ -188,10 +189,10 @@ fn a_worker_killed_between_answers_is_restarted_at_once_every_time() {
     let _guard = PidGuard(p.worker_pids());
     let mut obs = vec![0u8; 2 * p.obs_bytes()];
     let mut out = BatchOutput::default();
-    p.reset(&mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
     for _ in 0..3 {
         signal(p.worker_pids()[0], Signal::SIGKILL);
-        p.step(&[0, 0], &mut obs, &mut out).unwrap();
+        p.step_into(&[0, 0], &mut obs, &mut out).unwrap();
         assert!(out.restarted.iter().all(|&r| r), "both envs were cut");
     }
     assert_eq!((p.restarts(), p.worker_deaths()), (3, 3));
@@ -206,9 +207,9 @@ fn restart_budget_is_enforced() {
     let _guard = PidGuard(p.worker_pids());
     let mut obs = vec![0u8; 2 * p.obs_bytes()];
     let mut out = BatchOutput::default();
-    p.reset(&mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
     signal(p.worker_pids()[0], Signal::SIGKILL);
-    let e = p.step(&[0, 0], &mut obs, &mut out).unwrap_err();
+    let e = p.step_into(&[0, 0], &mut obs, &mut out).unwrap_err();
     assert!(matches!(e, PoolError::RestartBudgetExceeded { .. }), "{e}");
     assert!(e.to_string().contains("restart budget exhausted"));
 }
@@ -335,20 +336,20 @@ fn a_replacement_killed_while_it_starts_is_replaced_again_and_steps_go_on() {
     let mut p = pool(c);
     let mut obs = vec![0u8; 4 * p.obs_bytes()];
     let mut out = BatchOutput::default();
-    p.reset(&mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
     let first = p.worker_pids()[0];
     let mut guard = PidGuard(p.worker_pids());
     signal(first, Signal::SIGKILL);
     // This step sees the death and spawns a replacement (restarting); kill that one at once,
     // while it starts, from another thread: the next calls must still succeed in time.
     let t0 = Instant::now();
-    p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
+    p.step_into(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
     assert_eq!(out.restarted, vec![true, true, false, false]);
     let second = replacement(&p, 0, first);
     guard.0.push(second);
     signal(second, Signal::SIGKILL);
     for t in 0..5 {
-        p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
+        p.step_into(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
         if t == 0 {
             assert_eq!(
                 out.restarted,
@@ -377,18 +378,18 @@ fn a_replacement_killed_while_restarting_under_raise_is_reported_and_one_reset_r
     let mut p = pool(c);
     let mut obs = vec![0u8; 4 * p.obs_bytes()];
     let mut out = BatchOutput::default();
-    p.reset(&mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
     let first = p.worker_pids()[0];
     let mut guard = PidGuard(p.worker_pids());
     signal(first, Signal::SIGKILL);
-    let e = p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap_err();
+    let e = p.step_into(&[0, 1, 2, 3], &mut obs, &mut out).unwrap_err();
     assert!(matches!(e, PoolError::WorkerFailed(_)), "{e}");
     let second = replacement(&p, 0, first);
     guard.0.push(second);
     signal(second, Signal::SIGKILL);
     // The reset finds the replacement dead while it starts: reported as a crash while
     // starting, and the pool is usable after the next reset.
-    let e = p.reset(&mut obs, &mut out).unwrap_err();
+    let e = p.reset_into(&mut obs, &mut out).unwrap_err();
     let msg = e.to_string();
     assert!(matches!(e, PoolError::WorkerFailed(_)), "{msg}");
     assert!(
@@ -396,8 +397,8 @@ fn a_replacement_killed_while_restarting_under_raise_is_reported_and_one_reset_r
         "{msg}"
     );
     guard.0.push(p.worker_pids()[0]);
-    p.reset(&mut obs, &mut out).unwrap();
-    p.step(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
+    p.step_into(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
 }
 
 #[test]
@@ -411,7 +412,7 @@ fn a_storm_of_kills_and_stops_never_bricks_the_pool() {
     let mut p = pool(c);
     let mut obs = vec![0u8; 8 * p.obs_bytes()];
     let mut out = BatchOutput::default();
-    p.reset(&mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
     let mut guard = PidGuard(Vec::new());
     let mut rng = 0x1234_5678u64;
     let mut next = |n: u64| {
@@ -439,7 +440,7 @@ fn a_storm_of_kills_and_stops_never_bricks_the_pool() {
         }
         let actions: Vec<i64> = (0..8).map(|i| action(i, steps, 5)).collect();
         let s = Instant::now();
-        p.step(&actions, &mut obs, &mut out)
+        p.step_into(&actions, &mut obs, &mut out)
             .expect("steps go on through the storm");
         assert!(
             s.elapsed() < Duration::from_secs(4),
@@ -453,7 +454,7 @@ fn a_storm_of_kills_and_stops_never_bricks_the_pool() {
     // After the storm: the pool steps normally.
     for t in 0..20 {
         let actions: Vec<i64> = (0..8).map(|i| action(i, t, 5)).collect();
-        p.step(&actions, &mut obs, &mut out).unwrap();
+        p.step_into(&actions, &mut obs, &mut out).unwrap();
     }
     guard.0.extend(p.worker_pids());
     let id = p.id().clone();
@@ -549,7 +550,7 @@ fn a_worker_killed_just_before_close_is_no_error_and_nothing_leaks() {
     let _g = PidGuard(p.worker_pids());
     let mut obs = vec![0u8; 4 * p.obs_bytes()];
     let mut out = BatchOutput::default();
-    p.reset(&mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
     let pids = p.worker_pids();
     signal(pids[1], Signal::SIGKILL);
     let id = p.id().clone();

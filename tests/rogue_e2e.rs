@@ -1,5 +1,6 @@
 //! End-to-end tests of the pool hosting the Rogue-Gym game (the `"rogue"` env kind).
 
+use rogue_gym_e2e::Copying;
 use rogue_gym_e2e::*;
 use rogue_gym_pool::{BatchOutput, EnvRegistry, Pool, SeedPolicy, SeedSet};
 use serde_json::json;
@@ -51,7 +52,7 @@ fn rogue_pool_matches_a_bare_game() {
     let ob = p.obs_bytes();
     let mut obs = vec![0u8; 4 * ob];
     let mut out = BatchOutput::default();
-    p.reset(&mut obs, &mut out).unwrap();
+    p.reset_into(&mut obs, &mut out).unwrap();
     assert_eq!(out.seed[3], 1003);
     let mut bare = reg.make(&rogue(), 0).unwrap();
     let mut bobs = vec![0u8; ob];
@@ -60,7 +61,7 @@ fn rogue_pool_matches_a_bare_game() {
     let mut ret = 0.0;
     for t in 0..20u64 {
         let actions: Vec<i64> = (0..4).map(|i| action(i, t, 11)).collect();
-        p.step(&actions, &mut obs, &mut out).unwrap();
+        p.step_into(&actions, &mut obs, &mut out).unwrap();
         let o = bare.step(actions[3] as usize, &mut bobs).unwrap();
         ret += o.reward;
         assert_eq!(&obs[3 * ob..], &bobs[..], "step {t}");

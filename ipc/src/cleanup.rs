@@ -43,7 +43,7 @@ pub fn remove_pool_files(id: &PoolId) -> Result<(), IpcError> {
 }
 
 /// Whether the owner recorded in a pool's owner file is still running. The file must be a
-/// private file of this user ([`open_private_file`]); `None` if it is missing or not.
+/// private file of this user ([`crate::private::read_private_file`]); `None` if it is missing or not.
 fn owner_alive(id: &PoolId) -> Option<bool> {
     let data = crate::private::read_private_file(&id.aux_dir().join("owner")).ok()?;
     let s = String::from_utf8_lossy(&data);

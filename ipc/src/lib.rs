@@ -27,7 +27,7 @@
 //!   remove a pool's `/dev/shm` files and directories, including iceoryx2's leftover
 //!   `*.global_mgmt` counter, and sweep pools whose owner process is dead.
 //!
-//! All nodes are created with [`SignalHandlingMode::Disabled`]: the pool may be hosted inside a
+//! All nodes are created with `SignalHandlingMode::Disabled`: the pool may be hosted inside a
 //! Python interpreter and must not take SIGINT away from it. All ports use
 //! [`ipc_threadsafe::Service`], so supervisor-side ports and received samples are `Send`.
 //!

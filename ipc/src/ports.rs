@@ -109,7 +109,7 @@ impl BlockListener {
             .map_err(ice("create block listener"))?;
         Ok(BlockListener { listener })
     }
-    /// The underlying listener (for [`hybrid_wait`]).
+    /// The underlying listener (for [`crate::hybrid_wait`]).
     pub fn listener(&self) -> &Listener<Svc> {
         &self.listener
     }
@@ -170,7 +170,7 @@ impl WorkerPorts {
         self.cmd_sub.receive().map_err(ice("receive command"))
     }
 
-    /// The listener woken by new commands (for [`hybrid_wait`]).
+    /// The listener woken by new commands (for [`crate::hybrid_wait`]).
     pub fn cmd_listener(&self) -> &Listener<Svc> {
         &self.cmd_listener
     }

@@ -1,5 +1,5 @@
-//! What a step hands back: per-env arrays ([`BatchOutput`]) and zero-copy worker blocks
-//! ([`Block`], [`Batch`]).
+//! What a call hands back: the answer of a whole-batch call ([`SlotAnswer`]), its rows copied
+//! out ([`BatchOutput`]), and a worker's block of the async API ([`Block`]).
 
 use std::ops::Range;
 
@@ -7,7 +7,7 @@ use rogue_gym_ipc::BlockSample;
 
 use crate::wire::layout::{BlockLayout, EnvRecord, FLAG_RESTARTED, FLAG_TRUNCATED};
 
-/// Per-env arrays of one batch (sync step/reset, or filled from an async [`Batch`]). Row `r`
+/// Per-env arrays of one batch, copied out of a slot ([`crate::Pool::read_slot`]). Row `r`
 /// describes env `env_ids[r]`.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct BatchOutput {
@@ -181,10 +181,5 @@ impl Block {
     /// The underlying iceoryx2 sample (records, then observations; see `layout`).
     pub fn sample(&self) -> &BlockSample {
         &self.sample
-    }
-    /// Give up the block, keeping only the iceoryx2 sample (the memory stays valid while it
-    /// lives). Note: restart flags are applied by [`Block::record`], not stored in the sample.
-    pub fn into_sample(self) -> BlockSample {
-        self.sample
     }
 }

@@ -64,7 +64,7 @@ impl WorkerCommand {
 /// Configuration of a pool.
 #[derive(Debug, Clone)]
 pub struct PoolConfig {
-    /// JSON spec of the env (its `"kind"` selects the constructor in the [`EnvRegistry`]).
+    /// JSON spec of the env (its `"kind"` selects the constructor in the [`crate::EnvRegistry`]).
     pub env: Value,
     /// What the env looks like, when the caller already knows (hosted envs, whose front end
     /// has probed one); `None`: the supervisor builds one env to learn it.
@@ -74,7 +74,7 @@ pub struct PoolConfig {
     /// Worker processes; each steps a contiguous block of envs ([`crate::wire::block_range`]:
     /// blocks differ by at most one env).
     pub num_workers: usize,
-    /// Envs returned by one async [`Pool::recv`]: `num_envs`, or (when `num_workers` divides
+    /// Envs returned by one async [`crate::Pool::recv`]: `num_envs`, or (when `num_workers` divides
     /// `num_envs`) a multiple of the envs per worker. `None`: all envs.
     pub batch_size: Option<usize>,
     /// Episode seed schedule.
@@ -91,7 +91,7 @@ pub struct PoolConfig {
     /// Worker restarts allowed over the pool's life; one more fails with
     /// [`PoolError::RestartBudgetExceeded`].
     pub max_restarts: u32,
-    /// Blocks of one worker the caller may hold at once, plus one (see [`Block`]).
+    /// Blocks of one worker the caller may hold at once, plus one (see [`crate::Block`]).
     pub max_borrowed: usize,
     /// Replace a worker in a planned way once it has served this many env steps (leaky envs;
     /// see [`crate::Pool`]'s recycling); `None`: never.

@@ -58,6 +58,9 @@ pub enum FailureCause {
     Hung(Duration),
     /// It did not say it was ready within the start timeout and was killed.
     NotReady(Duration),
+    /// It wrote a value outside its bounds into shared memory (this says which), so it was
+    /// killed: what it wrote is never used.
+    Corrupt(String),
 }
 
 /// Report on a failed worker.
@@ -98,6 +101,11 @@ impl std::fmt::Display for WorkerFailure {
             FailureCause::NotReady(t) => write!(
                 f,
                 "was not ready within start_timeout {t:?}, so it was killed"
+            )?,
+            FailureCause::Corrupt(what) => write!(
+                f,
+                "wrote a value out of bounds into the pool's shared memory ({what}), so it was \
+                 killed: a bug of the worker or of code it runs (an env's C extension)"
             )?,
             FailureCause::Died => match (self.signal, self.exit_code) {
                 (Some(s), _) => write!(f, "was killed by signal {s} ({})", signal_name(s))?,
@@ -255,7 +263,7 @@ pub enum PoolError {
         /// The failure that exceeded it.
         last: Box<WorkerFailure>,
     },
-    /// The interrupt check ([`Pool::set_interrupt_check`]) asked to abort a wait. Outstanding
+    /// The interrupt check ([`crate::Pool::set_interrupt_check`]) asked to abort a wait. Outstanding
     /// requests are abandoned: call a reset to go on.
     #[error("interrupted while waiting for the workers; call reset() to continue")]
     Interrupted,
@@ -300,4 +308,8 @@ pub enum PoolError {
     /// File-system error on the pool's own files.
     #[error("{0}")]
     Io(String),
+    /// A bug of the pool: a call panicked ([`crate::Pool::guarded`]). The pool stays usable
+    /// after a reset, and `close` cleans up as ever.
+    #[error("internal error of the pool (a bug: please report it): {0}; call reset() to continue")]
+    Internal(String),
 }

@@ -8,7 +8,7 @@
 //! [`EnvRegistry`] and steps them. Every per-env output of a whole-batch call (step, reset,
 //! partial reset) is written by its worker in place, at the env's row of a shared batch slot
 //! the call names (`batch_slots` of them, 2 by default; [`wire::slot_layout`]), where the
-//! caller reads it ([`Pool::step_slot`]; [`Pool::step`] copies it out). The async API
+//! caller reads it ([`Pool::step`]; [`Pool::read_slot`] copies it out). The async API
 //! ([`Pool::send`], [`Pool::recv`]) answers steps in place too where the caller asks for it
 //! ([`Pool::set_async_in_place`]: a batch of one run of envs is then a view of its slot), and
 //! otherwise through per-worker shared-memory blocks ([`Block`]), copied out for the caller.
@@ -17,7 +17,7 @@
 //!
 //! * [`config`]: [`PoolConfig`] and its enums; [`error`]: [`PoolError`], [`WorkerFailure`];
 //!   [`batch`]: what a step returns.
-//! * [`env`]: the [`Env`] trait, [`EnvBlock`] (a worker's whole block behind one object, e.g.
+//! * [`mod@env`]: the [`Env`] trait, [`EnvBlock`] (a worker's whole block behind one object, e.g.
 //!   a hosted vector env) and [`EnvSpec`]; [`registry`]: kinds by name; [`kinds`]: the
 //!   built-in kinds (the game, `"rogue"`, and a deterministic [`TestEnv`], `"test"`),
 //!   registered here by [`EnvRegistry::with_defaults`].
@@ -58,10 +58,11 @@ pub use rogue_gym_ipc::WaitPolicy;
 pub use seeds::{SeedPolicy, SeedSchedule, SeedSet, Shard};
 pub use stats::WorkerStats;
 pub use supervisor::{Actions, InterruptCheck, Pool, Received, RecvWant, validate_actions};
+pub use wire::answer::EXTRA_HEAD;
 pub use wire::layout::{
     EnvRecord, FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED,
 };
-pub use wire::slot_layout::{COLUMNS, Column, ColumnView, RowWriter, SlotLayout};
+pub use wire::slot_layout::{COLUMNS, Column, ColumnView, SlotLayout, SlotRows};
 pub use wire::{BATCH_SLOTS, EnvFault, MAX_BATCH_SLOTS, WorkerConfig};
 pub use worker::worker_main;
 

@@ -6,32 +6,36 @@
 //! leading args): `--config <file> --index <k> --generation <g> --ppid <supervisor pid>`.
 
 use std::path::PathBuf;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
+use rogue_gym_ipc::iceoryx2::node::Node;
 use rogue_gym_ipc::{
-    BlockHeader, IpcError, PoolId, WaitCall, WaitPolicy, WorkerPorts, hybrid_wait,
+    BlockHeader, IpcError, PoolId, SharedBuffer, Svc, WaitCall, WaitPolicy, WorkerPorts,
+    hybrid_wait,
 };
 
 use crate::config::AutoresetMode;
 use crate::env::MAX_INFO;
 use crate::registry::{Built, EnvRegistry};
 use crate::stats::{Counter, StatsBuffer, ns_since, stamp};
+use crate::wire::answer::{ANSWER_WORDS, BlockKind};
 use crate::wire::books::Books;
 use crate::wire::layout::BlockLayout;
 use crate::wire::slot_layout::SlotLayout;
 use crate::wire::{
-    BATCH_BUFFER, BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, Command, EnvFault, Op,
-    SLOT_ANSWER_WORDS, Serve, WorkerConfig, calls, env_fault_path, extra_apart_path, successor_go,
-    successor_marker,
+    BATCH_BUFFER, Command, EnvFault, Op, Serve, WorkerConfig, calls, env_fault_path,
+    extra_apart_path, successor_go, successor_marker,
 };
 
 mod block;
+mod block_out;
 mod env_state;
 mod envs;
 mod streaming;
 
 use block::BlockHost;
-use env_state::{BlockOut, EnvState, Rows, ServeCtx};
+use block_out::{BlockOut, Scratch};
+use env_state::{EnvState, ServeCtx};
 use envs::{WorkerEnvs, answer_calls, take_action_extras};
 
 #[derive(Debug, thiserror::Error)]
@@ -134,7 +138,7 @@ pub fn worker_main(args: &[String], registry: &EnvRegistry) -> i32 {
             a.index
         );
     }
-    match run(&a, &cfg, registry) {
+    match Worker::start(&a, &cfg, registry).and_then(|mut w| w.run()) {
         Ok(()) => 0,
         Err(WorkerError::ParentGone(p)) => {
             eprintln!("rogue-gym worker {}: supervisor {p} gone, exiting", a.index);
@@ -150,9 +154,6 @@ pub fn worker_main(args: &[String], registry: &EnvRegistry) -> i32 {
     }
 }
 
-/// Read the worker's config: a private file of this user in a private directory of this user
-/// (the pool's, inside its verified runtime directory), so that no one else can have written
-/// what the worker builds its envs from (hosted envs unpickle it).
 /// Wait for the supervisor's word that the worker this successor replaces is gone
 /// ([`successor_go`]), while the supervisor lives: a successor that is not needed is killed.
 fn wait_for_go(id: &PoolId, a: &Args) -> Result<(), WorkerError> {
@@ -198,6 +199,9 @@ fn expected_poll(budget: Duration, last_gap: Duration) -> Duration {
     }
 }
 
+/// Read the worker's config: a private file of this user in a private directory of this user
+/// (the pool's, inside its verified runtime directory), so that no one else can have written
+/// what the worker builds its envs from (hosted envs unpickle it).
 fn read_config(path: &std::path::Path) -> Result<WorkerConfig, String> {
     let dir = path.parent().unwrap_or(std::path::Path::new("/"));
     let meta = std::fs::symlink_metadata(dir)
@@ -208,282 +212,374 @@ fn read_config(path: &std::path::Path) -> Result<WorkerConfig, String> {
     serde_json::from_slice(&data).map_err(|e| format!("bad worker config: {e}"))
 }
 
-fn run(a: &Args, cfg: &WorkerConfig, registry: &EnvRegistry) -> Result<(), WorkerError> {
-    if a.index >= cfg.num_workers || cfg.envs_of(a.index).is_empty() {
-        return Err(WorkerError::Msg(format!(
-            "worker index {} out of range (pool has {} workers for {} envs)",
-            a.index, cfg.num_workers, cfg.num_envs
-        )));
-    }
-    let envs = cfg.envs_of(a.index);
-    let epw = envs.len();
-    let id = PoolId::from_parts(&cfg.pool_name, &cfg.runtime_dir)?;
-    let fault_path = env_fault_path(&id, a.index, a.generation);
-    let globals = envs.start as u64..envs.end as u64;
-    let mut building = globals.start;
-    let built = registry
-        .make_block(&cfg.env, globals.clone(), |g| building = g)
-        .map_err(|e| {
-            // Reported like a failed step (the supervisor raises it rather than retrying).
-            let fault = EnvFault::new(building, "construction", &e);
-            let _ = fault.write(&fault_path);
-            WorkerError::Msg(format!("cannot build env {building}: {e}"))
-        })?;
-    let mut hosted = match built {
-        Built::Envs(list) => WorkerEnvs::Each(
-            list.into_iter()
-                .zip(globals)
-                .map(|(env, g)| EnvState::new(env, g))
-                .collect(),
-        ),
-        Built::Block(block) => WorkerEnvs::Block(BlockHost::new(block, globals)),
-    };
-    let spec = match &hosted {
-        WorkerEnvs::Each(slots) => slots[0].env.spec(),
-        WorkerEnvs::Block(host) => host.spec(),
-    };
-    let n_info = spec.info_names.len().min(MAX_INFO);
-    let aw = spec.action_words();
-    let layout = BlockLayout {
-        envs: epw,
-        obs_bytes: spec.obs_bytes(),
-        final_obs: cfg.autoreset == AutoresetMode::SameStep,
-        extra_bytes: spec.extra_bytes,
-    };
-    let words = layout.words();
-    let node = id.node(&format!("w{}g{}", a.index, a.generation))?;
-    if a.successor {
-        // The envs are built: the supervisor may now stop the worker this one replaces.
-        rogue_gym_ipc::private::create_private_file(&successor_marker(&id, a.index, a.generation))?;
-        wait_for_go(&id, a)?;
-    }
-    let ports = WorkerPorts::new(&node, a.index, words, &cfg.channel_settings())?;
-    let policy = WaitPolicy {
-        poll_budget: Duration::from_micros(cfg.poll_budget_us),
-        block_slice: Duration::from_millis(cfg.block_slice_ms.max(1)),
-        yield_cpu: cfg.poll_yield,
-        sleep_first: Duration::ZERO,
-    };
-    let header = |seq, kind| BlockHeader {
-        seq,
-        generation: a.generation,
-        worker: a.index as u32,
-        kind,
-        ready_ns: 0,
-    };
-    let ob = layout.obs_bytes;
-    let slot_layout = SlotLayout {
-        num_envs: cfg.num_envs,
-        obs_bytes: ob,
-        n_info,
-        final_obs: layout.final_obs,
-        extra_bytes: layout.extra_bytes,
-    };
-    let sb = slot_layout.bytes();
-    let batch = rogue_gym_ipc::SharedBuffer::open(&id, BATCH_BUFFER, cfg.batch_slots * sb)?;
-    let stats = StatsBuffer::open(&id, cfg.num_workers)?;
-    let books = Books::open(&id, cfg.num_envs)?;
-    let me = a.index;
-    let first_env = envs.start;
-    let mut ready = ports.loan_block(words)?;
-    *ready.user_header_mut() = header(0, BLOCK_READY);
-    ports.send_block(ready)?;
+/// A running worker: its envs, its ports, and the pool's shared memory it writes.
+struct Worker<'a> {
+    args: &'a Args,
+    cfg: &'a WorkerConfig,
+    id: PoolId,
+    envs: WorkerEnvs,
+    /// The block's first env (a global id).
+    first_env: usize,
+    /// Info values per env, command words per action, raw action bytes (0: indices).
+    n_info: usize,
+    action_words: usize,
+    action_bytes: usize,
+    /// The layout of the worker's block, and of a batch slot.
+    layout: BlockLayout,
+    slot_layout: SlotLayout,
+    batch: SharedBuffer,
+    stats: StatsBuffer,
+    books: Books,
+    /// Dropped before the node they were made from.
+    ports: WorkerPorts,
+    _node: Node<Svc>,
+    /// The seed schedule (re-read when a reset says so).
+    seeds: crate::seeds::SeedSchedule,
+    /// The payload of the command being served.
+    payload: Vec<u64>,
+    scratch: Scratch,
+    /// The rows are written with streaming stores ([`streaming`]).
+    streamed: bool,
+    fault_path: PathBuf,
+}
 
-    let mut seeds = cfg.seeds.clone();
-    let mut payload: Vec<u64> = vec![0; epw * aw + epw];
-    // One env's extra info, and the block's infos that did not fit its room.
-    let mut info: Vec<u8> = Vec::new();
-    let mut apart: Vec<(u32, Vec<u8>)> = Vec::new();
-    // Envs write their observation here first when the rows are streamed (see `streaming`).
-    let streamed = streaming::wanted(cfg.streaming_stores, cfg.batch_slots * cfg.num_envs * ob);
-    let mut stage: Vec<u8> = if streamed { vec![0; ob] } else { Vec::new() };
-    // The last command asked to wait for the next one without polling (`block_at_once`).
-    let blocking = WaitPolicy {
-        poll_budget: Duration::ZERO,
-        ..policy
-    };
-    let mut block_at_once = false;
-    // How long the last command took to come after the answer before it.
-    let mut last_gap = Duration::MAX;
-    loop {
-        let mut cmd = None;
-        let waiting = stamp();
-        let since = std::time::Instant::now();
-        let now = if block_at_once {
-            blocking
+/// How a worker waits for its next command: polls for the gap the caller usually leaves, or
+/// blocks at once where the command before said so ([`Command::block_at_once`]).
+struct Pacing {
+    policy: WaitPolicy,
+    block_at_once: bool,
+    /// How long the last command took to come after the answer before it.
+    last_gap: Duration,
+}
+
+impl Pacing {
+    /// The policy of the next wait.
+    fn now(&self) -> WaitPolicy {
+        let poll_budget = if self.block_at_once {
+            Duration::ZERO
         } else {
-            WaitPolicy {
-                poll_budget: expected_poll(policy.poll_budget, last_gap),
-                ..policy
-            }
+            expected_poll(self.policy.poll_budget, self.last_gap)
         };
-        hybrid_wait::<WorkerError>(ports.cmd_listener(), &now, None, |call| {
-            if call == WaitCall::Idle && nix::unistd::getppid().as_raw() != a.ppid {
-                return Err(WorkerError::ParentGone(a.ppid));
-            }
-            cmd = ports.try_recv_cmd()?;
-            Ok(cmd.is_some())
-        })?;
-        stats.add(me, Counter::WaitNs, ns_since(waiting));
-        last_gap = since.elapsed();
-        let Some(cmd) = cmd else { continue };
-        let h = *cmd.user_header();
-        let n = (h.len as usize).min(cmd.payload().len());
-        let command = Command::decode(h.kind)
-            .map_err(|e| WorkerError::Msg(format!("command {}: {e}", h.seq)))?;
-        block_at_once = command.block_at_once;
-        if command.op == Op::Close {
-            return Ok(());
+        WaitPolicy {
+            poll_budget,
+            ..self.policy
         }
-        let Some(kind) = command.serve() else {
-            // Op::Call: env calls, off the hot path.
-            drop(cmd);
-            let kind =
-                match answer_calls(&id, (a.index, a.generation), &mut hosted, first_env as u64) {
-                    Ok(()) => BLOCK_CALL,
-                    Err(f) => {
-                        f.write(&fault_path).map_err(WorkerError::Msg)?;
-                        BLOCK_ERROR
-                    }
-                };
-            let mut reply = ports.loan_block(words)?;
-            *reply.user_header_mut() = header(h.seq, kind);
-            ports.send_block(reply)?;
-            continue;
-        };
-        // Words per env: one episode index per env for a reset, one action for a step; a
-        // subset step adds one word per env (whether it steps).
-        let per_env = if kind == Serve::Step { aw } else { 1 };
-        let subset = kind == Serve::Step && command.subset;
-        let want = epw * per_env + if subset { epw } else { 0 };
-        if n != want {
+    }
+}
+
+impl<'a> Worker<'a> {
+    /// Build the envs of worker `a.index`, open the pool's shared memory and ports (a
+    /// successor first waits for the worker it replaces to be gone), and say it is ready.
+    fn start(
+        a: &'a Args,
+        cfg: &'a WorkerConfig,
+        registry: &EnvRegistry,
+    ) -> Result<Worker<'a>, WorkerError> {
+        let envs = cfg.envs_of(a.index);
+        if a.index >= cfg.num_workers || envs.is_empty() {
             return Err(WorkerError::Msg(format!(
-                "command {} carries {n} words for {epw} envs of {per_env} words (subset: {subset})",
-                h.seq
+                "worker index {} out of range (pool has {} workers for {} envs)",
+                a.index, cfg.num_workers, cfg.num_envs
             )));
         }
-        payload[..n].copy_from_slice(&cmd.payload()[..n]);
-        drop(cmd);
-        let (acts, only) = payload[..n].split_at(epw * per_env);
-        let only = subset.then_some(only);
-
-        let target = command.target as usize;
-        if command.reload_seeds {
-            seeds = read_config(&a.config).map_err(WorkerError::Msg)?.seeds;
-        }
-        let ctx = ServeCtx {
-            seeds: &seeds,
-            num_envs: cfg.num_envs as u64,
-            autoreset: cfg.autoreset,
-            num_actions: spec.num_actions,
-            action_bytes: spec.action_bytes,
-            n_info,
+        let id = PoolId::from_parts(&cfg.pool_name, &cfg.runtime_dir)?;
+        let fault_path = env_fault_path(&id, a.index, a.generation);
+        let globals = envs.start as u64..envs.end as u64;
+        let mut building = globals.start;
+        let built = registry
+            .make_block(&cfg.env, globals.clone(), |g| building = g)
+            .map_err(|e| {
+                // Reported like a failed step (the supervisor raises it rather than retrying).
+                let fault = EnvFault::new(building, "construction", &e);
+                let _ = fault.write(&fault_path);
+                WorkerError::Msg(format!("cannot build env {building}: {e}"))
+            })?;
+        let hosted = match built {
+            Built::Envs(list) => WorkerEnvs::Each(
+                list.into_iter()
+                    .zip(globals)
+                    .map(|(env, g)| EnvState::new(env, g))
+                    .collect(),
+            ),
+            Built::Block(block) => WorkerEnvs::Block(BlockHost::new(block, globals)),
         };
-        if target > cfg.batch_slots {
+        let spec = match &hosted {
+            WorkerEnvs::Each(envs) => envs[0].env.spec(),
+            WorkerEnvs::Block(host) => host.spec(),
+        };
+        let layout = BlockLayout {
+            envs: envs.len(),
+            obs_bytes: spec.obs_bytes(),
+            final_obs: cfg.autoreset == AutoresetMode::SameStep,
+            extra_bytes: spec.extra_bytes,
+        };
+        let n_info = spec.info_names.len().min(MAX_INFO);
+        let slot_layout = SlotLayout {
+            num_envs: cfg.num_envs,
+            obs_bytes: layout.obs_bytes,
+            n_info,
+            final_obs: layout.final_obs,
+            extra_bytes: layout.extra_bytes,
+        };
+        let node = id.node(&format!("w{}g{}", a.index, a.generation))?;
+        if a.successor {
+            // The envs are built: the supervisor may now stop the worker this one replaces.
+            rogue_gym_ipc::private::create_private_file(&successor_marker(
+                &id,
+                a.index,
+                a.generation,
+            ))?;
+            wait_for_go(&id, a)?;
+        }
+        let ports = WorkerPorts::new(&node, a.index, layout.words(), &cfg.channel_settings())?;
+        let slots_bytes = cfg.batch_slots * slot_layout.bytes();
+        // Envs write their observation to a stage first when the rows are streamed.
+        let streamed = streaming::wanted(
+            cfg.streaming_stores,
+            cfg.batch_slots * cfg.num_envs * layout.obs_bytes,
+        );
+        let scratch = Scratch {
+            stage: if streamed {
+                vec![0; layout.obs_bytes]
+            } else {
+                Vec::new()
+            },
+            ..Scratch::default()
+        };
+        let action_words = spec.action_words();
+        let w = Worker {
+            args: a,
+            cfg,
+            batch: SharedBuffer::open(&id, BATCH_BUFFER, slots_bytes)?,
+            stats: StatsBuffer::open(&id, cfg.num_workers)?,
+            books: Books::open(&id, cfg.num_envs)?,
+            id,
+            first_env: envs.start,
+            envs: hosted,
+            n_info,
+            action_words,
+            action_bytes: spec.action_bytes,
+            layout,
+            slot_layout,
+            ports,
+            _node: node,
+            seeds: cfg.seeds.clone(),
+            payload: vec![0; envs.len() * (action_words + 1)],
+            scratch,
+            streamed,
+            fault_path,
+        };
+        w.send(0, BlockKind::Ready)?;
+        Ok(w)
+    }
+
+    /// Serve commands until the supervisor closes the worker (or is gone).
+    fn run(&mut self) -> Result<(), WorkerError> {
+        let mut pacing = Pacing {
+            policy: WaitPolicy {
+                poll_budget: Duration::from_micros(self.cfg.poll_budget_us),
+                block_slice: Duration::from_millis(self.cfg.block_slice_ms.max(1)),
+                yield_cpu: self.cfg.poll_yield,
+                sleep_first: Duration::ZERO,
+            },
+            block_at_once: false,
+            last_gap: Duration::MAX,
+        };
+        loop {
+            let (seq, command, words) = self.next_command(&mut pacing)?;
+            match command.serve() {
+                None if command.op == Op::Close => return Ok(()),
+                None => self.answer_calls(seq)?,
+                Some(kind) => self.serve(seq, command, kind, words)?,
+            }
+        }
+    }
+
+    /// Wait for the next command; its payload is copied into `self.payload`. Returns its
+    /// sequence number, the command and its payload's length in words.
+    fn next_command(&mut self, pacing: &mut Pacing) -> Result<(u64, Command, usize), WorkerError> {
+        let ppid = self.args.ppid;
+        loop {
+            let mut cmd = None;
+            let (waiting, since) = (stamp(), Instant::now());
+            hybrid_wait::<WorkerError>(self.ports.cmd_listener(), &pacing.now(), None, |call| {
+                if call == WaitCall::Idle && nix::unistd::getppid().as_raw() != ppid {
+                    return Err(WorkerError::ParentGone(ppid));
+                }
+                cmd = self.ports.try_recv_cmd()?;
+                Ok(cmd.is_some())
+            })?;
+            self.stats
+                .add(self.args.index, Counter::WaitNs, ns_since(waiting));
+            pacing.last_gap = since.elapsed();
+            let Some(cmd) = cmd else { continue };
+            let h = *cmd.user_header();
+            let command = Command::decode(h.kind)
+                .map_err(|e| WorkerError::Msg(format!("command {}: {e}", h.seq)))?;
+            pacing.block_at_once = command.block_at_once;
+            let n = (h.len as usize).min(cmd.payload().len());
+            let Some(dst) = self.payload.get_mut(..n) else {
+                return Err(WorkerError::Msg(format!(
+                    "command {} carries {n} words, more than a command to {} envs can",
+                    h.seq, self.layout.envs
+                )));
+            };
+            dst.copy_from_slice(&cmd.payload()[..n]);
+            return Ok((h.seq, command, n));
+        }
+    }
+
+    /// Send an answer without data (`kind`) to command `seq`.
+    fn send(&self, seq: u64, kind: BlockKind) -> Result<(), WorkerError> {
+        let mut block = self.ports.loan_block(self.layout.words())?;
+        *block.user_header_mut() = self.header(seq, kind);
+        self.ports.send_block(block)?;
+        Ok(())
+    }
+
+    fn header(&self, seq: u64, kind: BlockKind) -> BlockHeader {
+        BlockHeader {
+            seq,
+            generation: self.args.generation,
+            worker: self.args.index as u32,
+            kind: kind.word(),
+            ready_ns: 0,
+        }
+    }
+
+    /// Report env fault `f` as the answer to command `seq` (the supervisor raises it to the
+    /// caller and requires a reset); the worker itself is fine and serves on.
+    fn report(&self, seq: u64, f: &EnvFault) -> Result<(), WorkerError> {
+        f.write(&self.fault_path).map_err(WorkerError::Msg)?;
+        self.send(seq, BlockKind::Error)
+    }
+
+    /// [`Op::Call`]: env calls, off the hot path.
+    fn answer_calls(&mut self, seq: u64) -> Result<(), WorkerError> {
+        let me = (self.args.index, self.args.generation);
+        match answer_calls(&self.id, me, &mut self.envs, self.first_env as u64) {
+            Ok(()) => self.send(seq, BlockKind::Call),
+            Err(f) => self.report(seq, &f),
+        }
+    }
+
+    /// A reset or a step ([`Serve`]): every env it names answers into the block, or in place
+    /// into the batch slot the command targets; one answer for them all.
+    fn serve(
+        &mut self,
+        seq: u64,
+        command: Command,
+        kind: Serve,
+        n: usize,
+    ) -> Result<(), WorkerError> {
+        // Words per env: one episode index per env for a reset, one action for a step; a
+        // subset step adds one word per env (whether it steps).
+        let epw = self.layout.envs;
+        let per_env = if kind == Serve::Step {
+            self.action_words
+        } else {
+            1
+        };
+        let subset = kind == Serve::Step && command.subset;
+        if n != epw * per_env + if subset { epw } else { 0 } {
+            return Err(WorkerError::Msg(format!(
+                "command {seq} carries {n} words for {epw} envs of {per_env} words (subset: \
+                 {subset})"
+            )));
+        }
+        let target = command.target as usize;
+        if target > self.cfg.batch_slots {
             return Err(WorkerError::Msg(format!("bad observation target {target}")));
         }
-        let mut block = ports.loan_block(words)?;
-        *block.user_header_mut() = header(h.seq, BLOCK_DATA);
-        let areas = layout.split_mut(block.payload_mut());
-        apart.clear();
-        let mut out = if target == 0 {
-            BlockOut {
-                records: Rows::Block(areas.records),
-                summary: Default::default(),
-                obs: areas.obs,
-                final_obs: areas.final_obs,
-                extra: areas.extra,
-                obs_bytes: ob,
-                final_bytes: if layout.final_obs { ob } else { 0 },
-                extra_bytes: layout.extra_bytes,
-                info: &mut info,
-                apart: &mut apart,
-                stage: &mut stage,
-            }
-        } else {
-            let rows = first_env..first_env + epw;
-            // SAFETY: the shared batch buffer holds `cfg.batch_slots` slots of `sb` bytes, so
-            // slot `target - 1` is inside it. This worker's envs own rows `rows` of every area
-            // of that slot: the supervisor neither reads nor lends them out until this command
-            // is answered, and no other worker writes them.
-            let (writer, obs, fin, extra) = unsafe {
-                let w = slot_layout.writer(batch.as_ptr().add((target - 1) * sb));
-                let (o, f, x) = (
-                    w.obs_rows(rows.clone()),
-                    w.final_rows(rows.clone()),
-                    w.extra_rows(rows),
-                );
-                (w, o, f, x)
-            };
-            BlockOut {
-                records: Rows::Slot {
-                    writer: Box::new(writer),
-                    first: first_env,
-                },
-                summary: Default::default(),
-                obs,
-                final_obs: fin,
-                extra,
-                obs_bytes: ob,
-                final_bytes: if layout.final_obs { ob } else { 0 },
-                extra_bytes: layout.extra_bytes,
-                info: &mut info,
-                apart: &mut apart,
-                stage: &mut stage,
-            }
-        };
+        if command.reload_seeds {
+            self.seeds = read_config(&self.args.config)
+                .map_err(WorkerError::Msg)?
+                .seeds;
+        }
+        let me = self.args.index;
+        let mut block = self.ports.loan_block(self.layout.words())?;
+        *block.user_header_mut() = self.header(seq, BlockKind::Data);
         let serving = stamp();
+        let (acts, only) = self.payload[..n].split_at(epw * per_env);
+        let only = subset.then_some(only);
+        let ctx = ServeCtx {
+            seeds: &self.seeds,
+            num_envs: self.cfg.num_envs as u64,
+            autoreset: self.cfg.autoreset,
+            action_bytes: self.action_bytes,
+            n_info: self.n_info,
+        };
+        let mut out = match target {
+            0 => BlockOut::in_block(
+                self.layout.split_mut(block.payload_mut()),
+                &self.layout,
+                &mut self.scratch,
+            ),
+            // SAFETY: slot `target - 1` lies in the batch buffer (`target <= batch_slots`,
+            // checked above), 64-byte aligned. This worker's envs own their rows of every area
+            // of it during the command: the supervisor neither reads nor lends them out until
+            // the command is answered, and no other worker writes them.
+            t => unsafe {
+                let base = self.batch.as_ptr().add((t - 1) * self.slot_layout.bytes());
+                BlockOut::in_slot(
+                    self.slot_layout.rows(base),
+                    self.first_env,
+                    &self.layout,
+                    &mut self.scratch,
+                )
+            },
+        };
+        let first = self.first_env as u64;
         let extras = if kind == Serve::Step && command.action_extras {
-            take_action_extras(&id, (a.index, a.generation), &mut hosted, first_env as u64)
+            let me = (self.args.index, self.args.generation);
+            take_action_extras(&self.id, me, &mut self.envs, first)
         } else {
             Ok(())
         };
-        let (mut failed, served) =
-            match extras.and_then(|()| hosted.serve(kind, acts, per_env, only, &mut out, &ctx)) {
-                Ok(served) => (None, served),
-                Err(f) => (Some(f), 0),
-            };
-        if streamed {
+        let served =
+            extras.and_then(|()| self.envs.serve(kind, acts, per_env, only, &mut out, &ctx));
+        if self.streamed {
             // Streamed rows land before the answer that publishes them (an env that failed
             // midway included: its rows are written again before anyone reads them).
             streaming::fence();
         }
-        if failed.is_none() {
-            hosted.write_books(&books, h.seq, first_env);
-        }
-        let answer = out.summary.words(epw);
-        if target != 0 {
-            block.payload_mut()[..SLOT_ANSWER_WORDS].copy_from_slice(&answer);
-        }
-        stats.add(me, Counter::EnvNs, ns_since(serving));
-        stats.add(me, Counter::EnvSteps, served as u64);
-        stats.add(me, Counter::Commands, 1);
-        let publishing = stamp();
-        if failed.is_none() && !apart.is_empty() {
-            // Info too long for the block's room goes beside it, in a private file named by
-            // the block; the supervisor takes it with the block.
-            let entries: Vec<(u32, &[u8])> =
-                apart.iter().map(|(j, b)| (*j, b.as_slice())).collect();
-            let path = extra_apart_path(&id, a.index, a.generation, h.seq);
-            if let Err(e) = calls::write(&path, &calls::encode(&entries)) {
-                failed = Some(EnvFault::new(
-                    first_env as u64 + u64::from(apart[0].0),
-                    "extra info",
-                    format!("cannot write the info that did not fit the block: {e}"),
-                ));
+        let answer = out.answer.finish(epw);
+        // Info too long for its room goes beside the answer, in a private file named by it;
+        // the supervisor takes it with the answer.
+        let apart = match (&served, out.apart()) {
+            (Ok(_), apart) if !apart.is_empty() => {
+                let entries: Vec<(u32, &[u8])> =
+                    apart.iter().map(|(j, b)| (*j, b.as_slice())).collect();
+                let path = extra_apart_path(&self.id, me, self.args.generation, seq);
+                calls::write(&path, &calls::encode(&entries)).map_err(|e| {
+                    EnvFault::new(
+                        first + u64::from(apart[0].0),
+                        "extra info",
+                        format!("cannot write the info that did not fit its room: {e}"),
+                    )
+                })
             }
+            _ => Ok(()),
+        };
+        drop(out);
+        let served = served.and_then(|served| apart.map(|()| served));
+        self.stats.add(me, Counter::EnvNs, ns_since(serving));
+        self.stats.add(me, Counter::Commands, 1);
+        let served = match served {
+            Ok(served) => served,
+            Err(f) => {
+                drop(block);
+                return self.report(seq, &f);
+            }
+        };
+        self.envs.write_books(&self.books, seq, self.first_env);
+        if target != 0 {
+            block.payload_mut()[..ANSWER_WORDS].copy_from_slice(&answer.encode());
         }
-        if let Some(f) = failed {
-            // An env failed: report it (the supervisor raises it to the caller and requires a
-            // reset) and keep serving; the worker itself is fine.
-            drop(block);
-            f.write(&fault_path).map_err(WorkerError::Msg)?;
-            let mut report = ports.loan_block(words)?;
-            *report.user_header_mut() = header(h.seq, BLOCK_ERROR);
-            ports.send_block(report)?;
-            continue;
-        }
-        ports.send_block(block)?;
-        stats.add(me, Counter::PublishNs, ns_since(publishing));
+        self.stats.add(me, Counter::EnvSteps, served as u64);
+        let publishing = stamp();
+        self.ports.send_block(block)?;
+        self.stats.add(me, Counter::PublishNs, ns_since(publishing));
+        Ok(())
     }
 }

@@ -2,9 +2,8 @@
 //! handlers now and then, and a lock another thread may hold through such a wait is taken with
 //! the GIL released.
 
-use std::sync::{Arc, Mutex, MutexGuard, TryLockError};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError, TryLockError};
 
-use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use rogue_gym_pool::InterruptCheck;
 
@@ -27,7 +26,9 @@ pub(crate) fn interrupt_check(slot: Arc<Mutex<Option<PyErr>>>) -> InterruptCheck
 
 /// Lock `m` from a thread that holds the GIL, waiting with the GIL released: another thread
 /// may hold `m` through a long wait that takes the GIL now and then (the interrupt check), so
-/// waiting for `m` with the GIL held could deadlock both.
+/// waiting for `m` with the GIL held could deadlock both. A lock poisoned by a panic is taken
+/// all the same: the pool's calls catch their panics ([`rogue_gym_pool::Pool::guarded`]), so
+/// what it guards is whole, and `close()` must always get through.
 pub(crate) fn lock_gil_free<'a, T: Send>(
     py: Python<'_>,
     m: &'a Mutex<T>,
@@ -36,9 +37,12 @@ pub(crate) fn lock_gil_free<'a, T: Send>(
         match m.try_lock() {
             Ok(g) => return Ok(g),
             Err(TryLockError::WouldBlock) => py.detach(|| drop(m.lock())),
-            Err(TryLockError::Poisoned(_)) => {
-                return Err(PyRuntimeError::new_err("the pool lock is poisoned"));
-            }
+            Err(TryLockError::Poisoned(p)) => return Ok(p.into_inner()),
         }
     }
+}
+
+/// Lock `m` (without the GIL), taking it even if a panic poisoned it (see [`lock_gil_free`]).
+pub(crate) fn lock_any<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
 }

@@ -86,6 +86,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("NUM_ACTIONS", rogue_gym_engine::NUM_ACTIONS)?;
     m.add("SUMMARY_RESTARTED", columns::SUMMARY_RESTARTED)?;
     m.add("SUMMARY_FINAL", columns::SUMMARY_FINAL)?;
+    m.add("EXTRA_HEAD", rogue_gym_pool::EXTRA_HEAD)?;
     m.add(
         "BOOL_INFO_NAMES",
         rogue_gym_pool::kinds::rogue::ROGUE_BOOL_INFO.to_vec(),

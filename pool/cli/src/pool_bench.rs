@@ -215,8 +215,10 @@ impl PoolRun {
         let mut obs = vec![0u8; n * pool.obs_bytes()];
         let mut out = BatchOutput::default();
         match a.mode {
-            Mode::Sync => pool.reset(&mut obs, &mut out).map(|_| ()),
-            Mode::Shared => pool.reset_shared(&mut out).map(|_| ()),
+            Mode::Sync => pool
+                .reset()
+                .and_then(|r| pool.read_slot(&r, Some(&mut obs), &mut out)),
+            Mode::Shared => pool.reset().map(drop),
             Mode::Async => pool.async_reset(),
         }
         .map_err(|e| e.to_string())?;
@@ -244,14 +246,16 @@ impl PoolRun {
                     for x in self.actions.iter_mut() {
                         *x = (self.rng.next() % self.na) as i64;
                     }
-                    if self.mode == Mode::Shared {
-                        self.pool
-                            .step_shared(&self.actions, &mut self.out)
-                            .map(|_| ())
-                    } else {
-                        self.pool.step(&self.actions, &mut self.obs, &mut self.out)
-                    }
-                    .map_err(|e| e.to_string())?;
+                    // Shared: the rows stay in the slot, where a binding reads them; sync
+                    // copies them out.
+                    let copy = self.mode == Mode::Sync;
+                    self.pool
+                        .step(&self.actions)
+                        .and_then(|r| match copy {
+                            true => self.pool.read_slot(&r, Some(&mut self.obs), &mut self.out),
+                            false => Ok(()),
+                        })
+                        .map_err(|e| e.to_string())?;
                     env_steps += self.actions.len() as u64;
                     self.lat.push(t.elapsed());
                 }

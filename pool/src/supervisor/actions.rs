@@ -1,9 +1,10 @@
-//! The actions of a step as the pool takes them ([`Actions`]), and their check
-//! ([`validate_actions`]): what the stepping calls, the async API and the workers' commands
-//! share.
+//! The actions of a step as the pool takes them ([`Actions`]), and their one check
+//! ([`Actions::check`]), made on the caller's side before anything is sent: the workers trust
+//! what arrives.
 
 use std::ops::Range;
 
+use crate::env::EnvSpec;
 use crate::error::PoolError;
 
 /// The actions of a step, one per env: indices `0..num_actions`, or `EnvSpec::action_bytes`
@@ -42,6 +43,46 @@ impl<'a> Actions<'a> {
             Actions::Bytes(b) => {
                 Actions::Bytes(&b[rows.start * action_bytes..rows.end * action_bytes])
             }
+        }
+    }
+
+    /// Check one action per row for an env of `spec`, row `r` being env `env_of(r)`'s: `rows`
+    /// indices in `0..num_actions`, or `rows x action_bytes` bytes; the error names the env
+    /// and the value, or the lengths.
+    pub fn check(
+        self,
+        spec: &EnvSpec,
+        rows: usize,
+        env_of: impl Fn(usize) -> usize,
+    ) -> Result<(), PoolError> {
+        match self {
+            Actions::Indices(a) if spec.action_bytes == 0 => {
+                if a.len() != rows {
+                    return Err(PoolError::BadActionsLength {
+                        expected: rows,
+                        got: a.len(),
+                    });
+                }
+                validate_actions(a, (0..rows).map(env_of), spec.num_actions)
+            }
+            Actions::Bytes(b) if spec.action_bytes > 0 => {
+                if b.len() != rows * spec.action_bytes {
+                    return Err(PoolError::BadBuffer {
+                        what: "action bytes",
+                        expected: rows * spec.action_bytes,
+                        got: b.len(),
+                    });
+                }
+                Ok(())
+            }
+            Actions::Indices(_) => Err(PoolError::Config(format!(
+                "this env takes actions as {} raw bytes each, not indices",
+                spec.action_bytes
+            ))),
+            Actions::Bytes(_) => Err(PoolError::Config(format!(
+                "this env takes action indices 0..{}, not raw bytes",
+                spec.num_actions
+            ))),
         }
     }
 }

@@ -6,10 +6,11 @@ use std::time::{Duration, Instant};
 
 use super::actions::Actions;
 use super::async_envs::{Received, Turn};
+use super::slot_answers::{Apart, answer_words};
 use super::workers::LinkState;
 use super::{Pool, Supervisor};
 use crate::error::PoolError;
-use crate::wire::{SLOT_ANSWER_WORDS, SLOT_EXTRA_APART};
+use crate::wire::answer::Answer;
 
 /// How many envs an async [`Pool::recv_want`] hands over, and how long it may wait for them:
 /// it returns as soon as `max_batch` envs are ready, or at the deadline with every ready env
@@ -35,6 +36,41 @@ impl RecvWant {
             max_batch: n,
             timeout: None,
         }
+    }
+
+    /// A `recv` of a pool of `num_envs` envs and batch size `batch_size`, as a caller states
+    /// it, with the defaults filled in: `max_batch` defaults to `batch_size` (or `min_batch`
+    /// where that asks for more), `min_batch` to `max_batch` (at most `batch_size`). Each must
+    /// be 1 to `num_envs`, `min_batch` at most `max_batch`; the error names the argument.
+    pub fn resolve(
+        min_batch: Option<usize>,
+        max_batch: Option<usize>,
+        timeout: Option<Duration>,
+        batch_size: usize,
+        num_envs: usize,
+    ) -> Result<RecvWant, PoolError> {
+        for (name, v) in [("min_batch", min_batch), ("max_batch", max_batch)] {
+            if let Some(v) = v
+                && !(1..=num_envs).contains(&v)
+            {
+                return Err(PoolError::Config(format!(
+                    "recv(): {name} must be between 1 and num_envs ({num_envs}), got {v}"
+                )));
+            }
+        }
+        if let (Some(lo), Some(hi)) = (min_batch, max_batch)
+            && lo > hi
+        {
+            return Err(PoolError::Config(format!(
+                "recv(): min_batch ({lo}) must not exceed max_batch ({hi})"
+            )));
+        }
+        let max = max_batch.unwrap_or_else(|| batch_size.max(min_batch.unwrap_or(1)));
+        Ok(RecvWant {
+            min_batch: min_batch.unwrap_or(max.min(batch_size)),
+            max_batch: max,
+            timeout,
+        })
     }
 }
 
@@ -66,7 +102,7 @@ impl Pool {
         let actions = actions.into();
         self.begin_call()?;
         self.sup.check_started("send")?;
-        self.check_actions(actions, env_ids)?;
+        actions.check(&self.sup.spec, env_ids.len(), |r| env_ids[r])?;
         self.sup.check_sendable(env_ids)?;
         // A sync reset may start the async API too (as TorchRL's loop does).
         self.sup.async_api.on = true;
@@ -146,15 +182,15 @@ impl Pool {
                 timeout: want.timeout.unwrap_or_default(),
             });
         }
-        // The slots' readers, for rows written in place (none without rows in place).
-        let writers = (0..self.sup.async_api.envs.in_place)
-            .map(|slot| self.sup.writer_of(slot))
+        // The slots' rows, for rows written in place (none without rows in place).
+        let slots = (0..self.sup.async_api.envs.in_place)
+            .map(|slot| self.sup.rows_of(slot))
             .collect::<Result<Vec<_>, _>>()?;
         let got = self
             .sup
             .async_api
             .envs
-            .take(max, self.sup.spec.obs_bytes(), &writers);
+            .take(max, self.sup.spec.obs_bytes(), &slots);
         // The rows' own replacements by plan, whenever their worker was replaced.
         self.sup.recycling.replaced_envs.clone_from(&got.recycled);
         Ok(got)
@@ -219,10 +255,9 @@ impl Supervisor {
     /// Turn the workers' answers into ready envs, in the order they became ready, and send
     /// what is staged to the workers that are free.
     pub(super) fn absorb(&mut self) -> Result<(), PoolError> {
-        if !self.async_api.ready_order.is_empty() {
+        if !self.arrived.is_empty() {
             let mut arrived: Vec<(u64, usize)> = self
-                .async_api
-                .ready_order
+                .arrived
                 .drain(..)
                 .map(|k| match &self.workers[k].state {
                     LinkState::Ready(s) => (s.user_header().ready_ns, k),
@@ -235,32 +270,49 @@ impl Supervisor {
             for (_, k) in arrived {
                 let target = self.workers[k].target;
                 if target != 0 && !self.workers[k].restarted {
-                    let apart = self.take_in_place(k)?;
-                    self.async_api
-                        .envs
-                        .arrive_in_slot(k, target as usize - 1, apart);
+                    if let Some(apart) = self.take_in_place(k)? {
+                        self.async_api
+                            .envs
+                            .arrive_in_slot(k, target as usize - 1, apart);
+                    }
                     continue;
                 }
                 let recycled = self.workers[k].recycled && self.workers[k].restarted;
-                let block = self.take_block(k)?;
-                self.async_api.envs.arrive(k, block, keep, recycled);
+                if let Some(block) = self.take_block(k)? {
+                    self.async_api.envs.arrive(k, block, keep, recycled);
+                }
             }
         }
         self.dispatch_staged()
     }
 
-    /// Take worker `k`'s answer written in place (its summary words), with the extra info
-    /// that travelled beside it as `(env, bytes)`.
-    fn take_in_place(&mut self, k: usize) -> Result<Vec<(usize, Vec<u8>)>, PoolError> {
+    /// Take worker `k`'s answer written in place, checked as a whole-batch call's is (its
+    /// words, the flag bytes of the rows it wrote, its side file), with the extra info that
+    /// travelled beside it as `(env, bytes)`; `None` when it failed a check and the worker
+    /// was handled as failed.
+    fn take_in_place(&mut self, k: usize) -> Result<Option<Apart>, PoolError> {
         let sample = self.take_answer(k)?;
         self.workers[k].recycled = false;
-        let bits = sample.payload()[..SLOT_ANSWER_WORDS][0];
-        let seq = sample.user_header().seq;
+        let (words, seq) = answer_words(&sample);
         drop(sample);
-        if bits & SLOT_EXTRA_APART == 0 {
-            return Ok(Vec::new());
-        }
-        self.take_apart(k, seq)
+        let target = self.workers[k].target as usize;
+        let rows = self.rows_of(target - 1)?;
+        let sent = self.async_api.envs.sent_to(k);
+        let checked = Answer::decode(&words, self.slot_layout.extra_bytes).and_then(|a| {
+            sent.iter()
+                .try_for_each(|&e| rows.check_flags(e..e + 1))
+                .map(|()| a)
+        });
+        let what = match checked {
+            Ok(a) if !a.apart => return Ok(Some(Vec::new())),
+            Ok(_) => match self.take_apart(k, seq) {
+                Ok(apart) => return Ok(Some(apart)),
+                Err(what) => what,
+            },
+            Err(what) => format!("its answer to command {seq}: {what}"),
+        };
+        self.lose_corrupt(k, what)?;
+        Ok(None)
     }
 
     /// Send each free worker the envs staged for it.

@@ -18,7 +18,7 @@ use std::collections::VecDeque;
 
 use crate::batch::Block;
 use crate::wire::layout::EnvRecord;
-use crate::wire::slot_layout::RowWriter;
+use crate::wire::slot_layout::SlotRows;
 
 /// Where an env stands in the async API.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -78,16 +78,16 @@ pub struct Received {
 }
 
 impl Received {
-    /// Fill the per-env arrays (rows in [`Received::env_ids`] order; no final observations:
-    /// the async API does not return them).
-    pub fn fill(&self, n_info: usize, out: &mut crate::BatchOutput) {
-        out.clear();
-        for (e, r) in self.env_ids.iter().zip(&self.records) {
-            out.push(*e, r, n_info, None);
+    /// Write the rows' records into `columns`, row `r` at index `r` (a binding's `recv`
+    /// columns: the layout of a slot's columns, rows in receive order). Returns whether some
+    /// row reports a restart.
+    pub fn write_columns(&self, columns: &SlotRows) -> bool {
+        let mut restarted = false;
+        for (r, rec) in self.records.iter().enumerate() {
+            columns.record(r, rec);
+            restarted |= rec.restarted();
         }
-        for (row, bytes) in &self.extras {
-            out.extras.push((self.env_ids[*row], bytes.clone()));
-        }
+        restarted
     }
 }
 
@@ -176,6 +176,11 @@ impl AsyncEnvs {
     /// Envs sent and not yet received (staged, in flight or ready).
     pub(super) fn outstanding(&self) -> usize {
         self.turn.iter().filter(|t| **t != Turn::Caller).count()
+    }
+
+    /// The envs of worker `k`'s outstanding command.
+    pub(super) fn sent_to(&self, k: usize) -> &[usize] {
+        &self.sent[k]
     }
 
     /// Every env of `envs` is in flight (a reset was sent to all of them).
@@ -320,12 +325,12 @@ impl AsyncEnvs {
         }
     }
 
-    /// Hand over up to `n` ready envs, first ready first. `writers`: each batch slot's, to read
-    /// the rows written in place; rows that are one run of envs in one slot are handed over
-    /// as a view of it (see [`Received::view`]).
-    pub(super) fn take(&mut self, n: usize, obs_bytes: usize, writers: &[RowWriter]) -> Received {
+    /// Hand over up to `n` ready envs, first ready first. `slots`: each batch slot's rows, to
+    /// read the rows written in place; rows that are one run of envs in one slot are handed
+    /// over as a view of it (see [`Received::view`]).
+    pub(super) fn take(&mut self, n: usize, obs_bytes: usize, slots: &[SlotRows]) -> Received {
         let n = n.min(self.ready.len());
-        if let Some(got) = self.take_view(n, writers) {
+        if let Some(got) = self.take_view(n, slots) {
             return got;
         }
         let mut out = Received {
@@ -364,7 +369,7 @@ impl AsyncEnvs {
                     out.records.push(c.rec);
                 }
                 Some(Row::InSlot { slot, apart }) => {
-                    let w = &writers[*slot];
+                    let w = &slots[*slot];
                     let rec = w.read(e);
                     // SAFETY: env `e`'s rows of the slot: its worker answered, and no command
                     // writes them again until the caller sends to `e`.
@@ -389,7 +394,7 @@ impl AsyncEnvs {
     /// The next `n` ready envs as a view, when they are one run of envs `first..first + n` in
     /// order, written in place in one slot, with no extra info apart (else `None`, nothing
     /// taken). Extra info in the rows' rooms is copied out (`extras`).
-    fn take_view(&mut self, n: usize, writers: &[RowWriter]) -> Option<Received> {
+    fn take_view(&mut self, n: usize, slots: &[SlotRows]) -> Option<Received> {
         let first = *self.ready.front()?;
         let slot = match self.rows[first] {
             Some(Row::InSlot { slot, apart: None }) => slot,
@@ -403,7 +408,7 @@ impl AsyncEnvs {
         if !run || n == 0 {
             return None;
         }
-        let w = writers.get(slot)?;
+        let w = slots.get(slot)?;
         let env_ids: Vec<usize> = self.ready.drain(..n).collect();
         let mut extras = Vec::new();
         let mut records = Vec::with_capacity(n);
@@ -507,12 +512,7 @@ impl AsyncEnvs {
 }
 
 /// Env `e`'s extra info of a row written in place: in its room of the slot, or `apart`.
-fn in_slot_extra(
-    w: &RowWriter,
-    e: usize,
-    rec: &EnvRecord,
-    apart: Option<&[u8]>,
-) -> Option<Vec<u8>> {
+fn in_slot_extra(w: &SlotRows, e: usize, rec: &EnvRecord, apart: Option<&[u8]>) -> Option<Vec<u8>> {
     if let Some(b) = apart {
         return Some(b.to_vec());
     }

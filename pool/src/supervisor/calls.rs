@@ -96,7 +96,7 @@ impl Pool {
                 // Restarted meanwhile: its envs were rebuilt and reset; that reset's block is
                 // dropped, so the caller must reset.
                 c.workers[k].state = LinkState::Idle;
-                c.async_api.ready_order.retain(|&w| w != k);
+                c.arrived.retain(|&w| w != k);
                 c.failures.must_reset = true;
                 return Err(PoolError::State(format!(
                     "worker {k} failed during a call and was restarted; call reset() and retry"

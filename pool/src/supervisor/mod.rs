@@ -1,10 +1,30 @@
-//! The supervisor ([`Pool`]): its state and life cycle (start, seeds, waiting, close).
+//! The supervisor ([`Pool`]): its state and life cycle (start, seeds, close).
 //!
-//! The rest of its job is split by concern: [`stepping`] (sync reset/step, into the caller's
-//! buffer or the shared batch slots), [`async_api`] (EnvPool-style `send`/`recv`), [`calls`]
-//! (env calls off the hot path), [`workers`] (spawning, commanding and watching the worker
-//! processes), [`actions`] (a step's actions and their check), [`waiting`] and [`state`] (the
-//! supervisor's state by concern).
+//! # One step, end to end
+//!
+//! A sync [`Pool::step`] (`stepping.rs`) checks the actions once ([`Actions::check`],
+//! `actions.rs`) and sends each worker its block of them with the slot to write
+//! (`Supervisor::send_step`, `workers.rs`: a `Command` word, `wire/command.rs`, and the
+//! action words, over the worker's command port, `ipc/src/ports.rs`). The worker
+//! (`worker.rs`, [`crate::worker_main`]) wakes from its wait (`ipc/src/wait.rs`), steps each
+//! env of its block (`worker/envs.rs`, `worker/env_state.rs`: the env's state machine) and
+//! each env writes its row of the slot in place: observation, reward, flags, episode books
+//! (`worker/block_out.rs`, `wire/slot_layout.rs`). The worker then writes its envs' episode
+//! books (`wire/books.rs`) and publishes one answer whose first words say what else there is
+//! to read (`Answer`, `wire/answer.rs`). The caller's wait ([`Pool::wait`], through the
+//! pool's one wait loop in `waiting.rs`) polls the workers' answer ports (`workers.rs`:
+//! `Supervisor::poll_all`), takes each answer and checks it
+//! (`slot_answers.rs`), and returns a [`crate::SlotAnswer`]: the slot, and whether to read
+//! final observations, restarts or extra info. The Python front reads the slot's rows as
+//! numpy views (`python/src/pool/sync_api.rs`, `python/rogue_gym/front/core.py`).
+//!
+//! The async API (`async_api.rs`: `send`/`recv`, env by env) sends the same commands, a
+//! subset of a block's envs at a time, and turns answers into ready envs
+//! (`async_envs.rs`); env calls go through files (`calls.rs`); planned replacements of
+//! workers are `recycling.rs`; the supervisor's state is grouped by concern in `state.rs`.
+//!
+//! Modules: `actions`, `async_api`, `async_envs`, `calls`, `recycling`, `slot_answers`,
+//! `state`, `stepping`, `waiting`, `workers`.
 
 mod actions;
 mod async_api;
@@ -55,6 +75,8 @@ struct Supervisor {
     config_path: PathBuf,
     settings: ChannelSettings,
     workers: Vec<WorkerLink>,
+    /// Workers whose answer has arrived and waits to be taken, in the order polled.
+    arrived: VecDeque<usize>,
     /// Each worker's current pid, readable from other threads during a call
     /// ([`Pool::pids_handle`]).
     pids: std::sync::Arc<[std::sync::atomic::AtomicU32]>,
@@ -206,6 +228,7 @@ impl Pool {
                 config_path,
                 settings,
                 workers: Vec::new(),
+                arrived: VecDeque::new(),
                 pids: (0..num_workers).map(|_| Default::default()).collect(),
                 node: None,
                 cores: std::thread::available_parallelism().map_or(1, |c| c.get()),
@@ -218,23 +241,11 @@ impl Pool {
                 reload_seeds: vec![false; num_workers],
                 worker_config: None,
                 started: false,
-                call: CallInFlight {
-                    started: Instant::now(),
-                    failed_at: None,
-                    faults: Vec::new(),
-                    discard_faults: false,
-                    split: None,
-                    collecting: None,
-                    split_sent: Instant::now(),
-                    split_sent_ns: 0,
-                    expected_answer: None,
-                    wait_now: None,
-                },
+                call: CallInFlight::new(),
                 async_api: AsyncState {
                     envs,
                     on: false,
                     whole_blocks,
-                    ready_order: VecDeque::new(),
                 },
                 failures: Failures {
                     restarts: 0,
@@ -314,7 +325,7 @@ impl Pool {
     }
 
     /// Replace the seed schedule and restart every env's episode count: the next reset
-    /// ([`Pool::reset`], [`Pool::reset_shared`] or [`Pool::async_reset`], which you must call
+    /// ([`Pool::reset`], [`Pool::send_reset`] or [`Pool::async_reset`], which you must call
     /// next) starts episode 0 of every env under `seeds`, so the run continues exactly as a
     /// fresh pool created with `seeds` would (gymnasium's `reset(seed=...)`). Outstanding
     /// async results are discarded.
@@ -434,6 +445,30 @@ impl Pool {
         std::mem::replace(&mut self.interrupt, check)
     }
 
+    /// Run `f` (a call of this pool) so that a panic in it (a bug) becomes
+    /// [`PoolError::Internal`] rather than unwinding into the caller: the pool then needs a
+    /// reset, and stays usable (a binding that keeps the pool behind a mutex runs its calls
+    /// through this, so that the mutex is never poisoned).
+    pub fn guarded<R>(
+        &mut self,
+        f: impl FnOnce(&mut Pool) -> Result<R, PoolError>,
+    ) -> Result<R, PoolError> {
+        // Unwind safety: after a panic the pool is only reset (which rebuilds the state of
+        // every call) or closed.
+        match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(&mut *self))) {
+            Ok(r) => r,
+            Err(panic) => {
+                self.sup.failures.must_reset = true;
+                let what = panic
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| panic.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "a panic".into());
+                Err(PoolError::Internal(what))
+            }
+        }
+    }
+
     /// Start a public call: the pool must be open; the call's bound counts from now.
     fn begin_call(&mut self) -> Result<(), PoolError> {
         if self.sup.closed {
@@ -442,18 +477,6 @@ impl Pool {
         self.sup.call.started = Instant::now();
         self.sup.call.failed_at = None;
         self.sup.recycling.replaced_envs.clear();
-        Ok(())
-    }
-
-    fn check_obs_buf(&self, obs_out: &[u8]) -> Result<(), PoolError> {
-        let expected = self.sup.cfg.num_envs * self.sup.spec.obs_bytes();
-        if obs_out.len() != expected {
-            return Err(PoolError::BadBuffer {
-                what: "observation buffer",
-                expected,
-                got: obs_out.len(),
-            });
-        }
         Ok(())
     }
 
@@ -477,8 +500,7 @@ impl Pool {
     /// Wait for every outstanding request (and starting worker) and discard the results,
     /// env errors of those requests included.
     fn drain(&mut self) -> Result<(), PoolError> {
-        self.sup.call.split = None;
-        self.sup.call.collecting = None;
+        self.sup.call.sent = None;
         self.sup.call.faults.clear();
         self.sup.call.discard_faults = true;
         let drained = self.wait_until(|c| {
@@ -494,7 +516,7 @@ impl Pool {
             }
             s.restarted = false;
         }
-        self.sup.async_api.ready_order.clear();
+        self.sup.arrived.clear();
         self.sup.async_api.envs.clear();
         self.sup.async_api.on = false;
         Ok(())
@@ -535,7 +557,7 @@ impl Pool {
                 }
             }
         }
-        c.async_api.ready_order.clear();
+        c.arrived.clear();
         c.async_api.envs.clear();
         c.workers.clear();
         c.pids

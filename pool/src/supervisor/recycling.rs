@@ -199,7 +199,7 @@ impl Supervisor {
         rogue_gym_ipc::private::create_private_file(&successor_go(&self.id, k, succ.generation))?;
         let s = &mut self.workers[k];
         while s.ports.try_recv()?.is_some() {}
-        self.async_api.ready_order.retain(|&w| w != k);
+        self.arrived.retain(|&w| w != k);
         let _ = fs::remove_file(&s.stderr_path);
         let _ = fs::remove_file(successor_marker(&self.id, k, succ.generation));
         s.generation = succ.generation;

@@ -1,20 +1,22 @@
 //! The answers of a whole-batch call (step, reset, partial reset): the workers wrote every
-//! row in place in the call's batch slot, so the supervisor takes one answer word per worker,
-//! as the answers arrive, and waits for them as long as they usually take.
-
-use std::time::{Duration, Instant};
+//! row in place in the call's batch slot, so the supervisor takes one answer per worker, as
+//! the answers arrive, and checks what each says before it believes it ([`Answer::decode`],
+//! the flag bytes of its rows, the rows of its side file). A worker whose answer fails a check
+//! is handled as a failed worker ([`FailureCause::Corrupt`]).
 
 use rogue_gym_ipc::BlockSample;
 
 use super::Supervisor;
 use super::workers::LinkState;
 use crate::batch::{SlotAnswer, SlotExtras};
-use crate::error::PoolError;
-use crate::wire::slot_layout::{RowWriter, SlotLayout};
-use crate::wire::{
-    SLOT_ANSWER_WORDS, SLOT_EXTRA_ANY, SLOT_EXTRA_APART, SLOT_EXTRA_UNIFORM, SLOT_FINAL, calls,
-    extra_apart_path,
-};
+use crate::error::{FailureCause, PoolError};
+use crate::wire::answer::{ANSWER_WORDS, Answer, AnswerExtras, EXTRA_HEAD};
+use crate::wire::slot_layout::SlotRows;
+use crate::wire::{calls, extra_apart_path};
+
+/// Extra info that travelled beside an answer (it did not fit its env's room), as
+/// `(env, bytes)`.
+pub(super) type Apart = Vec<(usize, Vec<u8>)>;
 
 /// A whole-batch call's answers, taken worker by worker as they arrive.
 #[derive(Debug, Default)]
@@ -25,13 +27,13 @@ pub(super) struct SlotCollect {
     pub(super) answered: usize,
     /// When the last answer so far was published (the workers' stamp, `CLOCK_MONOTONIC`).
     pub(super) ready_ns: u64,
-    /// Workers whose envs wrote extra info.
-    irregular: Vec<usize>,
+    /// Workers whose envs wrote extra info not of one layout.
+    mixed: Vec<usize>,
     /// Extra info that travelled beside the answers.
-    apart: Vec<(usize, Vec<u8>)>,
-    /// Each answer's extra layout (size, head), while all agree.
-    uniform: Option<[u64; 3]>,
-    all_uniform: bool,
+    apart: Apart,
+    /// The layout of every answer's extra info so far, while all are one.
+    uniform: Option<(usize, [u8; EXTRA_HEAD])>,
+    not_uniform: bool,
 }
 
 impl SlotCollect {
@@ -42,71 +44,81 @@ impl SlotCollect {
                 slot,
                 ..Default::default()
             },
-            all_uniform: true,
             ..Default::default()
         }
     }
 }
 
-/// Calls shorter than this are polled for from start to end (when the caller has a core of
-/// its own); longer ones are slept through for three quarters first.
-const FULL_POLL: Duration = Duration::from_millis(20);
-
 impl Supervisor {
-    /// Take the answers that have arrived for the whole-batch call into slot `acc.slot`, as
-    /// they come (a worker whose answer is taken is idle again: if it dies now, it is
-    /// replaced at once). The workers wrote every row in place; one word per worker says what
-    /// else there is to read. The one case the supervisor writes rows: a restarted worker's
-    /// envs are marked restarted (their episodes were cut).
+    /// Take the answers that have arrived for the whole-batch call into slot
+    /// `acc.answer.slot`, as they come (a worker whose answer is taken is idle again: if it
+    /// dies now, it is replaced at once). The one case the supervisor writes rows: a restarted
+    /// worker's envs are marked restarted (their episodes were cut).
     pub(super) fn take_slot_answers(&mut self, acc: &mut SlotCollect) -> Result<(), PoolError> {
-        if self.async_api.ready_order.is_empty() && acc.answered < self.workers.len() {
+        if self.arrived.is_empty() {
             return Ok(()); // nothing new: the usual poll while the workers step
         }
-        let layout = self.slot_layout;
-        let writer = self.writer_of(acc.answer.slot)?;
-        while let Some(k) = self.async_api.ready_order.pop_front() {
+        let rows = self.rows_of(acc.answer.slot)?;
+        let room = self.slot_layout.extra_bytes;
+        while let Some(k) = self.arrived.pop_front() {
             let sample = self.take_answer(k)?;
             let s = &mut self.workers[k];
-            acc.answered += 1;
             let restarted = std::mem::take(&mut s.restarted);
-            let block = self.blocks[k].clone();
             if std::mem::take(&mut s.recycled) && restarted {
-                self.recycling.replaced_envs.extend(block.clone());
+                self.recycling.replaced_envs.extend(self.blocks[k].clone());
             }
-            let mut words = [0u64; SLOT_ANSWER_WORDS];
-            words.copy_from_slice(&sample.payload()[..SLOT_ANSWER_WORDS]);
-            let (bits, seq) = (words[0], sample.user_header().seq);
+            let (words, seq) = answer_words(&sample);
             acc.ready_ns = acc.ready_ns.max(sample.user_header().ready_ns);
             drop(sample);
+            let checked = Answer::decode(&words, room).and_then(|a| {
+                rows.check_flags(self.blocks[k].clone())?;
+                Ok(a)
+            });
+            let answer = match checked {
+                Ok(a) => a,
+                Err(what) => {
+                    self.lose_corrupt(k, format!("its answer to command {seq}: {what}"))?;
+                    continue;
+                }
+            };
+            let apart = if answer.apart {
+                match self.take_apart(k, seq) {
+                    Ok(apart) => apart,
+                    Err(what) => {
+                        self.lose_corrupt(k, what)?;
+                        continue;
+                    }
+                }
+            } else {
+                Vec::new()
+            };
+            acc.answered += 1;
             if restarted {
+                // Its envs report the restart, not their reset's final obs or info.
                 acc.answer.restarted = true;
-                for i in block.clone() {
-                    writer.mark_restarted(i);
+                acc.not_uniform = true;
+                for i in self.blocks[k].clone() {
+                    rows.mark_restarted(i);
                 }
-            } else if bits & SLOT_FINAL != 0 {
-                acc.answer.final_obs = true;
-            }
-            if bits & SLOT_EXTRA_APART != 0 {
-                let apart = self.take_apart(k, seq)?;
-                if !restarted {
-                    acc.apart.extend(apart);
-                }
-            }
-            if bits & SLOT_EXTRA_ANY == 0 || restarted {
-                // Not every env wrote extra info (a restarted worker's envs report the restart,
-                // not their reset's info).
-                acc.all_uniform = false;
                 continue;
             }
-            acc.irregular.push(k);
-            let key = [words[1], words[2], words[3]];
-            if bits & SLOT_EXTRA_UNIFORM == 0 || acc.uniform.is_some_and(|u| u != key) {
-                acc.all_uniform = false;
+            acc.answer.final_obs |= answer.final_obs;
+            acc.apart.extend(apart);
+            match answer.extras {
+                AnswerExtras::None => acc.not_uniform = true,
+                AnswerExtras::Mixed => {
+                    acc.not_uniform = true;
+                    acc.mixed.push(k);
+                }
+                AnswerExtras::Uniform { size, head } => {
+                    acc.not_uniform |= acc.uniform.is_some_and(|u| u != (size, head));
+                    acc.uniform = Some((size, head));
+                    acc.mixed.push(k);
+                }
             }
-            acc.uniform = Some(key);
         }
         if acc.answered == self.workers.len() {
-            acc.answer.extras = self.slot_extras(acc, &writer, &layout);
+            acc.answer.extras = self.slot_extras(acc, &rows);
         }
         Ok(())
     }
@@ -124,98 +136,91 @@ impl Supervisor {
     }
 
     /// The extra info that did not fit its envs' rooms and travelled beside worker `k`'s
-    /// answer `seq` written in place, as `(env, bytes)`.
-    pub(super) fn take_apart(
-        &mut self,
-        k: usize,
-        seq: u64,
-    ) -> Result<Vec<(usize, Vec<u8>)>, PoolError> {
+    /// answer `seq`, as `(env, bytes)`: the one reader of that side file. Each entry's row
+    /// must be one of the worker's envs, once; an error says what was wrong.
+    pub(super) fn take_apart(&mut self, k: usize, seq: u64) -> Result<Apart, String> {
         let path = extra_apart_path(&self.id, k, self.workers[k].generation, seq);
-        let entries = calls::take(&path).map_err(|e| {
-            PoolError::Io(format!(
-                "worker {k}: the extra info beside answer {seq}: {e}"
-            ))
-        })?;
+        let entries = calls::take(&path)
+            .map_err(|e| format!("the extra info beside its answer {seq}: {e}"))?;
+        let block = self.blocks[k].clone();
+        let mut seen = vec![false; block.len()];
+        for (j, _) in &entries {
+            match seen.get_mut(*j as usize) {
+                Some(s) if !*s => *s = true,
+                Some(_) => {
+                    return Err(format!(
+                        "the extra info of row {j} twice beside answer {seq}"
+                    ));
+                }
+                None => {
+                    return Err(format!(
+                        "extra info for row {j} beside answer {seq}, but it hosts {} envs",
+                        block.len()
+                    ));
+                }
+            }
+        }
         self.counts[k].spilled_bytes += entries.iter().map(|(_, b)| b.len() as u64).sum::<u64>();
-        let first = self.blocks[k].start;
         Ok(entries
             .into_iter()
-            .map(|(j, b)| (first + j as usize, b))
+            .map(|(j, b)| (block.start + j as usize, b))
             .collect())
     }
 
+    /// Worker `k` answered with values outside their bounds (`what` says which): it is
+    /// handled as a failed worker (killed, then restarted or raised per the failure policy),
+    /// and its envs' episodes were cut.
+    pub(super) fn lose_corrupt(&mut self, k: usize, what: String) -> Result<(), PoolError> {
+        self.lose(k, FailureCause::Corrupt(what), true)
+    }
+
     /// The extra info of a whole-batch call, once every worker answered.
-    fn slot_extras(
-        &self,
-        acc: &mut SlotCollect,
-        writer: &RowWriter,
-        layout: &SlotLayout,
-    ) -> SlotExtras {
-        match (acc.irregular.is_empty(), acc.all_uniform, acc.uniform) {
+    fn slot_extras(&self, acc: &mut SlotCollect, rows: &SlotRows) -> SlotExtras {
+        match (acc.mixed.is_empty(), acc.not_uniform, acc.uniform) {
             (true, _, _) if acc.apart.is_empty() => SlotExtras::None,
-            (false, true, Some([size, _, _])) => SlotExtras::Uniform(size as usize),
+            (false, false, Some((size, _))) => SlotExtras::Uniform(size),
             _ => {
-                // Not one layout (e.g. infos that are pickled): env by env.
-                let xb = layout.extra_bytes;
+                // Not one layout (e.g. infos that are pickled): env by env, each as long as
+                // its `extra_len` says, at most its room.
+                let xb = self.slot_layout.extra_bytes;
                 // SAFETY: every worker has answered: no one writes the slot now.
-                let room = unsafe { writer.extra_rows(0..layout.num_envs) };
-                let mut rows = std::mem::take(&mut acc.apart);
-                for &k in &acc.irregular {
+                let room = unsafe { rows.extra_rows(0..self.slot_layout.num_envs) };
+                let mut out = std::mem::take(&mut acc.apart);
+                for &k in &acc.mixed {
                     for i in self.blocks[k].clone() {
-                        let len = (writer.read(i).extra_len as usize).min(xb);
+                        let len = (rows.read(i).extra_len as usize).min(xb);
                         if len > 0 {
-                            rows.push((i, room[i * xb..i * xb + len].to_vec()));
+                            out.push((i, room[i * xb..i * xb + len].to_vec()));
                         }
                     }
                 }
-                rows.sort_by_key(|(i, _)| *i);
-                SlotExtras::Rows(rows)
+                out.sort_by_key(|(i, _)| *i);
+                SlotExtras::Rows(out)
             }
         }
     }
 
-    /// A writer of slot `slot`'s rows.
-    pub(super) fn writer_of(&self, slot: usize) -> Result<RowWriter, PoolError> {
+    /// The rows of slot `slot`.
+    pub(super) fn rows_of(&self, slot: usize) -> Result<SlotRows, PoolError> {
         match &self.batch {
             // SAFETY: the slot lies inside the mapping, which `self.batch` keeps alive; it is
             // 64-byte aligned (page-aligned mapping, 64-byte slots).
             Some(b) if slot < self.cfg.batch_slots => unsafe {
                 Ok(self
                     .slot_layout
-                    .writer(b.as_ptr().add(slot * self.slot_layout.bytes())))
+                    .rows(b.as_ptr().add(slot * self.slot_layout.bytes())))
             },
             _ => Err(PoolError::Closed),
         }
     }
+}
 
-    /// How to wait for the answers of the whole-batch call in flight, when the workers leave
-    /// the caller a core (fewer workers than cores) and the last call took at most 50 ms: poll
-    /// through a call of under [`FULL_POLL`] (for up to twice its time); for a longer one, sleep until three quarters of it
-    /// have passed since the call was sent (less 200 us: the CPU is free meanwhile, and an
-    /// early answer still wakes it), then poll for up to half of it (at most 2 ms), so that the
-    /// answer is seen without a wake-up. `None`: the pool's own policy.
-    pub(super) fn expected_wait(&self) -> Option<rogue_gym_ipc::WaitPolicy> {
-        let expected = self.call.expected_answer?;
-        if self.workers.len() >= self.cores || expected > Duration::from_millis(50) {
-            return None;
-        }
-        if expected < FULL_POLL {
-            // Poll through a short call: a sleep shorter than the kernel's timer slack (50 us)
-            // would only oversleep, and a wake-up costs tens of microseconds.
-            return Some(rogue_gym_ipc::WaitPolicy {
-                poll_budget: self.cfg.wait.poll_budget.max(expected * 2),
-                ..self.cfg.wait
-            });
-        }
-        let wake = self.call.split_sent + expected * 3 / 4 - Duration::from_micros(200);
-        Some(rogue_gym_ipc::WaitPolicy {
-            sleep_first: wake.saturating_duration_since(Instant::now()),
-            poll_budget: self
-                .cfg
-                .wait
-                .poll_budget
-                .max((expected / 2).min(Duration::from_millis(2))),
-            ..self.cfg.wait
-        })
+/// An answer's first words and its command's sequence number (zeros where a block is too
+/// short to hold them: [`Answer::decode`] refuses those).
+pub(super) fn answer_words(sample: &BlockSample) -> ([u64; ANSWER_WORDS], u64) {
+    let mut words = [0u64; ANSWER_WORDS];
+    if let Some(w) = sample.payload().get(..ANSWER_WORDS) {
+        words.copy_from_slice(w);
     }
+    (words, sample.user_header().seq)
 }

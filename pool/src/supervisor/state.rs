@@ -1,12 +1,13 @@
 //! The supervisor's state, grouped by concern: the call in flight, the async API, worker
 //! failures and recycling ([`super::Supervisor`] holds one of each).
 
-use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
+use super::slot_answers::SlotCollect;
 use crate::error::{PoolError, WorkerFailure};
 
-/// The call in progress: its bound, its failures so far, and a split whole-batch call.
+/// The call in progress: its bound, its failures so far, and a whole-batch call sent and not
+/// yet collected.
 pub(super) struct CallInFlight {
     /// When the current call began, and when a worker first failed during it: its bound
     /// ([`super::Supervisor::call_deadline`]) counts from these.
@@ -18,20 +19,49 @@ pub(super) struct CallInFlight {
     /// While draining stale answers before a reset: env errors of abandoned commands are
     /// dropped, not raised (the reset starts those envs afresh anyway); lost workers are not.
     pub(super) discard_faults: bool,
-    /// The shared slot of a sync step or reset that was sent and not yet collected
-    /// ([`crate::Pool::send_step_shared`], [`crate::Pool::wait_shared`]).
-    pub(super) split: Option<usize>,
-    /// The answers of that call taken so far.
-    pub(super) collecting: Option<super::slot_answers::SlotCollect>,
-    /// When the whole-batch call in flight was sent, and the same on the clock the workers
-    /// stamp their answers with (`CLOCK_MONOTONIC`, ns).
-    pub(super) split_sent: Instant,
-    pub(super) split_sent_ns: u64,
+    /// The whole-batch call sent and not yet collected ([`crate::Pool::send_step`],
+    /// [`crate::Pool::wait`]).
+    pub(super) sent: Option<SentCall>,
     /// How long the workers took to answer the last whole-batch call they were waited for:
     /// the next wait sleeps through most of it and polls for the rest.
     pub(super) expected_answer: Option<Duration>,
     /// The wait policy of the wait in progress, when it differs from the pool's.
     pub(super) wait_now: Option<rogue_gym_ipc::WaitPolicy>,
+}
+
+/// A whole-batch call (step, reset, partial reset) sent to every worker: its slot, when it was
+/// sent, and its answers taken so far.
+pub(super) struct SentCall {
+    /// When it was sent, and the same on the clock the workers stamp their answers with
+    /// (`CLOCK_MONOTONIC`, ns).
+    pub(super) at: Instant,
+    pub(super) at_ns: u64,
+    /// Its answers so far (the slot they are written in, among them).
+    pub(super) answers: SlotCollect,
+}
+
+impl CallInFlight {
+    /// A call in flight from now on: no failure, nothing sent.
+    pub(super) fn new() -> Self {
+        CallInFlight {
+            started: Instant::now(),
+            failed_at: None,
+            faults: Vec::new(),
+            discard_faults: false,
+            sent: None,
+            expected_answer: None,
+            wait_now: None,
+        }
+    }
+
+    /// A whole-batch call into slot `slot` was just sent to every worker.
+    pub(super) fn sent_to_all(&mut self, slot: usize) {
+        self.sent = Some(SentCall {
+            at: Instant::now(),
+            at_ns: rogue_gym_ipc::monotonic_ns(),
+            answers: SlotCollect::new(slot),
+        });
+    }
 }
 
 /// The EnvPool-style async API ([`super::async_api`]).
@@ -40,11 +70,9 @@ pub(super) struct AsyncState {
     pub(super) envs: super::async_envs::AsyncEnvs,
     /// In use (from `async_reset` or a `send` to the next reset).
     pub(super) on: bool,
-    /// Workers host a vector env each ([`crate::EnvRegistry::builds_blocks`]): it sends whole worker
-    /// blocks only.
+    /// Workers host a vector env each ([`crate::EnvRegistry::builds_blocks`]): it sends whole
+    /// worker blocks only.
     pub(super) whole_blocks: bool,
-    /// Workers whose answer has arrived, in the order polled.
-    pub(super) ready_order: VecDeque<usize>,
 }
 
 /// Worker failures over the pool's life, and what they leave to do.

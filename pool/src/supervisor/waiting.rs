@@ -2,7 +2,8 @@
 //! and its two simpler forms), which polls and blocks as the wait policy says, checks the
 //! workers' liveness when idle, runs the interrupt check of a long wait, raises the failures
 //! of a call once every worker of it has answered, and gives up a little before the call's
-//! bound ([`Supervisor::call_deadline`]) with an error that says who is still missing.
+//! bound ([`Supervisor::call_deadline`]) with an error that says who is still missing; and
+//! the policy of a whole-batch call's wait ([`Supervisor::expected_wait`]).
 
 use std::time::{Duration, Instant};
 
@@ -18,6 +19,14 @@ const INTERRUPT_AFTER: Duration = Duration::from_millis(5);
 
 /// How long before its bound a call gives up: time to build and raise the error.
 const DEADLINE_MARGIN: Duration = Duration::from_millis(20);
+
+/// Calls shorter than this are polled for from start to end (when the caller has a core of
+/// its own); longer ones are slept through for three quarters first.
+const FULL_POLL: Duration = Duration::from_millis(20);
+
+/// The longest call whose answer the caller waits for by its own policy rather than the
+/// pool's: longer ones are slept through.
+const EXPECTED_AT_MOST: Duration = Duration::from_millis(50);
 
 impl Pool {
     pub(super) fn wait_until(
@@ -104,6 +113,38 @@ impl Pool {
 }
 
 impl Supervisor {
+    /// How to wait for the answers of the whole-batch call sent at `sent`, when the workers
+    /// leave the caller a core (fewer workers than cores) and the last call took at most
+    /// [`EXPECTED_AT_MOST`]: poll through a call of under [`FULL_POLL`] (for up to twice its
+    /// time); for a longer one, sleep until three quarters of it have passed since the call
+    /// was sent (less 200 us: the CPU is free meanwhile, and an early answer still wakes it),
+    /// then poll for up to half of it (at most 2 ms), so that the answer is seen without a
+    /// wake-up. `None`: the pool's own policy.
+    pub(super) fn expected_wait(&self, sent: Instant) -> Option<rogue_gym_ipc::WaitPolicy> {
+        let expected = self.call.expected_answer?;
+        if self.workers.len() >= self.cores || expected > EXPECTED_AT_MOST {
+            return None;
+        }
+        if expected < FULL_POLL {
+            // Poll through a short call: a sleep shorter than the kernel's timer slack (50 us)
+            // would only oversleep, and a wake-up costs tens of microseconds.
+            return Some(rogue_gym_ipc::WaitPolicy {
+                poll_budget: self.cfg.wait.poll_budget.max(expected * 2),
+                ..self.cfg.wait
+            });
+        }
+        let wake = sent + expected * 3 / 4 - Duration::from_micros(200);
+        Some(rogue_gym_ipc::WaitPolicy {
+            sleep_first: wake.saturating_duration_since(Instant::now()),
+            poll_budget: self
+                .cfg
+                .wait
+                .poll_budget
+                .max((expected / 2).min(Duration::from_millis(2))),
+            ..self.cfg.wait
+        })
+    }
+
     /// When the current call must give up (see [`Pool::call_bound`]): a little before its
     /// bound, so that the error is raised within it.
     pub(super) fn call_deadline(&self) -> Option<Instant> {

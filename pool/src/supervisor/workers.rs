@@ -16,11 +16,9 @@ use super::actions::Actions;
 use crate::batch::Block;
 use crate::config::FailurePolicy;
 use crate::error::{FailureCause, PoolError, WorkerFailure};
-use crate::wire::books::next_seq;
-use crate::wire::{
-    BLOCK_CALL, BLOCK_DATA, BLOCK_ERROR, BLOCK_READY, Command, EnvFault, KEEP_EPISODE, Op, calls,
-    env_fault_path, extra_apart_path,
-};
+use crate::wire::answer::BlockKind;
+use crate::wire::books::{next_episode, next_seq};
+use crate::wire::{Command, EnvFault, KEEP_EPISODE, Op, calls, env_fault_path};
 
 pub(super) enum LinkState {
     /// Dead, waiting out its restart backoff; respawned at `until` (restart policy).
@@ -229,19 +227,30 @@ impl Supervisor {
     ) -> Result<(), PoolError> {
         let range = self.env_range(k);
         self.workers[k].action_extras = None; // staged for a step that a reset replaces
+        self.workers[k].target = target;
         // A replaced worker resets all its envs; in a partial reset they say why.
         let cut = std::mem::take(&mut self.workers[k].cut);
         self.workers[k].restarted |= cut && mask.is_some();
         let mask = mask.filter(|_| !cut);
-        let eps: Vec<u64> = range
-            .map(|i| {
-                if mask.is_some_and(|m| !m[i]) {
-                    KEEP_EPISODE
-                } else {
-                    self.book(k, i).map_or(0, |(e, _)| e + 1)
-                }
-            })
-            .collect();
+        let mut eps = Vec::with_capacity(range.len());
+        for i in range {
+            if mask.is_some_and(|m| !m[i]) {
+                eps.push(KEEP_EPISODE);
+                continue;
+            }
+            let Some((e, _)) = self.book(k, i) else {
+                eps.push(0);
+                continue;
+            };
+            let Some(next) = next_episode(e) else {
+                // The worker wrote an episode index no env reaches: its envs' place in the
+                // seed schedule is lost, so they start over from episode 0.
+                self.workers[k].first_episodes = true;
+                let what = format!("env {i}'s episode index {e} in the episode books");
+                return self.lose(k, FailureCause::Corrupt(what), true);
+            };
+            eps.push(next);
+        }
         let cmd = Command {
             reload_seeds: std::mem::take(&mut self.reload_seeds[k]),
             ..self.command(Op::Reset, target)
@@ -341,44 +350,42 @@ impl Supervisor {
         Ok(())
     }
 
-    pub(super) fn take_block(&mut self, k: usize) -> Result<Block, PoolError> {
+    /// Worker `k`'s answer by block, which has arrived (it is idle again); `None` when the
+    /// answer failed a check and the worker was handled as failed ([`Supervisor::lose`]).
+    pub(super) fn take_block(&mut self, k: usize) -> Result<Option<Block>, PoolError> {
+        let sample = self.take_answer(k)?;
         let s = &mut self.workers[k];
-        match std::mem::replace(&mut s.state, LinkState::Idle) {
-            LinkState::Ready(sample) => {
-                let restarted = std::mem::take(&mut s.restarted);
-                if std::mem::take(&mut s.recycled) && restarted {
-                    self.recycling.replaced_envs.extend(self.blocks[k].clone());
-                }
-                let layout = self.layouts[k];
-                let apart =
-                    if (0..layout.envs).any(|j| layout.record(sample.payload(), j).extra_apart()) {
-                        let seq = sample.user_header().seq;
-                        let path = extra_apart_path(&self.id, k, s.generation, seq);
-                        let apart = calls::take(&path).map_err(|e| {
-                            PoolError::Io(format!(
-                                "worker {k}: the extra info beside block {seq}: {e}"
-                            ))
-                        })?;
-                        self.counts[k].spilled_bytes +=
-                            apart.iter().map(|(_, b)| b.len() as u64).sum::<u64>();
-                        apart
-                    } else {
-                        Vec::new()
-                    };
-                Ok(Block {
-                    worker: k,
-                    env_start: self.blocks[k].start,
-                    layout,
-                    restarted,
-                    sample,
-                    apart,
-                })
-            }
-            other => {
-                s.state = other;
-                Err(PoolError::State(format!("worker {k} has no block ready")))
-            }
+        let restarted = std::mem::take(&mut s.restarted);
+        if std::mem::take(&mut s.recycled) && restarted {
+            self.recycling.replaced_envs.extend(self.blocks[k].clone());
         }
+        let layout = self.layouts[k];
+        let seq = sample.user_header().seq;
+        let first = self.blocks[k].start;
+        let any_apart = (0..layout.envs).any(|j| layout.record(sample.payload(), j).extra_apart());
+        let apart = if any_apart {
+            match self.take_apart(k, seq) {
+                Ok(apart) => apart,
+                Err(what) => {
+                    drop(sample);
+                    self.lose_corrupt(k, what)?;
+                    return Ok(None);
+                }
+            }
+        } else {
+            Vec::new()
+        };
+        Ok(Some(Block {
+            worker: k,
+            env_start: first,
+            layout,
+            restarted,
+            sample,
+            apart: apart
+                .into_iter()
+                .map(|(e, b)| ((e - first) as u32, b))
+                .collect(),
+        }))
     }
 
     /// Take every available block of starting and pending workers.
@@ -399,8 +406,8 @@ impl Supervisor {
                 if h.generation != s.generation {
                     continue; // from a dead incarnation
                 }
-                match (&s.state, h.kind) {
-                    (LinkState::Starting { then_reset, .. }, BLOCK_READY) => {
+                match (&s.state, BlockKind::from_word(h.kind)) {
+                    (LinkState::Starting { then_reset, .. }, Some(BlockKind::Ready)) => {
                         if *then_reset {
                             drop(sample);
                             // Same observation target as the interrupted command; in the
@@ -411,19 +418,19 @@ impl Supervisor {
                             s.state = LinkState::Idle;
                         }
                     }
-                    (LinkState::Pending { .. }, BLOCK_DATA) if h.seq == s.seq => {
+                    (LinkState::Pending { .. }, Some(BlockKind::Data)) if h.seq == s.seq => {
                         s.restart_streak = 0;
                         // The worker wrote its envs' books for this answer.
                         s.delivered = Some(h.seq);
                         s.first_episodes = false;
                         s.state = LinkState::Ready(sample);
-                        self.async_api.ready_order.push_back(k);
+                        self.arrived.push_back(k);
                     }
-                    (LinkState::Pending { .. }, BLOCK_CALL) if h.seq == s.seq => {
+                    (LinkState::Pending { .. }, Some(BlockKind::Call)) if h.seq == s.seq => {
                         s.restart_streak = 0;
                         s.state = LinkState::Idle;
                     }
-                    (LinkState::Pending { .. }, BLOCK_ERROR) if h.seq == s.seq => {
+                    (LinkState::Pending { .. }, Some(BlockKind::Error)) if h.seq == s.seq => {
                         drop(sample);
                         s.restart_streak = 0;
                         s.state = LinkState::Idle;
@@ -591,7 +598,7 @@ impl Supervisor {
         rogue_gym_ipc::cleanup_dead_nodes(&self.id)?;
         // Drop whatever the dead incarnation left in the queue.
         while self.workers[k].ports.try_recv()?.is_some() {}
-        self.async_api.ready_order.retain(|&w| w != k);
+        self.arrived.retain(|&w| w != k);
         // Its stderr's tail is in the failure report already: a storm must not pile up files.
         let _ = fs::remove_file(&self.workers[k].stderr_path);
         // A successor being built (recycling) is of no use now: the next generation is after it.
@@ -601,6 +608,38 @@ impl Supervisor {
         self.workers[k].recycled = false;
         self.workers[k].generation += 1;
         self.spawn(k, then_reset)
+    }
+
+    /// Worker `k` failed for `cause`, found by a check of what it wrote rather than by its
+    /// exit: kill it and handle the failure like a death ([`Supervisor::handle_failure`]).
+    pub(super) fn lose(
+        &mut self,
+        k: usize,
+        cause: FailureCause,
+        then_reset: bool,
+    ) -> Result<(), PoolError> {
+        let range = self.env_range(k);
+        let s = &mut self.workers[k];
+        let status = s.child.take().and_then(|mut ch| {
+            let _ = ch.kill();
+            ch.wait().ok()
+        });
+        let (code, signal) = status.as_ref().map(status_parts).unwrap_or((None, None));
+        s.state = LinkState::Idle;
+        let failure = WorkerFailure {
+            worker: k,
+            env_ids: range.clone(),
+            pid: s.pid,
+            cause,
+            exit_code: code,
+            signal,
+            seeds: range
+                .map(|i| self.book(k, i).map_or(0, |(_, seed)| seed))
+                .collect(),
+            stderr_tail: stderr_tail(&self.workers[k].stderr_path),
+            starting: false,
+        };
+        self.handle_failure(k, failure, then_reset)
     }
 
     /// A worker died or hung (while starting, restarting or stepping). Restart policy: count it

@@ -24,6 +24,20 @@ pub(crate) fn books_bytes(num_envs: usize) -> usize {
     2 * num_envs * WORDS * 8
 }
 
+/// Episode indices count a worker's episodes one by one from 0: none reaches this (at a
+/// billion episodes a second, it takes 146 years). A larger one in the books was not written
+/// by a working worker.
+pub(crate) const MAX_EPISODE: u64 = 1 << 62;
+
+/// The index of the episode after episode `e` as the books hold it, or `None` when `e` is no
+/// episode index (above [`MAX_EPISODE`]).
+pub(crate) fn next_episode(e: u64) -> Option<u64> {
+    (e < MAX_EPISODE).then(|| e + 1)
+}
+
+// A next episode is never the partial reset's "keep this env's episode".
+const _: () = assert!(MAX_EPISODE < super::KEEP_EPISODE);
+
 /// The sequence number of the next command to a worker whose last received answer was
 /// `delivered`: `seq + 1`, or `seq + 2` where that would write the books copy the supervisor
 /// reads.
@@ -82,7 +96,16 @@ impl Books {
 
 #[cfg(test)]
 mod tests {
-    use super::next_seq;
+    use super::{MAX_EPISODE, next_episode, next_seq};
+
+    #[test]
+    fn no_value_in_the_books_makes_a_next_episode_that_wraps_or_keeps() {
+        assert_eq!(next_episode(0), Some(1));
+        assert_eq!(next_episode(MAX_EPISODE - 1), Some(MAX_EPISODE));
+        for e in [MAX_EPISODE, u64::MAX - 1, u64::MAX] {
+            assert_eq!(next_episode(e), None);
+        }
+    }
 
     #[test]
     fn the_next_command_never_writes_the_copy_being_read() {

@@ -17,7 +17,7 @@ pub const FLAG_RESTARTED: u32 = 4;
 /// (SAME_STEP) the block's final-obs area holds this env's final observation.
 pub const FLAG_FINAL_OBS: u32 = 8;
 /// The env's extra info (`extra_len` bytes) did not fit its room in the block: it travels
-/// in the block's side file ([`crate::wire::extra_apart_path`]).
+/// in the block's side file (`wire::extra_apart_path`).
 pub const FLAG_EXTRA_APART: u32 = 16;
 
 /// Per-env scalars of one step, as written by the worker.

@@ -1,8 +1,10 @@
-//! The wire protocol between the supervisor and its workers, imported by both sides: commands
-//! ([`command`]) and block kinds, the shared batch buffer and the layout of its slots ([`slot_layout`]), the
-//! episode books ([`books`]), the worker's config file ([`WorkerConfig`]), the layout of a
-//! block ([`layout`]) and the files of env calls ([`calls`]).
+//! The wire protocol between the supervisor and its workers, imported by both sides: one file
+//! per message, its encoding and decoding together: commands (`command.rs`) and answers
+//! ([`answer`]), the layout of a slot of the shared batch buffer ([`slot_layout`]) and of a
+//! worker's block ([`layout`]), the episode books (`books.rs`), the worker's config file
+//! ([`WorkerConfig`]) and the files of env calls ([`calls`]).
 
+pub mod answer;
 pub(crate) mod books;
 pub mod calls;
 pub(crate) mod command;
@@ -21,7 +23,7 @@ use crate::seeds::SeedSchedule;
 pub(crate) use command::{Command, Op, Serve};
 
 /// Payload value of a reset ([`Op::Reset`]) for an env that is *not* reset (partial reset): the
-/// env keeps its state and re-writes its current observation ([`Env::observe`]).
+/// env keeps its state and re-writes its current observation ([`crate::Env::observe`]).
 pub(crate) const KEEP_EPISODE: u64 = u64::MAX;
 /// Name of the shared batch buffer (`/dev/shm/<prefix>batch`).
 pub(crate) const BATCH_BUFFER: &str = "batch";
@@ -74,29 +76,6 @@ pub(crate) fn shm_need(
         .sum();
     (batch_slots * slot.bytes() + books::books_bytes(slot.num_envs) + blocks) as u64
 }
-/// Block: the worker is up (no payload meaning).
-pub(crate) const BLOCK_READY: u32 = 1;
-/// Block: records and observations (in the block, or in place in a batch slot: then the
-/// block's first word holds the `SLOT_*` bits of the answer).
-pub(crate) const BLOCK_DATA: u32 = 2;
-/// Answer bit (first block word of an answer written into a slot): some env has a final
-/// observation (SAME_STEP).
-pub(crate) const SLOT_FINAL: u64 = 1;
-/// Answer bit: some env's extra info did not fit its room and travels beside the block.
-pub(crate) const SLOT_EXTRA_APART: u64 = 1 << 1;
-/// Answer bit: every env of the block wrote extra info of the same size (the block's second
-/// word) and the same first 16 bytes (its third and fourth words): one typed layout.
-pub(crate) const SLOT_EXTRA_UNIFORM: u64 = 1 << 2;
-/// Answer bit: some env of the block wrote extra info.
-pub(crate) const SLOT_EXTRA_ANY: u64 = 1 << 3;
-/// Words at the head of an answer written into a slot (bits, extra size, extra head).
-pub(crate) const SLOT_ANSWER_WORDS: usize = 4;
-/// Block: an env failed on the command (no data); the report is in the worker's fault file
-/// ([`env_fault_path`]).
-pub(crate) const BLOCK_ERROR: u32 = 3;
-/// Block: the replies of an [`Op::Call`] are written (no data).
-pub(crate) const BLOCK_CALL: u32 = 4;
-
 /// The file a successor (a planned replacement of worker `index`, as generation `generation`)
 /// creates once its envs are built: the supervisor then closes the worker it replaces.
 pub(crate) fn successor_marker(
@@ -119,8 +98,8 @@ pub(crate) fn env_fault_path(id: &rogue_gym_ipc::PoolId, index: usize, generatio
         .join(format!("w{index}.g{generation}.fault.json"))
 }
 
-/// Where worker `index`, generation `generation`, puts the extra info of its block `seq` that
-/// did not fit the block (entries in the [`calls::encode`] format, one per env flagged
+/// Where worker `index`, generation `generation`, puts the extra info of its answer `seq` that
+/// did not fit the envs' rooms (entries in the [`calls::encode`] format, one per env flagged
 /// [`layout::FLAG_EXTRA_APART`]); the supervisor reads and removes it.
 pub(crate) fn extra_apart_path(
     id: &rogue_gym_ipc::PoolId,

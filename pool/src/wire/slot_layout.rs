@@ -94,7 +94,7 @@ pub struct SlotLayout {
 }
 
 impl SlotLayout {
-    fn rows(&self, c: &Column) -> usize {
+    fn rows_of(&self, c: &Column) -> usize {
         if c.per_info { self.n_info } else { 1 }
     }
     /// Bytes from one row of column `c` to the next.
@@ -110,7 +110,7 @@ impl SlotLayout {
         self.columns_offset()
             + COLUMNS[..i]
                 .iter()
-                .map(|c| self.rows(c) * self.row_stride(c))
+                .map(|c| self.rows_of(c) * self.row_stride(c))
                 .sum::<usize>()
     }
     /// Bytes of the columns area.
@@ -146,7 +146,7 @@ impl SlotLayout {
                     c.name,
                     c.dtype,
                     self.column_offset(i) - base,
-                    self.rows(c),
+                    self.rows_of(c),
                     self.row_stride(c),
                 )
             })
@@ -154,19 +154,19 @@ impl SlotLayout {
         (v, self.columns_bytes())
     }
 
-    /// A writer of the rows of the slot starting at `base`.
+    /// The rows of the slot starting at `base`.
     ///
     /// # Safety
     /// `base` must point to a slot of this layout in a live mapping, 64-byte aligned; the
-    /// rows written through the writer must be this side's to write (see [`RowWriter`]).
-    pub unsafe fn writer(&self, base: *mut u8) -> RowWriter {
+    /// rows written through the value must be this side's to write (see [`SlotRows`]).
+    pub unsafe fn rows(&self, base: *mut u8) -> SlotRows {
         let mut offsets = [0usize; COLUMNS.len()];
         let mut strides = [0usize; COLUMNS.len()];
         for (i, c) in COLUMNS.iter().enumerate() {
             offsets[i] = self.column_offset(i);
             strides[i] = self.row_stride(c);
         }
-        RowWriter {
+        SlotRows {
             base,
             layout: *self,
             offsets,
@@ -175,12 +175,12 @@ impl SlotLayout {
     }
 }
 
-/// Writes rows of one slot in place (a worker its envs' rows, the supervisor the rows of a
-/// restarted worker). Holds a raw pointer into the shared mapping: who writes which rows when
-/// is the pool's protocol (a worker writes its block's rows of the slot a command names, and
-/// no one reads them until the answer arrives).
+/// The rows of one slot: a worker writes its envs' rows in place (the supervisor the rows of
+/// a restarted worker), and the caller reads them there. Holds a raw pointer into the shared
+/// mapping: who writes which rows when is the pool's protocol (a worker writes its block's
+/// rows of the slot a command names, and no one reads them until the answer arrives).
 #[derive(Debug, Clone, Copy)]
-pub struct RowWriter {
+pub struct SlotRows {
     base: *mut u8,
     layout: SlotLayout,
     offsets: [usize; COLUMNS.len()],
@@ -189,13 +189,13 @@ pub struct RowWriter {
 
 // SAFETY: a plain pointer into a shared mapping that outlives the writer; the protocol
 // (documented on the type) keeps writers of one row apart.
-unsafe impl Send for RowWriter {}
+unsafe impl Send for SlotRows {}
 
-impl RowWriter {
+impl SlotRows {
     /// Entry `row` of row `j` of column `col` (`j` is 0 but for the `info_*` columns).
     #[inline]
     fn at<T>(&self, col: usize, j: usize, row: usize) -> *mut T {
-        debug_assert!(row < self.layout.num_envs && j < self.layout.n_info.max(1));
+        debug_assert!(row <= self.layout.num_envs && j < self.layout.n_info.max(1));
         // SAFETY: the offset stays inside the slot (see `SlotLayout`).
         unsafe {
             self.base
@@ -240,6 +240,37 @@ impl RowWriter {
         self.put(RESTARTED, row, u8::from(r.restarted()));
         self.put(HAS_FINAL, row, u8::from(r.has_final_obs()));
     }
+    /// Check that every flag byte of rows `rows` (`terminated`, `truncated`, `restarted`,
+    /// `has_final_obs` and the `info_bool` rows) is 0 or 1: what a caller hands out as `bool`
+    /// must be one. The error names the column and the row.
+    pub fn check_flags(&self, rows: std::ops::Range<usize>) -> Result<(), String> {
+        let n = self.layout.num_envs;
+        if rows.start > rows.end || rows.end > n {
+            return Err(format!("rows {rows:?} of a slot of {n} envs"));
+        }
+        let columns = [TERMINATED, TRUNCATED, RESTARTED, HAS_FINAL]
+            .into_iter()
+            .map(|c| (c, 0))
+            .chain((0..self.layout.n_info.min(MAX_INFO)).map(|j| (INFO_BOOL, j)));
+        for (c, j) in columns {
+            // SAFETY: in bounds (checked above) and plain bytes.
+            let bytes =
+                unsafe { std::slice::from_raw_parts(self.at::<u8>(c, j, rows.start), rows.len()) };
+            // One pass that the compiler vectorizes; the error path finds the row.
+            if bytes.iter().fold(0u8, |a, &b| a | b) > 1
+                && let Some(r) = bytes.iter().position(|&b| b > 1)
+            {
+                return Err(format!(
+                    "flag byte {} in the {} column of env {}",
+                    bytes[r],
+                    COLUMNS[c].name,
+                    rows.start + r
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Mark env `row` as restarted: its episode was cut (truncated, reward 0).
     pub fn mark_restarted(&self, row: usize) {
         assert!(row < self.layout.num_envs);
@@ -284,14 +315,6 @@ impl RowWriter {
             r.info[j] = get(INFO_INT, j) as i64 as f64;
         }
         r
-    }
-    /// Env `row`'s observation bytes in the slot.
-    ///
-    /// # Safety
-    /// No one else may access the row meanwhile.
-    pub unsafe fn obs_mut<'a>(&self, row: usize) -> &'a mut [u8] {
-        let ob = self.layout.obs_bytes;
-        unsafe { std::slice::from_raw_parts_mut(self.base.add(row * ob), ob) }
     }
     /// Rows `rows` of an area of `per_row` bytes per env at `offset`.
     ///
@@ -386,7 +409,7 @@ mod tests {
         assert!(cols.windows(2).all(|w| w[0].2 < w[1].2));
         let mut slot = vec![0u64; l.bytes() / 8];
         // SAFETY: a buffer of the layout's size, 8-aligned (the test does not need 64).
-        let w = unsafe { l.writer(slot.as_mut_ptr().cast()) };
+        let w = unsafe { l.rows(slot.as_mut_ptr().cast()) };
         let r = EnvRecord {
             reward: 2.5,
             flags: FLAG_TERMINATED | FLAG_FINAL_OBS,

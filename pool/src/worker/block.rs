@@ -1,6 +1,6 @@
 //! A worker's block of envs hosted as one [`EnvBlock`] (a vector env): one call resets or
 //! steps every env of the block, while the worker keeps each env's episode bookkeeping exactly
-//! as [`super::apply`] does for single envs, so that records read the same either way.
+//! as [`super::env_state::apply`] does for single envs, so that records read the same either way.
 
 use std::ops::Range;
 
@@ -9,7 +9,8 @@ use crate::env::{EnvBlock, EnvSpec, StepOutcome};
 use crate::wire::layout::{EnvRecord, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED};
 use crate::wire::{EnvFault, KEEP_EPISODE, Serve};
 
-use super::env_state::{BlockOut, EnvState, ServeCtx, fault, place_extra};
+use super::block_out::{BlockOut, place_extra};
+use super::env_state::{EnvState, ServeCtx, fault};
 
 /// An [`EnvBlock`] with the bookkeeping of its envs and the buffers of its calls.
 pub(crate) struct BlockHost {
@@ -115,7 +116,6 @@ impl BlockHost {
                     .map_err(|e| self.block_fault("reset", e))?;
             }
             Serve::Step => {
-                let w = payload.len() / n.max(1);
                 for (j, s) in self.books.iter_mut().enumerate() {
                     // NEXT_STEP: an env whose episode ended resets on this step (the block
                     // does it) and its action is ignored.
@@ -123,8 +123,6 @@ impl BlockHost {
                     if s.needs_reset {
                         s.episode += 1;
                         s.begin_episode(ctx);
-                    } else {
-                        s.check_action(payload[j * w], ctx)?;
                     }
                 }
                 self.block
@@ -183,7 +181,8 @@ mod tests {
     use crate::kinds::test_env::TestEnv;
     use crate::seeds::SeedSchedule;
     use crate::wire::layout::BlockLayout;
-    use crate::worker::env_state::{EnvOut, apply};
+    use crate::worker::block_out::{EnvOut, Scratch};
+    use crate::worker::env_state::apply;
 
     const N: usize = 3;
     const OB: usize = 4;
@@ -265,7 +264,6 @@ mod tests {
             seeds,
             num_envs: NUM_ENVS,
             autoreset,
-            num_actions: 5,
             action_bytes: 0,
             n_info: 0,
         }
@@ -297,20 +295,8 @@ mod tests {
         };
         let mut block = vec![0u64; layout.words()];
         let areas = layout.split_mut(&mut block);
-        let (mut info, mut apart) = (Vec::new(), Vec::new());
-        let mut out = BlockOut {
-            records: crate::worker::env_state::Rows::Block(areas.records),
-            summary: Default::default(),
-            obs: areas.obs,
-            final_obs: areas.final_obs,
-            extra: areas.extra,
-            obs_bytes: OB,
-            final_bytes: if same_step { OB } else { 0 },
-            extra_bytes: 0,
-            info: &mut info,
-            apart: &mut apart,
-            stage: &mut [],
-        };
+        let mut scratch = Scratch::default();
+        let mut out = BlockOut::in_block(areas, &layout, &mut scratch);
         host.serve(kind, payload, &mut out, ctx)?;
         Ok((layout, block))
     }
@@ -366,16 +352,5 @@ mod tests {
             }
         }
         assert!(ends >= N * 3, "the run crosses episode ends ({ends})");
-    }
-
-    #[test]
-    fn an_action_out_of_range_is_an_error_not_a_panic() {
-        let seeds = SeedSchedule::from_base(1);
-        let ctx = ctx(&seeds, AutoresetMode::NextStep);
-        let mut host = host(&seeds);
-        serve(&mut host, Serve::Reset, &[0; N], &ctx).unwrap();
-        let e = serve(&mut host, Serve::Step, &[0, 9, 0], &ctx).unwrap_err();
-        assert_eq!(e.env, FIRST + 1);
-        assert!(e.message.contains("action 9"), "{}", e.message);
     }
 }

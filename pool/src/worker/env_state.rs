@@ -1,17 +1,12 @@
-//! One env of a worker and what a command does to it: reset, step, autoreset, episode
-//! bookkeeping, and where its answer goes in the block ([`EnvOut`], [`BlockOut`]).
+//! One env of a worker and what a command does to it ([`apply`]): reset, step, autoreset and
+//! the episode bookkeeping. Where its answer goes is [`super::block_out`].
 
+use super::block_out::{EnvOut, place_extra};
 use crate::config::AutoresetMode;
 use crate::env::Env;
 use crate::seeds::SeedSchedule;
-use crate::wire::layout::{
-    EnvRecord, FLAG_EXTRA_APART, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED,
-    write_record_words,
-};
-use crate::wire::slot_layout::RowWriter;
-use crate::wire::{
-    EnvFault, KEEP_EPISODE, SLOT_EXTRA_ANY, SLOT_EXTRA_APART, SLOT_EXTRA_UNIFORM, SLOT_FINAL, Serve,
-};
+use crate::wire::layout::{EnvRecord, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED};
+use crate::wire::{EnvFault, KEEP_EPISODE, Serve};
 
 /// One env of a worker with its episode bookkeeping (`E = ()` for the envs of an
 /// [`crate::EnvBlock`], which owns them).
@@ -55,16 +50,6 @@ impl<E> EnvState<E> {
         rec.episode_length = self.len;
     }
 
-    /// Fail if `value` is an action index out of range (envs of raw action bytes check their
-    /// actions themselves).
-    pub(crate) fn check_action(&self, value: u64, ctx: &ServeCtx) -> Result<(), EnvFault> {
-        if ctx.action_bytes > 0 || value < ctx.num_actions as u64 {
-            return Ok(());
-        }
-        let msg = crate::env::action_out_of_range(value, ctx.num_actions);
-        Err(fault(self, "step".into(), msg))
-    }
-
     /// The context of a failed step of this env.
     pub(crate) fn step_context(&self) -> String {
         format!(
@@ -79,22 +64,9 @@ pub(crate) struct ServeCtx<'a> {
     pub(crate) seeds: &'a SeedSchedule,
     pub(crate) num_envs: u64,
     pub(crate) autoreset: AutoresetMode,
-    pub(crate) num_actions: usize,
     /// `EnvSpec::action_bytes` (0: action indices).
     pub(crate) action_bytes: usize,
     pub(crate) n_info: usize,
-}
-
-/// Where one env writes its answer to a command (parts of the block being filled).
-pub(crate) struct EnvOut<'a> {
-    pub(crate) obs: &'a mut [u8],
-    /// SAME_STEP final observation (empty in NEXT_STEP mode).
-    pub(crate) fin: &'a mut [u8],
-    /// Extra-info room (`EnvSpec::extra_bytes`).
-    pub(crate) extra: &'a mut [u8],
-    /// The env's extra info, whole; when it does not fit `extra`, the record is flagged
-    /// [`FLAG_EXTRA_APART`] and the caller sends these bytes apart.
-    pub(crate) info: &'a mut Vec<u8>,
 }
 
 pub(crate) fn fault<E>(
@@ -158,7 +130,8 @@ pub(crate) fn apply(
             do_reset(s, obs, ctx)?;
         }
         Serve::Step => {
-            s.check_action(value, ctx)?;
+            // The action was checked on the caller's side (`Actions::check`): an index in
+            // range, or `action_bytes` bytes.
             let result = if ctx.action_bytes > 0 {
                 let bytes = rogue_gym_ipc::words_as_bytes(words);
                 s.env
@@ -198,143 +171,6 @@ pub(crate) fn apply(
         place_extra(&mut rec, extra, info).map_err(|e| fault(s, "extra info".into(), e))?;
     }
     Ok(rec)
-}
-
-/// Put an env's extra info `info` in its room `extra`, or flag the record
-/// [`FLAG_EXTRA_APART`] when it does not fit (the worker then sends it beside the block).
-pub(crate) fn place_extra(
-    rec: &mut EnvRecord,
-    extra: &mut [u8],
-    info: &[u8],
-) -> Result<(), String> {
-    let n = info.len();
-    rec.extra_len = u32::try_from(n).map_err(|_| format!("{n} bytes of extra info"))?;
-    match extra.get_mut(..n) {
-        Some(room) => room.copy_from_slice(info),
-        None => rec.flags |= FLAG_EXTRA_APART,
-    }
-    Ok(())
-}
-
-/// Where the records of one command's answers go.
-pub(crate) enum Rows<'a> {
-    /// The block's own records area (the async API's answers).
-    Block(&'a mut [u64]),
-    /// In place, in the columns of a batch slot, the block's envs from row `first` (whole-batch
-    /// calls: the caller reads them there).
-    Slot {
-        writer: Box<RowWriter>,
-        first: usize,
-    },
-}
-
-/// What the supervisor needs of an answer written into a slot, summed up over the block (it
-/// goes in the block's first words: [`crate::wire::SLOT_ANSWER_WORDS`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub(crate) struct AnswerSummary {
-    /// `SLOT_*` bits.
-    pub(crate) bits: u64,
-    /// Envs that wrote extra info.
-    pub(crate) extras: usize,
-    /// The size of every env's extra info, while all are the same.
-    pub(crate) size: usize,
-    /// The first 16 bytes of every env's extra info, while all are the same.
-    pub(crate) head: [u8; 16],
-}
-
-impl AnswerSummary {
-    fn add(&mut self, rec: &EnvRecord, extra: &[u8]) {
-        if rec.has_final_obs() {
-            self.bits |= SLOT_FINAL;
-        }
-        if rec.extra_apart() {
-            self.bits |= SLOT_EXTRA_APART;
-        }
-        let n = rec.extra_len as usize;
-        if n == 0 {
-            return;
-        }
-        let mut head = [0u8; 16];
-        let k = n.min(16).min(extra.len());
-        head[..k].copy_from_slice(&extra[..k]);
-        if self.extras == 0 {
-            self.size = n;
-            self.head = head;
-        } else if self.size != n || self.head != head || rec.extra_apart() {
-            self.size = 0;
-        }
-        self.extras += 1;
-        self.bits |= SLOT_EXTRA_ANY;
-    }
-
-    /// The block's first words: bits (with [`SLOT_EXTRA_UNIFORM`] when all `envs` wrote one
-    /// layout), size, head.
-    pub(crate) fn words(&self, envs: usize) -> [u64; crate::wire::SLOT_ANSWER_WORDS] {
-        let uniform = self.extras == envs && self.size > 0 && self.bits & SLOT_EXTRA_APART == 0;
-        let mut h = [0u64; 2];
-        for (w, c) in h.iter_mut().zip(self.head.chunks_exact(8)) {
-            *w = u64::from_le_bytes(c.try_into().unwrap_or([0; 8]));
-        }
-        let bits = self.bits | if uniform { SLOT_EXTRA_UNIFORM } else { 0 };
-        [bits, self.size as u64, h[0], h[1]]
-    }
-}
-
-/// Where one command's answers go: the parts of the worker's block being filled, or of the
-/// batch slot it writes in place.
-pub(crate) struct BlockOut<'a> {
-    pub(crate) records: Rows<'a>,
-    /// What an answer in place says of itself.
-    pub(crate) summary: AnswerSummary,
-    pub(crate) obs: &'a mut [u8],
-    pub(crate) final_obs: &'a mut [u8],
-    pub(crate) extra: &'a mut [u8],
-    pub(crate) obs_bytes: usize,
-    pub(crate) final_bytes: usize,
-    pub(crate) extra_bytes: usize,
-    /// One env's extra info (a buffer reused from env to env).
-    pub(crate) info: &'a mut Vec<u8>,
-    /// The envs whose info did not fit their room, with that info.
-    pub(crate) apart: &'a mut Vec<(u32, Vec<u8>)>,
-    /// Where each env writes its observation first when the rows are written with streaming
-    /// stores ([`super::streaming`]; one observation long), or empty: envs write their rows.
-    pub(crate) stage: &'a mut [u8],
-}
-
-impl BlockOut<'_> {
-    /// Env `j`'s parts.
-    pub(crate) fn env(&mut self, j: usize) -> EnvOut<'_> {
-        let (ob, fb, xb) = (self.obs_bytes, self.final_bytes, self.extra_bytes);
-        EnvOut {
-            obs: if self.stage.is_empty() {
-                &mut self.obs[j * ob..(j + 1) * ob]
-            } else {
-                &mut *self.stage
-            },
-            fin: &mut self.final_obs[j * fb..(j + 1) * fb],
-            extra: &mut self.extra[j * xb..(j + 1) * xb],
-            info: &mut *self.info,
-        }
-    }
-
-    /// Write env `j`'s record; keep its info apart if the record says it did not fit.
-    pub(crate) fn finish(&mut self, j: usize, rec: &EnvRecord) {
-        if !self.stage.is_empty() {
-            let ob = self.obs_bytes;
-            super::streaming::copy(&mut self.obs[j * ob..(j + 1) * ob], self.stage);
-        }
-        match &mut self.records {
-            Rows::Block(words) => write_record_words(words, j, rec),
-            Rows::Slot { writer, first } => {
-                writer.record(*first + j, rec);
-                let xb = self.extra_bytes;
-                self.summary.add(rec, &self.extra[j * xb..(j + 1) * xb]);
-            }
-        }
-        if rec.extra_apart() {
-            self.apart.push((j as u32, std::mem::take(self.info)));
-        }
-    }
 }
 
 #[cfg(test)]
@@ -377,7 +213,6 @@ mod tests {
             seeds,
             num_envs: 8,
             autoreset,
-            num_actions: 5,
             action_bytes: 0,
             n_info: 2,
         }
@@ -447,17 +282,5 @@ mod tests {
         // The next step acts normally in the new episode.
         let r = go(&mut s, Serve::Step, 0, &mut obs, &mut fin, &c).unwrap();
         assert_eq!((r.episode, r.episode_length), (1, 1));
-    }
-
-    #[test]
-    fn bad_action_is_an_error_not_a_panic() {
-        let seeds = SeedSchedule::from_base(1);
-        let c = ctx(&seeds, AutoresetMode::NextStep);
-        let mut s = env_state();
-        let (mut obs, mut fin) = ([0u8; 4], [0u8; 0]);
-        go(&mut s, Serve::Reset, 0, &mut obs, &mut fin, &c).unwrap();
-        let e = go(&mut s, Serve::Step, 99, &mut obs, &mut fin, &c).unwrap_err();
-        assert_eq!(e.env, 5);
-        assert!(e.message.contains("action 99"), "{}", e.message);
     }
 }

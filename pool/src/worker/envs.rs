@@ -4,11 +4,12 @@
 use rogue_gym_ipc::PoolId;
 
 use super::block::BlockHost;
-use super::env_state::{BlockOut, EnvState, ServeCtx, apply};
+use super::block_out::BlockOut;
+use super::env_state::{EnvState, ServeCtx, apply};
 use crate::wire::books::Books;
 use crate::wire::{EnvFault, Serve, calls};
 
-/// A worker's envs: one [`Env`] each, or one [`crate::EnvBlock`] for them all.
+/// A worker's envs: one [`crate::Env`] each, or one [`crate::EnvBlock`] for them all.
 pub(super) enum WorkerEnvs {
     Each(Vec<EnvState>),
     Block(BlockHost),

@@ -28,7 +28,6 @@ from ..errors import CLOSED_MESSAGE, EnvFailedError, PoolClosedError
 from ..kinds.episode_log import EpisodeLog
 from ..kinds.result import Extras, Result, copy_tree
 from ..kinds.view import CallState, PoolLayout
-from ..protocol.infos import HEAD
 from . import leases, sigterm
 from .pool_view import CoreView
 from .stats import PoolStats, WorkerStats
@@ -109,7 +108,7 @@ class Core:
         #: Each slot's columns (the per-env values the workers wrote in place), then ``recv``'s.
         self.cols = [self._columns(np.asarray(a[1]), columns) for a in areas]
         recv = np.zeros(total, np.uint8)
-        self.pool.bind_recv_columns(recv, HEAD)
+        self.pool.bind_recv_columns(recv)
         self.cols.append(self._columns(recv, columns))
         # Async step answers are written in place in the slots (``recv`` hands out views)
         # unless slots are lent out: a lent slot must not be written while it is lent.
@@ -192,12 +191,12 @@ class Core:
     def send_step(self, actions: np.ndarray) -> None:
         """The first half of :meth:`step`: the workers step while the caller goes on."""
         self._steer()
-        self.native(self.pool.step_send, actions)
+        self.native(self.pool.send_step, actions)
 
     def send_reset(self) -> None:
         """The first half of a full reset."""
         self._steer()
-        self.native(self.pool.reset_send)
+        self.native(self.pool.send_reset)
 
     def wait(self, timeout: Optional[float]) -> Optional[Result]:
         """The second half of :meth:`send_step` or :meth:`send_reset`, or ``None`` when

@@ -14,7 +14,7 @@ from ..kinds.result import Result, copy_tree
 from ..protocol.ops import refuse_op
 from ..settings import parse_autoreset_mode
 from .core import Core, mark_restarted
-from .pending import already_pending, no_async_call, timed_out, warn_close_pending
+from .pending import Split, already_pending, no_async_call, timed_out, warn_close_pending
 from .reset_mask import partial_mask, refuse_finished
 from .stats import PoolStats
 
@@ -29,12 +29,12 @@ StepResult = tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]
 
 @dataclass(frozen=True)
 class Pending:
-    """The split call in flight, as gymnasium's ``AsyncState``: ``what`` is ``"step"``,
-    ``"reset"`` or ``"call"``; ``done`` is what a call that already ran left for its wait
-    (a partial reset's ``(obs, infos)``, a call's ``("ok", results)`` or ``("err",
-    exception)``), or ``None`` while the workers are at it."""
+    """The split call in flight, as gymnasium's ``AsyncState``: ``what`` it is; ``done`` is
+    what a call that already ran left for its wait (a partial reset's ``(obs, infos)``, a
+    call's ``("ok", results)`` or ``("err", exception)``), or ``None`` while the workers are at
+    it."""
 
-    what: str
+    what: Split
     done: Any = None
 
 
@@ -180,7 +180,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
             if state.log is not None:
                 state.log.record(res, None, self._same_step, rows=reset)
             infos = self._infos(res, mask)
-            self._pending = Pending("reset", (self._observations(res), infos))
+            self._pending = Pending(Split.RESET, (self._observations(res), infos))
             return
         schedule = self._kind.seeds(seed, None)
         if isinstance(seed, (int, np.integer)):
@@ -188,7 +188,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         if schedule is not None:
             core.set_seeds(schedule)
         core.send_reset()
-        self._pending = Pending("reset")
+        self._pending = Pending(Split.RESET)
 
     def reset_wait(self, timeout: Optional[float] = None) -> tuple[Any, dict[str, Any]]:
         """The second half of :meth:`reset_async`: wait at most ``timeout`` seconds (``None``:
@@ -196,13 +196,13 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         (``multiprocessing.TimeoutError``) the reset stays pending: call it again."""
         core = self._core
         core.check_open()
-        partial = self._take_pending("reset")
+        partial = self._take_pending(Split.RESET)
         if partial is not None:
             return partial
         res = core.wait(timeout)
         if res is None:
-            self._pending = Pending("reset")
-            raise timed_out("reset", timeout)
+            self._pending = Pending(Split.RESET)
+            raise timed_out(Split.RESET, timeout)
         state = core.state
         state.restart()
         if state.log is not None:
@@ -223,18 +223,18 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         ``actions`` and return at once; the workers step while you do something else."""
         acts = self._step_actions(actions, "step_async")
         self._core.send_step(acts)
-        self._pending = Pending("step", acts)
+        self._pending = Pending(Split.STEP, acts)
 
     def step_wait(self, timeout: Optional[float] = None) -> StepResult:
         """The second half of :meth:`step_async`: wait at most ``timeout`` seconds (``None``:
         the pool's own bound) and return what :meth:`step` returns. On a timeout
         (``multiprocessing.TimeoutError``) the step stays pending: call it again."""
         self._core.check_open()
-        acts = self._take_pending("step")
+        acts = self._take_pending(Split.STEP)
         res = self._core.wait(timeout)
         if res is None:
-            self._pending = Pending("step", acts)
-            raise timed_out("step", timeout)
+            self._pending = Pending(Split.STEP, acts)
+            raise timed_out(Split.STEP, timeout)
         return self._stepped(res, acts)
 
     def _step_actions(self, actions: Any, caller: str) -> np.ndarray:
@@ -288,7 +288,7 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         if self._pending is not None:
             raise already_pending(caller, self._pending.what)
 
-    def _take_pending(self, what: str) -> Any:
+    def _take_pending(self, what: Split) -> Any:
         """End the pending ``{what}_async`` (``NoAsyncCallError`` if there is none); what it
         left for its wait."""
         if self._pending is None or self._pending.what != what:
@@ -405,13 +405,13 @@ class FrontVectorEnv(gym.vector.VectorEnv):
             done: tuple[str, Any] = ("ok", self.call(name, *args, **kwargs))
         except Exception as exc:  # raised by call_wait, as AsyncVectorEnv raises it there
             done = ("err", exc)
-        self._pending = Pending("call", done)
+        self._pending = Pending(Split.CALL, done)
 
     def call_wait(self, timeout: Optional[float] = None) -> tuple[Any, ...]:
         """The second half of :meth:`call_async`: one result per env (``timeout`` is accepted
         for gymnasium's signature: the call has already run)."""
         self._core.check_open()
-        status, value = self._take_pending("call")
+        status, value = self._take_pending(Split.CALL)
         if status == "err":
             raise value
         return value

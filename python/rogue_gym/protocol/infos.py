@@ -24,6 +24,8 @@ from typing import Any, Callable, NamedTuple, Optional
 
 import numpy as np
 
+from .. import _native
+
 __all__ = [
     "RESET_OBS",
     "STEP_OBS",
@@ -41,8 +43,10 @@ MAGIC = b"RGi1"
 #: ``magic, tag (0 reset, 1 step), structure hash, structure length``; 24 bytes.
 _HEADER = struct.Struct("<4sB3xQI4x")
 HEADER_BYTES = _HEADER.size
-#: The bytes that tell a row's tag and structure (magic, tag, padding, hash).
-HEAD = 16
+#: The bytes that tell a row's tag and structure (magic, tag, padding, hash): the pool
+#: groups extra infos that share them (``rogue_gym._native.EXTRA_HEAD``, written once there).
+HEAD: int = _native.EXTRA_HEAD
+assert HEAD <= HEADER_BYTES, "the head lies inside a row's header"
 TAGS = ("reset", "step")
 #: The entries that carry the values of an observation's dynamic leaves (a list, in the order
 #: of ``SpaceLayout.dynamic``): of the step's observation, and of the reset's. Always pickled.

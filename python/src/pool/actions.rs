@@ -2,7 +2,7 @@
 //! without the GIL.
 
 use numpy::PyReadonlyArray1;
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use rogue_gym_pool::Actions;
 
@@ -27,13 +27,10 @@ impl OwnedActions {
 }
 
 impl PyPool {
-    /// Read `rows` actions: a 1-D int64 array (one index per env), or for hosted envs whose
-    /// actions are `action_bytes` raw bytes, a 1-D uint8 array of `rows x action_bytes`.
-    pub(super) fn owned_actions(
-        &self,
-        actions: &Bound<'_, PyAny>,
-        rows: usize,
-    ) -> PyResult<OwnedActions> {
+    /// Take the caller's actions (their values are checked by the pool, once: see
+    /// [`Actions::check`]): a 1-D int64 array (one index per env), or for hosted envs whose
+    /// actions are `action_bytes` raw bytes, a 1-D uint8 array of them, env after env.
+    pub(super) fn owned_actions(&self, actions: &Bound<'_, PyAny>) -> PyResult<OwnedActions> {
         if self.action_bytes == 0 {
             let arr: PyReadonlyArray1<'_, i64> = actions.extract().map_err(|_| {
                 PyTypeError::new_err("actions must be a 1-D int64 numpy array (one action per env)")
@@ -43,15 +40,6 @@ impl PyPool {
         let arr: PyReadonlyArray1<'_, u8> = actions.extract().map_err(|_| {
             PyTypeError::new_err("this env's actions travel as raw bytes: pass a 1-D uint8 array")
         })?;
-        let v = arr.as_array().to_vec();
-        if v.len() != rows * self.action_bytes {
-            return Err(PyValueError::new_err(format!(
-                "raw actions have {} bytes, expected {} ({rows} actions of {} bytes)",
-                v.len(),
-                rows * self.action_bytes,
-                self.action_bytes
-            )));
-        }
-        Ok(OwnedActions::Bytes(v))
+        Ok(OwnedActions::Bytes(arr.as_array().to_vec()))
     }
 }

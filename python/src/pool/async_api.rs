@@ -1,5 +1,5 @@
 //! The EnvPool-style async API, env by env: `async_reset`, `send` to any envs, and `recv` of
-//! the first envs ready, whose result is decoded into the `recv` column buffer row by row.
+//! the first envs ready, whose records are written straight into the `recv` column buffer.
 
 use numpy::PyArray1;
 use numpy::PyReadonlyArray1;
@@ -10,7 +10,6 @@ use rogue_gym_pool::{Received, RecvWant};
 
 use super::PyPool;
 use super::results::join_extras;
-use crate::gil::lock_gil_free;
 use crate::settings;
 
 #[pymethods]
@@ -18,7 +17,7 @@ impl PyPool {
     /// Async: have step answers written in place in the batch slots, so that `recv` hands
     /// out views (see `recv`). Only for a caller that lends no slot out.
     fn async_in_place(&self, py: Python<'_>, on: bool) -> PyResult<()> {
-        self.with_pool(py, move |p, _| {
+        self.with_pool(py, move |p| {
             p.set_async_in_place(on);
             Ok(())
         })
@@ -26,7 +25,7 @@ impl PyPool {
 
     /// Async: reset every env; collect the results with `recv()`.
     fn async_reset(&self, py: Python<'_>) -> PyResult<()> {
-        self.with_pool(py, |p, _| p.async_reset())
+        self.with_pool(py, |p| p.async_reset())
     }
 
     /// Async: send `actions` (int64 indices, or raw uint8 bytes for hosted envs whose actions
@@ -55,8 +54,8 @@ impl PyPool {
                 PyTypeError::new_err("env_id must be a 1-D int64 array or a sequence of ints")
             })?,
         };
-        let acts = self.owned_actions(actions, env_ids.len())?;
-        self.with_pool(py, move |p, _| p.send(acts.as_actions(), &env_ids))
+        let acts = self.owned_actions(actions)?;
+        self.with_pool(py, move |p| p.send(acts.as_actions(), &env_ids))
     }
 
     /// Async: the first envs ready, `(rows, summary, extras, env_ids, obs, view)`: their
@@ -80,47 +79,24 @@ impl PyPool {
         let timeout = timeout
             .map(|t| settings::duration("timeout", t))
             .transpose()?;
-        for (name, v) in [("min_batch", min_batch), ("max_batch", max_batch)] {
-            if let Some(v) = v
-                && !(1..=self.num_envs).contains(&v)
-            {
-                return Err(PyValueError::new_err(format!(
-                    "recv(): {name} must be between 1 and num_envs ({}), got {v}",
-                    self.num_envs
-                )));
-            }
-        }
-        if let (Some(lo), Some(hi)) = (min_batch, max_batch)
-            && lo > hi
-        {
-            return Err(PyValueError::new_err(format!(
-                "recv(): min_batch ({lo}) must not exceed max_batch ({hi})"
-            )));
-        }
-        let got: Received = self.with_pool(py, move |p, _| {
-            let b = p.batch_size();
-            // Without max_batch: batch_size, or min_batch where that asks for more.
-            let max = max_batch.unwrap_or_else(|| b.max(min_batch.unwrap_or(1)));
-            let min = min_batch.unwrap_or(max.min(b));
-            p.recv_want(RecvWant {
-                min_batch: min,
-                max_batch: max,
-                timeout,
-            })
-        })?;
+        let want = RecvWant::resolve(
+            min_batch,
+            max_batch,
+            timeout,
+            self.batch_size,
+            self.num_envs,
+        )
+        .map_err(|e| crate::errors::pool_error(py, e))?;
+        let got: Received = self.with_pool(py, move |p| p.recv_want(want))?;
         let rows = got.env_ids.len();
-        // A view's rows are in its slot, columns included: nothing to decode (and no row of a
+        // A view's rows are in its slot, columns included: nothing to write (and no row of a
         // view is a restart's).
         let summary = if got.view.is_some() {
             0
         } else {
-            let mut out = lock_gil_free(py, &self.out)?;
-            got.fill(self.n_info, &mut out);
-            out.extras.clear();
-            self.decode_recv(&out)?
+            self.write_recv_columns(&got)?
         };
-        let head = self.extras_head.load(std::sync::atomic::Ordering::Relaxed);
-        let extras = join_extras(py, &got.extras, rows, head)?;
+        let extras = join_extras(py, &got.extras, rows)?;
         let ids: Vec<i64> = got.env_ids.iter().map(|&e| e as i64).collect();
         let obs = match got.view {
             Some(_) => py.None().into_bound(py),

@@ -15,7 +15,7 @@ impl PyPool {
         py: Python<'py>,
         requests: Vec<(usize, Vec<u8>)>,
     ) -> PyResult<Bound<'py, PyList>> {
-        let replies = self.with_pool(py, move |p, _| p.call_envs(&requests))?;
+        let replies = self.with_pool(py, move |p| p.call_envs(&requests))?;
         let list = PyList::empty(py);
         for (env, bytes) in replies {
             list.append((env, PyBytes::new(py, &bytes)))?;
@@ -27,6 +27,6 @@ impl PyPool {
     /// next step command to each env's worker carries them, and the env takes them just before
     /// it steps (hosted envs: `set_action_extra`).
     fn stage_action_extras(&self, py: Python<'_>, extras: Vec<(usize, Vec<u8>)>) -> PyResult<()> {
-        self.with_pool(py, move |p, _| p.stage_action_extras(&extras))
+        self.with_pool(py, move |p| p.stage_action_extras(&extras))
     }
 }

@@ -5,12 +5,12 @@
 //! [`results`] (every call's result in one form: columns, summary and extra info) and
 //! [`actions`]; this file holds the pool's life, statistics and introspection.
 
-use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
-use rogue_gym_pool::{BatchOutput, Pool, PoolError};
+use rogue_gym_pool::{Pool, PoolError};
 
 use crate::clock::CallClock;
 use crate::errors::pool_error;
@@ -29,7 +29,6 @@ pub struct PyPool {
     pool: Arc<Mutex<Option<Pool>>>,
     /// The pool's key among the XLA targets (`xla_key()`), once registered.
     xla_key: Mutex<Option<i32>>,
-    out: Mutex<BatchOutput>,
     /// The workers' pids, readable without the pool's lock (during a call too).
     pids: Arc<[AtomicU32]>,
     num_envs: usize,
@@ -45,8 +44,6 @@ pub struct PyPool {
     /// The `recv` column buffer bound by `bind_recv_columns`: the array (kept alive here) and
     /// its data pointer.
     columns: Mutex<Option<(Py<PyAny>, usize)>>,
-    /// Leading bytes that extra infos of one layout share (see `results::join_extras`).
-    extras_head: AtomicUsize,
     /// The exception raised by a signal handler during a wait (see `interrupt_check`).
     interrupted: Arc<Mutex<Option<PyErr>>>,
     /// Time in and between calls (`stats()`).
@@ -60,23 +57,17 @@ impl PyPool {
         Ok(guard.as_ref().map(f).unwrap_or_default())
     }
 
+    /// Run a call of the pool with the GIL released ([`Pool::guarded`]: a panic in it is an
+    /// error, never a poisoned lock).
     fn with_pool<R: Send>(
         &self,
         py: Python<'_>,
-        f: impl FnOnce(&mut Pool, &mut BatchOutput) -> Result<R, PoolError> + Send,
+        f: impl FnOnce(&mut Pool) -> Result<R, PoolError> + Send,
     ) -> PyResult<R> {
         let start = self.clock.begin();
         let res = py.detach(|| {
-            let mut guard = self
-                .pool
-                .lock()
-                .map_err(|_| PoolError::State("the pool lock is poisoned".into()))?;
-            let pool = guard.as_mut().ok_or(PoolError::Closed)?;
-            let mut out = self
-                .out
-                .lock()
-                .map_err(|_| PoolError::State("the pool lock is poisoned".into()))?;
-            f(pool, &mut out)
+            let mut guard = crate::gil::lock_any(&self.pool);
+            guard.as_mut().ok_or(PoolError::Closed)?.guarded(f)
         });
         self.clock.end(start);
         res.map_err(|e| match e {
@@ -124,12 +115,10 @@ impl PyPool {
             dtype: spec.dtype.numpy_name(),
             info_names: spec.info_names.clone(),
             columns: Mutex::new(None),
-            extras_head: AtomicUsize::new(0),
             interrupted,
             clock: CallClock::new(),
             pool: Arc::new(Mutex::new(Some(pool))),
             xla_key: Mutex::new(None),
-            out: Mutex::new(BatchOutput::default()),
         })
     }
 

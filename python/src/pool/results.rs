@@ -1,24 +1,22 @@
 //! Every call's result in one form: per-env values as columns (a whole-batch call's in its
-//! batch slot, where the workers wrote them; a `recv`'s decoded into the `recv` column
+//! batch slot, where the workers wrote them; a `recv`'s written into the `recv` column
 //! buffer), a summary (`SUMMARY_*` bits), and the extra info (hosted envs' infos), all from
 //! the same native call.
-
-use std::sync::atomic::Ordering;
 
 use numpy::PyUntypedArray;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
-use rogue_gym_pool::{BatchOutput, SlotAnswer, SlotExtras};
+use rogue_gym_pool::{EXTRA_HEAD, Received, SlotAnswer, SlotExtras};
 
 use super::PyPool;
-use crate::columns::{SUMMARY_FINAL, SUMMARY_RESTARTED, raw_bytes, recv_layout, write_rows};
+use crate::columns::{SUMMARY_FINAL, SUMMARY_RESTARTED, raw_bytes, recv_layout};
 
 /// The joined extra info of a call: `(rows, data, size, ends)`. `rows`: the rows (env ids
 /// for whole-batch calls) of the envs that wrote some, or `None` when every row did; `data`:
 /// their bytes, one after the other (`None`: every env wrote `size` bytes into its room of the
 /// slot's extra area, to be read there); `size`: the length of each when all have the same
-/// length and the same first `extras_head` bytes (one typed layout), else 0; `ends`: where
+/// length and the same first [`EXTRA_HEAD`] bytes (one typed layout), else 0; `ends`: where
 /// each one's bytes end in `data` (empty when `size` is not 0).
 pub(super) type Joined<'py> = (
     Option<Vec<usize>>,
@@ -36,8 +34,8 @@ pub(super) fn join_extras<'py>(
     py: Python<'py>,
     extras: &[(usize, Vec<u8>)],
     rows: usize,
-    head: usize,
 ) -> PyResult<Option<Joined<'py>>> {
+    let head = EXTRA_HEAD;
     if extras.is_empty() {
         return Ok(None);
     }
@@ -77,20 +75,21 @@ pub(super) fn join_extras<'py>(
 }
 
 impl PyPool {
-    /// Decode a `recv`'s rows `out` into the bound `recv` column buffer; the `SUMMARY_*`
-    /// bits.
-    pub(super) fn decode_recv(&self, out: &BatchOutput) -> PyResult<usize> {
-        let cols = self
-            .columns
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))?;
+    /// Write a `recv`'s records into the bound `recv` column buffer; the `SUMMARY_*` bits.
+    pub(super) fn write_recv_columns(&self, got: &Received) -> PyResult<usize> {
+        let cols = crate::gil::lock_any(&self.columns);
         let &(_, ptr) = cols.as_ref().ok_or_else(|| {
             PyRuntimeError::new_err("recv needs bind_recv_columns() with its column buffer")
         })?;
         // SAFETY: the buffer is kept alive by `cols` and was checked (size, alignment,
         // writeable) by `bind_recv_columns`; we hold the GIL, so Python cannot touch it
         // meanwhile.
-        Ok(unsafe { write_rows(out, self.num_envs, self.n_info, ptr as *mut u8) })
+        let columns = unsafe { recv_layout(self.num_envs, self.n_info).rows(ptr as *mut u8) };
+        Ok(if got.write_columns(&columns) {
+            SUMMARY_RESTARTED
+        } else {
+            0
+        })
     }
 
     /// The result of a whole-batch call: the slot the workers wrote every row of in place,
@@ -112,10 +111,7 @@ impl PyPool {
         let extras = match answer.extras {
             SlotExtras::None => None,
             SlotExtras::Uniform(size) => Some((None, None, size, Vec::new())),
-            SlotExtras::Rows(rows) => {
-                let head = self.extras_head.load(Ordering::Relaxed);
-                join_extras(py, &rows, self.num_envs, head)?
-            }
+            SlotExtras::Rows(rows) => join_extras(py, &rows, self.num_envs)?,
         };
         Ok((answer.slot, summary, extras))
     }
@@ -130,14 +126,9 @@ impl PyPool {
         recv_layout(self.num_envs, self.n_info).column_views()
     }
 
-    /// Bind the column buffer every `recv`'s rows are decoded into (a writable, C-contiguous,
-    /// 8-aligned uint8 array of `column_layout()[1]` bytes). `extras_head`: the leading bytes
-    /// extra infos of one layout share (a result reports one size when all share them).
-    fn bind_recv_columns(
-        &self,
-        buffer: Bound<'_, PyUntypedArray>,
-        extras_head: usize,
-    ) -> PyResult<()> {
+    /// Bind the column buffer every `recv`'s rows are written into (a writable, C-contiguous,
+    /// 8-aligned uint8 array of `column_layout()[1]` bytes).
+    fn bind_recv_columns(&self, buffer: Bound<'_, PyUntypedArray>) -> PyResult<()> {
         let (_, total) = recv_layout(self.num_envs, self.n_info).column_views();
         let raw = raw_bytes(&buffer, "column buffer", total)?;
         if !(raw as usize).is_multiple_of(8) {
@@ -145,12 +136,7 @@ impl PyPool {
                 "the column buffer must be 8-byte aligned",
             ));
         }
-        *self
-            .columns
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("the pool lock is poisoned"))? =
-            Some((buffer.into_any().unbind(), raw as usize));
-        self.extras_head.store(extras_head, Ordering::Relaxed);
+        *crate::gil::lock_any(&self.columns) = Some((buffer.into_any().unbind(), raw as usize));
         Ok(())
     }
 }

@@ -1,9 +1,9 @@
 //! The whole-batch API (gymnasium's `step`/`reset` and their split halves): every env at once,
 //! every per-env output written by the workers in place into the next shared batch slot,
-//! results as [`SyncResult`]s.
+//! results as [`SyncResult`]s. The names are the pool's: `step` is `send_step` then `wait`.
 
 use numpy::ndarray::ArrayView1;
-use numpy::{PyArray1, PyReadonlyArray1};
+use numpy::{PyArray1, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyList;
@@ -17,26 +17,26 @@ use crate::settings;
 
 #[pymethods]
 impl PyPool {
-    /// A sync step of every env: `actions` (int64, one per env, range-checked here; or raw
-    /// uint8 bytes for hosted envs whose actions travel so). The workers write every per-env
-    /// output in place into the next batch slot (see `slot_views`). Returns `(slot, summary,
-    /// extras)`.
+    /// A sync step of every env: `actions` (int64, one per env, range-checked by the pool;
+    /// or raw uint8 bytes for hosted envs whose actions travel so). The workers write every
+    /// per-env output in place into the next batch slot (see `slot_views`). Returns `(slot,
+    /// summary, extras)`.
     fn step<'py>(&self, py: Python<'py>, actions: &Bound<'_, PyAny>) -> PyResult<SyncResult<'py>> {
-        let acts = self.owned_actions(actions, self.num_envs)?;
-        let answer = self.with_pool(py, move |p, _| p.step_slot(acts.as_actions()))?;
+        let acts = self.owned_actions(actions)?;
+        let answer = self.with_pool(py, move |p| p.step(acts.as_actions()))?;
         self.sync_result(py, answer)
     }
 
-    /// The first half of a sync step (gymnasium's `step_async`): check `actions` and send
-    /// them; the workers step meanwhile. Returns the slot they write. Collect with `wait`.
-    fn step_send(&self, py: Python<'_>, actions: &Bound<'_, PyAny>) -> PyResult<usize> {
-        let acts = self.owned_actions(actions, self.num_envs)?;
-        self.with_pool(py, move |p, _| p.send_step_shared(acts.as_actions()))
+    /// The first half of a sync step (gymnasium's `step_async`): send `actions`; the workers
+    /// step meanwhile. Returns the slot they write. Collect with `wait`.
+    fn send_step(&self, py: Python<'_>, actions: &Bound<'_, PyAny>) -> PyResult<usize> {
+        let acts = self.owned_actions(actions)?;
+        self.with_pool(py, move |p| p.send_step(acts.as_actions()))
     }
 
     /// The first half of a full reset (gymnasium's `reset_async`); returns the slot.
-    fn reset_send(&self, py: Python<'_>) -> PyResult<usize> {
-        self.with_pool(py, |p, _| p.send_reset_shared())
+    fn send_reset(&self, py: Python<'_>) -> PyResult<usize> {
+        self.with_pool(py, |p| p.send_reset())
     }
 
     /// The second half of `step_send`/`reset_send`: wait at most `timeout` seconds (`None`:
@@ -51,7 +51,7 @@ impl PyPool {
         let timeout = timeout
             .map(|t| settings::duration("timeout", t))
             .transpose()?;
-        match self.with_pool(py, move |p, _| p.wait_shared(timeout))? {
+        match self.with_pool(py, move |p| p.wait(timeout))? {
             Some(answer) => self.sync_result(py, answer).map(Some),
             None => Ok(None),
         }
@@ -59,28 +59,37 @@ impl PyPool {
 
     /// A partial reset (gymnasium's `reset_mask`): envs with `mask[i]` start their next
     /// scheduled episode, the others keep their state and their current observation is
-    /// written again. `mask`: bool array, one per env. Returns the result as `step` does
-    /// (every env's row). Needs a full reset first.
+    /// written again. `mask`: a 1-D bool (or uint8) array, one entry per env, read as bytes
+    /// (any nonzero byte is true). Returns the result as `step` does (every env's row). Needs
+    /// a full reset first.
     fn reset_envs<'py>(
         &self,
         py: Python<'py>,
         mask: &Bound<'_, PyAny>,
     ) -> PyResult<SyncResult<'py>> {
-        let arr: PyReadonlyArray1<'_, bool> = mask.extract().map_err(|_| {
+        let shape_err = || {
             PyValueError::new_err(format!(
                 "reset_mask must be a 1-D bool numpy array of shape ({},)",
                 self.num_envs
             ))
-        })?;
-        let m: Vec<bool> = arr.as_array().to_vec();
-        if m.len() != self.num_envs {
+        };
+        let arr = mask.cast::<PyUntypedArray>().map_err(|_| shape_err())?;
+        let dtype = arr.dtype();
+        if arr.ndim() != 1 || dtype.itemsize() != 1 || !matches!(dtype.kind(), b'b' | b'u') {
+            return Err(shape_err());
+        }
+        if arr.len() != self.num_envs {
             return Err(PyValueError::new_err(format!(
                 "reset_mask must have shape ({},), got ({},)",
                 self.num_envs,
-                m.len()
+                arr.len()
             )));
         }
-        let answer = self.with_pool(py, move |p, _| p.reset_envs_slot(&m))?;
+        // As bytes, never as Rust `bool`: a numpy bool array may hold any byte.
+        let bytes = arr.call_method1("view", (numpy::dtype::<u8>(py),))?;
+        let bytes = bytes.cast::<PyArray1<u8>>()?.readonly();
+        let m: Vec<bool> = bytes.as_array().iter().map(|&b| b != 0).collect();
+        let answer = self.with_pool(py, move |p| p.reset_envs(&m))?;
         self.sync_result(py, answer)
     }
 
@@ -114,7 +123,8 @@ impl PyPool {
         };
         let list = PyList::empty(py);
         for slot in 0..pool.batch_slots() {
-            let base = pool.shared_obs_ptr(slot);
+            // SAFETY: slot `slot` lies inside the buffer.
+            let base = unsafe { buffer.as_ptr().add(slot * layout.bytes()) }.cast_const();
             // SAFETY: every offset below stays inside the slot (see `SlotLayout`).
             let at = |off: usize| unsafe { base.add(off) };
             let obs = view(base, n * layout.obs_bytes)?;
@@ -138,7 +148,7 @@ impl PyPool {
     /// `shared_views()`); the turns go on from there. `ValueError` for a slot that does not
     /// exist.
     fn select_slot(&self, py: Python<'_>, slot: usize) -> PyResult<()> {
-        self.with_pool(py, move |p, _| p.select_slot(slot))
+        self.with_pool(py, move |p| p.select_slot(slot))
     }
 
     /// Replace the episode-seed schedule (JSON `{"base": .., "set": .., "policy": ..}`) and
@@ -146,6 +156,6 @@ impl PyPool {
     fn set_seeds(&self, py: Python<'_>, seeds_json: &str) -> PyResult<()> {
         let seeds: SeedSchedule = serde_json::from_str(seeds_json)
             .map_err(|e| PyValueError::new_err(format!("invalid seed schedule: {e}")))?;
-        self.with_pool(py, move |p, _| p.set_seeds(seeds))
+        self.with_pool(py, move |p| p.set_seeds(seeds))
     }
 }

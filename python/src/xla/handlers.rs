@@ -9,7 +9,7 @@
 use std::ffi::{c_int, c_void};
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
-use rogue_gym_pool::BatchOutput;
+use rogue_gym_pool::EnvRecord;
 
 use super::ffi::{self, Buffer, CallFrame, DataType, Values};
 
@@ -119,10 +119,6 @@ impl Buf {
         }
         Ok(())
     }
-
-    fn put_bools(&mut self, values: &[bool]) -> Result<(), String> {
-        self.put(values.iter().map(|&b| f64::from(u8::from(b))))
-    }
 }
 
 /// The results of a `recv`, in order.
@@ -132,8 +128,13 @@ pub(crate) struct Outputs<'a> {
 }
 
 impl Outputs<'_> {
-    /// Write the batch `out` (its rows in order) into the outputs after `obs`.
-    pub(crate) fn write(&mut self, out: &BatchOutput, n_info: usize) -> Result<(), String> {
+    /// Write the rows of envs `env_ids`, `records` (in order), into the outputs after `obs`.
+    pub(crate) fn write(
+        &mut self,
+        env_ids: &[usize],
+        records: &[EnvRecord],
+        n_info: usize,
+    ) -> Result<(), String> {
         let [
             reward,
             terminated,
@@ -146,16 +147,21 @@ impl Outputs<'_> {
         else {
             return Err("recv() has too few results".into());
         };
-        reward.put(out.reward.iter().copied())?;
-        terminated.put_bools(&out.terminated)?;
-        truncated.put_bools(&out.truncated)?;
-        env_id.put(out.env_ids.iter().map(|&e| e as f64))?;
-        elapsed.put(out.episode_length.iter().map(|&l| f64::from(l)))?;
-        restarted.put_bools(&out.restarted)?;
+        let bool_of = |b: bool| f64::from(u8::from(b));
+        reward.put(records.iter().map(|r| r.reward))?;
+        terminated.put(records.iter().map(|r| bool_of(r.terminated())))?;
+        truncated.put(records.iter().map(|r| bool_of(r.truncated())))?;
+        env_id.put(env_ids.iter().map(|&e| e as f64))?;
+        elapsed.put(records.iter().map(|r| f64::from(r.episode_length)))?;
+        restarted.put(records.iter().map(|r| bool_of(r.restarted())))?;
         if let [info] = info
             && n_info > 0
         {
-            info.put(out.info.iter().copied())?;
+            info.put(
+                records
+                    .iter()
+                    .flat_map(|r| r.info[..n_info].iter().copied()),
+            )?;
         }
         Ok(())
     }

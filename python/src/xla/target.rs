@@ -4,7 +4,7 @@
 
 use std::sync::{Mutex, Weak};
 
-use rogue_gym_pool::{Actions, BatchOutput, Pool, PoolError, RecvWant};
+use rogue_gym_pool::{Actions, EnvRecord, Pool, PoolError, RecvWant};
 
 use super::handlers::{Buf, Outputs};
 
@@ -26,7 +26,9 @@ struct State {
     staged: Option<Staged>,
     /// (Async) the envs of the last `recv`: a `send` without env ids answers them.
     last_ids: Vec<usize>,
-    out: BatchOutput,
+    /// (Sync) every env's id and record of the last step.
+    all_ids: Vec<usize>,
+    records: Vec<EnvRecord>,
     /// Whole pool rows, when an observation is shorter than its padded row.
     scratch: Vec<u8>,
 }
@@ -90,19 +92,17 @@ impl XlaTarget {
                 .to_string()
         };
         let shared = self.pool.upgrade().ok_or_else(closed)?;
-        let mut guard = shared
-            .lock()
-            .map_err(|_| "the pool lock is poisoned".to_string())?;
+        let mut guard = crate::gil::lock_any(&shared);
         let pool = guard.as_mut().ok_or_else(closed)?;
         let check = pool.set_interrupt_check(None);
-        let res = f(pool);
+        let res = pool.guarded(f);
         pool.set_interrupt_check(check);
         res.map_err(|e| e.to_string())
     }
 
     /// `send(handle, action, env_id)`: stage a sync step's actions, or send an async one.
     pub(crate) fn send(&self, action: &Buf, env_ids: Option<&Buf>) -> Result<(), String> {
-        let mut state = self.state.lock().map_err(|_| "xla state poisoned")?;
+        let mut state = crate::gil::lock_any(&self.state);
         let ids: Vec<usize> = match env_ids {
             Some(b) => b.indices("env_id", self.num_envs)?,
             None if self.sync() => (0..self.num_envs).collect(),
@@ -179,7 +179,7 @@ impl XlaTarget {
     /// `recv(handle)`: step the staged sync actions, or receive the next async batch, into
     /// `outs`.
     pub(crate) fn recv(&self, outs: &mut Outputs<'_>) -> Result<(), String> {
-        let mut state = self.state.lock().map_err(|_| "xla state poisoned")?;
+        let mut state = crate::gil::lock_any(&self.state);
         let state = &mut *state;
         let (rows, ob) = (self.batch_size, self.obs_bytes);
         let obs = outs.obs.bytes_mut();
@@ -196,20 +196,37 @@ impl XlaTarget {
                 .staged
                 .take()
                 .ok_or("recv() of a sync pool follows a send() of every env's action")?;
-            let (out, scratch) = (&mut state.out, &mut state.scratch);
-            if own == ob {
-                self.with_pool(|p| p.step(staged.as_actions(), obs, out))?;
-            } else {
-                scratch.resize(rows * ob, 0);
-                self.with_pool(|p| p.step(staged.as_actions(), scratch, out))?;
+            let (records, scratch) = (&mut state.records, &mut state.scratch);
+            self.with_pool(|p| {
+                let a = p.step(staged.as_actions())?;
+                let Some(slot) = p.slot_rows(a.slot) else {
+                    return Err(PoolError::Closed);
+                };
+                // SAFETY: no call runs while the pool is borrowed here, so no worker writes
+                // the slot.
+                let src = unsafe { slot.obs_rows(0..rows) };
+                if own == ob {
+                    obs.copy_from_slice(src);
+                } else {
+                    scratch.clear();
+                    scratch.extend_from_slice(src);
+                }
+                records.clear();
+                records.extend((0..rows).map(|i| slot.read(i)));
+                Ok(())
+            })?;
+            if own != ob {
                 copy_rows(scratch, ob, obs, own);
             }
-            outs.write(out, self.n_info)?;
+            if state.all_ids.len() != rows {
+                state.all_ids = (0..rows).collect();
+            }
+            outs.write(&state.all_ids, &state.records, self.n_info)?;
             return Ok(());
         }
         let (got, writer) = self.with_pool(|p| {
             let got = p.recv_want(RecvWant::exactly(rows))?;
-            let writer = got.view.and_then(|(slot, _)| p.slot_writer(slot));
+            let writer = got.view.and_then(|(slot, _)| p.slot_rows(slot));
             Ok((got, writer))
         })?;
         match (got.view, &writer) {
@@ -220,8 +237,7 @@ impl XlaTarget {
             }
             _ => copy_rows(&got.obs, ob, obs, own),
         }
-        got.fill(self.n_info, &mut state.out);
-        outs.write(&state.out, self.n_info)?;
+        outs.write(&got.env_ids, &got.records, self.n_info)?;
         state.last_ids.clone_from(&got.env_ids);
         Ok(())
     }
