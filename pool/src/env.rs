@@ -51,6 +51,11 @@ pub struct EnvSpec {
     /// worker's block, in bytes; longer info goes through a side file. `0`: the env has none.
     #[serde(default)]
     pub extra_bytes: usize,
+    /// The info values of [`EnvSpec::info_names`] that are flags (0 or 1): a binding hands
+    /// them out as `bool`s (the caller checks their bytes, `SlotRows::check_flags`), the
+    /// others as integers.
+    #[serde(default)]
+    pub flag_infos: Vec<String>,
 }
 
 impl EnvSpec {
@@ -66,6 +71,13 @@ impl EnvSpec {
     pub fn action_words(&self) -> usize {
         self.action_bytes.div_ceil(8).max(1)
     }
+    /// The rows of the `info_*` columns of the [`EnvSpec::flag_infos`].
+    pub fn flag_info_rows(&self) -> Vec<usize> {
+        (self.info_names.iter().enumerate())
+            .filter(|(_, n)| self.flag_infos.contains(n))
+            .map(|(j, _)| j)
+            .collect()
+    }
     /// Check the spec is usable by the pool.
     pub fn validate(&self) -> Result<(), EnvError> {
         if self.obs_len() == 0 {
@@ -76,6 +88,12 @@ impl EnvSpec {
         }
         if self.num_actions == 0 && self.action_bytes == 0 {
             return Err(EnvError::new("the env declares 0 actions"));
+        }
+        if let Some(f) = self.flag_infos.iter().find(|f| !self.info_names.contains(f)) {
+            return Err(EnvError::new(format!(
+                "the flag info {f:?} is not one of the info values {:?}",
+                self.info_names
+            )));
         }
         if self.info_names.len() > MAX_INFO {
             return Err(EnvError::new(format!(

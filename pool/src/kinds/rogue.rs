@@ -73,6 +73,7 @@ impl RogueEnv {
             },
             num_actions: rogue_gym_engine::NUM_ACTIONS,
             info_names: ROGUE_INFO_NAMES.iter().map(|s| s.to_string()).collect(),
+            flag_infos: ROGUE_BOOL_INFO.iter().map(|s| s.to_string()).collect(),
             action_bytes: 0,
             extra_bytes: 0,
         };

@@ -73,6 +73,7 @@ impl TestEnv {
                 info_names: vec!["t".into(), "state_mod_1000".into()],
                 action_bytes: 0,
                 extra_bytes: 0,
+                flag_infos: Vec::new(),
             },
             max_steps: get_u64(v, "max_steps", 50)? as u32,
             work: get_u64(v, "work", 0)? as u32,

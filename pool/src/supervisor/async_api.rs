@@ -300,7 +300,7 @@ impl Supervisor {
         let sent = self.async_api.envs.sent_to(k);
         let checked = Answer::decode(&words, self.slot_layout.extra_bytes).and_then(|a| {
             sent.iter()
-                .try_for_each(|&e| rows.check_flags(e..e + 1))
+                .try_for_each(|&e| self.check_flags(&rows, e..e + 1))
                 .map(|()| a)
         });
         let what = match checked {

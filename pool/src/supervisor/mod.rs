@@ -52,7 +52,7 @@ use crate::seeds::SeedSchedule;
 use crate::stats::{StatsBuffer, SupervisorCounts, WorkerStats};
 use crate::wire::books::Books;
 use crate::wire::layout::BlockLayout;
-use crate::wire::slot_layout::SlotLayout;
+use crate::wire::slot_layout::{Flag, SlotLayout};
 use crate::wire::{BATCH_BUFFER, Command, Op, WorkerConfig, block_range_of, shm_need};
 
 pub use actions::{Actions, validate_actions};
@@ -86,6 +86,9 @@ struct Supervisor {
     slot_layout: SlotLayout,
     /// Each env's episode index and seed, as its worker last answered ([`crate::wire::books`]).
     books: Option<Books>,
+    /// The flag columns whose bytes are checked in every answer written in place
+    /// (`Supervisor::check_flags`).
+    flags: Vec<crate::wire::slot_layout::Flag>,
     /// Bytes the pool needs in /dev/shm ([`Pool::shm_bytes`]).
     shm_need: u64,
     next_slot: usize,
@@ -187,6 +190,11 @@ impl Pool {
         // Before anything is created: a pool that does not fit /dev/shm fails now, with the
         // fixes, not later with a SIGBUS in a worker.
         let shm_need = shm_need(cfg.batch_slots, &slot_layout, &layouts);
+        let mut flags = vec![Flag::Terminated, Flag::Truncated];
+        flags.extend(spec.flag_info_rows().into_iter().map(Flag::Info));
+        if slot_layout.final_obs {
+            flags.push(Flag::HasFinalObs);
+        }
         rogue_gym_ipc::check_room(shm_need)?;
         let runtime_dir = rogue_gym_ipc::resolve_runtime_dir(cfg.runtime_dir.as_deref())?;
         rogue_gym_ipc::sweep_stale_pools(&runtime_dir);
@@ -235,6 +243,7 @@ impl Pool {
                 batch: None,
                 slot_layout,
                 books: None,
+                flags,
                 shm_need,
                 next_slot: 0,
                 closed: false,

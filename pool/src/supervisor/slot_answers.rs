@@ -29,6 +29,8 @@ pub(super) struct SlotCollect {
     pub(super) ready_ns: u64,
     /// Workers whose envs wrote extra info not of one layout.
     mixed: Vec<usize>,
+    /// Workers restarted during the call (their envs report it).
+    restarted: Vec<usize>,
     /// Extra info that travelled beside the answers.
     apart: Apart,
     /// The layout of every answer's extra info so far, while all are one.
@@ -71,7 +73,7 @@ impl Supervisor {
             acc.ready_ns = acc.ready_ns.max(sample.user_header().ready_ns);
             drop(sample);
             let checked = Answer::decode(&words, room).and_then(|a| {
-                rows.check_flags(self.blocks[k].clone())?;
+                self.check_flags(&rows, self.blocks[k].clone())?;
                 Ok(a)
             });
             let answer = match checked {
@@ -96,6 +98,7 @@ impl Supervisor {
             if restarted {
                 // Its envs report the restart, not their reset's final obs or info.
                 acc.answer.restarted = true;
+                acc.restarted.push(k);
                 acc.not_uniform = true;
                 for i in self.blocks[k].clone() {
                     rows.mark_restarted(i);
@@ -119,6 +122,29 @@ impl Supervisor {
         }
         if acc.answered == self.workers.len() {
             acc.answer.extras = self.slot_extras(acc, &rows);
+            if acc.answer.restarted {
+                // No worker writes `restarted` (its envs cannot know): the column is the
+                // supervisor's, written whole here.
+                for (k, b) in self.blocks.iter().enumerate() {
+                    if !acc.restarted.contains(&k) {
+                        b.clone().for_each(|i| rows.clear_restarted(i));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Check the flag bytes a worker wrote in rows `envs` of a slot: those handed out as
+    /// `bool` (`terminated`, `truncated`, the env's flag infos) and, in SAME_STEP mode,
+    /// `has_final_obs`, which says which final observations to read.
+    pub(super) fn check_flags(
+        &self,
+        rows: &SlotRows,
+        envs: std::ops::Range<usize>,
+    ) -> Result<(), String> {
+        for &f in &self.flags {
+            rows.check_flags(f, envs.clone())?;
         }
         Ok(())
     }

@@ -74,6 +74,21 @@ fn align64(n: usize) -> usize {
 /// slot start in different cache sets.
 pub const ROW_SKEW: usize = 64;
 
+/// A column of flags, one byte per env ([`SlotRows::check_flags`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Flag {
+    /// `terminated`.
+    Terminated,
+    /// `truncated`.
+    Truncated,
+    /// `restarted`.
+    Restarted,
+    /// `has_final_obs`.
+    HasFinalObs,
+    /// Row `j` of `info_bool`.
+    Info(usize),
+}
+
 /// A column as a caller views it: `(name, numpy dtype, byte offset from the columns area,
 /// rows, bytes from one row to the next)`.
 pub type ColumnView = (&'static str, &'static str, usize, usize, usize);
@@ -240,35 +255,36 @@ impl SlotRows {
         self.put(RESTARTED, row, u8::from(r.restarted()));
         self.put(HAS_FINAL, row, u8::from(r.has_final_obs()));
     }
-    /// Check that every flag byte of rows `rows` (`terminated`, `truncated`, `restarted`,
-    /// `has_final_obs` and the `info_bool` rows) is 0 or 1: what a caller hands out as `bool`
-    /// must be one. The error names the column and the row.
-    pub fn check_flags(&self, rows: std::ops::Range<usize>) -> Result<(), String> {
+    /// Check that the bytes of flag column `flag` at rows `rows` are each 0 or 1: what a
+    /// caller hands out as `bool` must be one. The error names the column and the env.
+    pub fn check_flags(&self, flag: Flag, rows: std::ops::Range<usize>) -> Result<(), String> {
         let n = self.layout.num_envs;
+        let (c, j) = match flag {
+            Flag::Terminated => (TERMINATED, 0),
+            Flag::Truncated => (TRUNCATED, 0),
+            Flag::Restarted => (RESTARTED, 0),
+            Flag::HasFinalObs => (HAS_FINAL, 0),
+            Flag::Info(j) if j < self.layout.n_info.min(MAX_INFO) => (INFO_BOOL, j),
+            Flag::Info(j) => return Err(format!("no info row {j}")),
+        };
         if rows.start > rows.end || rows.end > n {
             return Err(format!("rows {rows:?} of a slot of {n} envs"));
         }
-        let columns = [TERMINATED, TRUNCATED, RESTARTED, HAS_FINAL]
-            .into_iter()
-            .map(|c| (c, 0))
-            .chain((0..self.layout.n_info.min(MAX_INFO)).map(|j| (INFO_BOOL, j)));
-        for (c, j) in columns {
-            // SAFETY: in bounds (checked above) and plain bytes.
-            let bytes =
-                unsafe { std::slice::from_raw_parts(self.at::<u8>(c, j, rows.start), rows.len()) };
-            // One pass that the compiler vectorizes; the error path finds the row.
-            if bytes.iter().fold(0u8, |a, &b| a | b) > 1
-                && let Some(r) = bytes.iter().position(|&b| b > 1)
-            {
-                return Err(format!(
-                    "flag byte {} in the {} column of env {}",
-                    bytes[r],
-                    COLUMNS[c].name,
-                    rows.start + r
-                ));
-            }
+        // SAFETY: in bounds (checked above) and plain bytes.
+        let bytes =
+            unsafe { std::slice::from_raw_parts(self.at::<u8>(c, j, rows.start), rows.len()) };
+        // One pass that the compiler vectorizes; the error path finds the env.
+        if bytes.iter().fold(0u8, |a, &b| a | b) <= 1 {
+            return Ok(());
         }
-        Ok(())
+        let r = bytes.iter().position(|&b| b > 1).unwrap_or(0);
+        Err(format!(
+            "flag byte {} in the {} column{} of env {}",
+            bytes[r],
+            COLUMNS[c].name,
+            if c == INFO_BOOL { format!(" (info {j})") } else { String::new() },
+            rows.start + r
+        ))
     }
 
     /// Mark env `row` as restarted: its episode was cut (truncated, reward 0).
@@ -279,6 +295,11 @@ impl SlotRows {
         self.put(TRUNCATED, row, 1u8);
         self.put(RESTARTED, row, 1u8);
         self.put(HAS_FINAL, row, 0u8);
+    }
+    /// Clear env `row`'s `restarted` flag (its worker was not restarted).
+    pub fn clear_restarted(&self, row: usize) {
+        assert!(row < self.layout.num_envs);
+        self.put(RESTARTED, row, 0u8);
     }
     /// Read env `row`'s values back as a record (flags, reward, books and info values; the
     /// Rust API's copying forms use it).
