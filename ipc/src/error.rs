@@ -43,9 +43,8 @@ pub enum IpcError {
     #[error(
         "{dir} has {} free ({} in all), but this pool needs {}: give the container more shared memory \
          (docker run --shm-size=1g, or --ipc=host; in Kubernetes an emptyDir with medium: Memory \
-         mounted at /dev/shm), or use fewer envs or smaller observations (the need is the \
-         batch of observations times its slots, batch_slots, 2 by default, plus each worker's \
-         records); \
+         mounted at /dev/shm), or use fewer envs or less info room (the need there is each \
+         worker's channels: its records, final observations and infos, two blocks of them); \
          python -m rogue_gym.doctor checks a machine",
         mib(*free), mib(*size), mib(*need)
     )]
@@ -58,6 +57,21 @@ pub enum IpcError {
         size: u64,
         /// Its free space.
         free: u64,
+    },
+    /// The machine, or the process's memory limit (a container's cgroup), cannot give a
+    /// shared buffer its pages.
+    #[error(
+        "cannot reserve {} for the pool's {what} buffer: the machine or this process's memory \
+         limit (a container's cgroup) has no room for it; use fewer envs, smaller observations \
+         or fewer batch_slots (2 by default), or give the container more memory; \
+         python -m rogue_gym.doctor checks a machine",
+        mib(*need)
+    )]
+    NoMemory {
+        /// The buffer (`batch`, `books`, `stats`).
+        what: String,
+        /// Bytes it needs.
+        need: u64,
     },
     /// A shared resource does not have the size this side expects.
     #[error("size mismatch: {0}")]

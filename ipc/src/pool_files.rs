@@ -17,8 +17,7 @@ use crate::private::{check_private, create_private_dir, create_private_file, tig
 /// a process learns the counter's name (see `node_counter_name`).
 pub fn create_node_counter(id: &PoolId) -> Result<(), IpcError> {
     let v = iceoryx2_bb_elementary::package_version::PackageVersion::get();
-    let path =
-        StdPath::new(SHM_DIR).join(format!("{}{}", id.prefix(), node_counter_name(id.base())?));
+    let path = node_counter_path(id)?;
     let mut f = create_private_file(&path)?;
     // Layout of iceoryx2's `Data<State>` (repr C): a u64 version, then a u32 counter,
     // padded to 16 bytes.
@@ -29,6 +28,11 @@ pub fn create_node_counter(id: &PoolId) -> Result<(), IpcError> {
         path: path.clone(),
         source,
     })
+}
+
+/// Where iceoryx2's node counter of pool `id` lies (see [`create_node_counter`]).
+pub fn node_counter_path(id: &PoolId) -> Result<std::path::PathBuf, IpcError> {
+    Ok(StdPath::new(SHM_DIR).join(format!("{}{}", id.prefix(), node_counter_name(id.base())?)))
 }
 
 /// Check every file of this user under the pool's prefix in `/dev/shm` (a regular file

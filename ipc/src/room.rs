@@ -1,12 +1,12 @@
 //! Room in the shared-memory filesystem (`/dev/shm`): how large it is, how much is free, and
 //! the error that says a pool does not fit, with the fixes.
 //!
-//! A tmpfs lets a file be sized beyond its free space; the pages are taken only when written,
-//! and a process that writes a page the filesystem cannot give is killed by SIGBUS. So a pool
-//! checks its need against the free space before it creates anything ([`check_room`]), and
-//! reserves the pages of its batch buffer when it creates it (`posix_fallocate`, see
-//! [`crate::SharedBuffer::create`]): a filesystem that fills up later is an error at creation,
-//! never a signal in a worker.
+//! What a pool keeps there is iceoryx2's: each worker's channels (its command and answer
+//! blocks). A tmpfs lets a file be sized beyond its free space; the pages are taken only when
+//! written, and a process that writes a page the filesystem cannot give is killed by SIGBUS.
+//! So a pool checks its need against the free space before it creates anything
+//! ([`check_room`]). The pool's own buffers are not there ([`crate::SharedBuffer`]: memory
+//! files whose pages are reserved when they are made).
 
 use crate::error::IpcError;
 use crate::naming::SHM_DIR;

@@ -195,7 +195,7 @@ fn every_path_of_a_live_pool_is_private() {
         max_borrowed: 2,
     };
     {
-        let _buf = SharedBuffer::create(&id, "batch", 4096).unwrap();
+        let _buf = SharedBuffer::create("batch", 4096).unwrap();
         create_node_counter(&id).unwrap();
         let node = id.node("sup").unwrap();
         let _sup = SupervisorPorts::new(&node, 0, 4, &s).unwrap();
@@ -223,27 +223,22 @@ fn a_planted_name_fails_cleanly_and_nothing_is_written_through_it() {
     let base = private_base("rgp-ipc-planted-test");
     let id = PoolId::new_unique(&base).unwrap();
     id.create_dirs().unwrap();
-    // A link where the batch buffer goes, pointing at a file of ours: refused, file untouched.
+    // A link where the node counter goes, pointing at a file of ours: refused, file untouched.
     let victim = base.join("victim");
     fs::write(&victim, b"precious").unwrap();
-    let link = StdPath::new("/dev/shm").join(format!("{}batch", id.prefix()));
-    std::os::unix::fs::symlink(&victim, &link).unwrap();
-    let err = SharedBuffer::create(&id, "batch", 4096).unwrap_err();
+    let counter = crate::pool_files::node_counter_path(&id).unwrap();
+    std::os::unix::fs::symlink(&victim, &counter).unwrap();
+    let err = create_node_counter(&id).unwrap_err();
     assert!(err.to_string().contains("File exists"), "{err}");
     assert_eq!(fs::read(&victim).unwrap(), b"precious");
-    // Opening through a link is refused too.
-    let err = SharedBuffer::open(&id, "batch", 4096).unwrap_err();
-    assert!(err.to_string().contains("open shared buffer"), "{err}");
+    fs::remove_file(&counter).unwrap();
     // A loose (0644) file under the pool's prefix makes the pool's check fail.
-    fs::remove_file(&link).unwrap();
     {
         use std::os::unix::fs::PermissionsExt;
-        let _b = SharedBuffer::create(&id, "batch", 64).unwrap();
-        let p = StdPath::new("/dev/shm").join(format!("{}batch", id.prefix()));
-        fs::set_permissions(&p, fs::Permissions::from_mode(0o644)).unwrap();
+        create_node_counter(&id).unwrap();
+        fs::set_permissions(&counter, fs::Permissions::from_mode(0o644)).unwrap();
         let err = verify_pool_files(&id).unwrap_err();
         assert!(err.to_string().contains("open to group or others"), "{err}");
-        assert!(SharedBuffer::open(&id, "batch", 64).is_err());
     }
     // An existing pool directory is never reused.
     assert!(id.create_dirs().is_err());

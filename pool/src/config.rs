@@ -127,6 +127,9 @@ pub struct PoolConfig {
     /// [`rogue_gym_ipc::default_runtime_dir`] (`$ROGUE_GYM_RUNTIME_DIR`, else
     /// `$XDG_RUNTIME_DIR/rogue-gym`, else `/tmp/rogue-gym-<uid>`).
     pub runtime_dir: Option<PathBuf>,
+    /// A bad value one worker writes on purpose, for the pool's own tests of what the caller
+    /// checks ([`crate::wire::sabotage`]). `None` (always, outside those tests).
+    pub sabotage: Option<crate::wire::sabotage::Sabotage>,
 }
 
 impl PoolConfig {
@@ -166,6 +169,7 @@ impl PoolConfig {
                 sleep_first: Duration::ZERO,
             },
             runtime_dir: None,
+            sabotage: None,
         }
     }
 

@@ -89,7 +89,11 @@ impl EnvSpec {
         if self.num_actions == 0 && self.action_bytes == 0 {
             return Err(EnvError::new("the env declares 0 actions"));
         }
-        if let Some(f) = self.flag_infos.iter().find(|f| !self.info_names.contains(f)) {
+        if let Some(f) = self
+            .flag_infos
+            .iter()
+            .find(|f| !self.info_names.contains(f))
+        {
             return Err(EnvError::new(format!(
                 "the flag info {f:?} is not one of the info values {:?}",
                 self.info_names

@@ -8,7 +8,9 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use rogue_gym_ipc::{IpcError, PoolId, SharedBuffer};
+use std::os::fd::OwnedFd;
+
+use rogue_gym_ipc::{IpcError, SharedBuffer};
 
 /// Name of the pool's stats buffer (`/dev/shm/<pool>stats`).
 pub(crate) const STATS_BUFFER: &str = "stats";
@@ -45,16 +47,21 @@ pub(crate) struct StatsBuffer {
 }
 
 impl StatsBuffer {
-    /// Create it (supervisor; zero-filled, private).
-    pub(crate) fn create(id: &PoolId, num_workers: usize) -> Result<Self, IpcError> {
-        let buf = SharedBuffer::create(id, STATS_BUFFER, buffer_bytes(num_workers))?;
+    /// Create it (supervisor; zero-filled, sealed: [`SharedBuffer::create`]).
+    pub(crate) fn create(num_workers: usize) -> Result<Self, IpcError> {
+        let buf = SharedBuffer::create(STATS_BUFFER, buffer_bytes(num_workers))?;
         Ok(StatsBuffer { buf, num_workers })
     }
 
-    /// Map it (worker).
-    pub(crate) fn open(id: &PoolId, num_workers: usize) -> Result<Self, IpcError> {
-        let buf = SharedBuffer::open(id, STATS_BUFFER, buffer_bytes(num_workers))?;
+    /// Map it from the descriptor the supervisor handed down (worker).
+    pub(crate) fn from_fd(fd: OwnedFd, num_workers: usize) -> Result<Self, IpcError> {
+        let buf = SharedBuffer::from_fd(fd, STATS_BUFFER, buffer_bytes(num_workers))?;
         Ok(StatsBuffer { buf, num_workers })
+    }
+
+    /// The buffer (its descriptor, for the workers).
+    pub(crate) fn buffer(&self) -> &SharedBuffer {
+        &self.buf
     }
 
     fn word(&self, worker: usize, c: usize) -> &AtomicU64 {
@@ -173,9 +180,9 @@ mod tests {
 
     #[test]
     fn rows_are_per_worker_and_shared_between_mappings() {
-        let id = PoolId::new_unique(&std::env::temp_dir()).unwrap();
-        let sup = StatsBuffer::create(&id, 3).unwrap();
-        let worker = StatsBuffer::open(&id, 3).unwrap();
+        let sup = StatsBuffer::create(3).unwrap();
+        let fd = sup.buffer().dup_fd().unwrap();
+        let worker = StatsBuffer::from_fd(fd, 3).unwrap();
         worker.add(1, Counter::EnvSteps, 5);
         worker.add(1, Counter::EnvSteps, 2);
         worker.add(2, Counter::EnvNs, 40);
@@ -190,7 +197,5 @@ mod tests {
             sup.worker(0, &SupervisorCounts::default()),
             WorkerStats::default()
         );
-        drop((sup, worker));
-        rogue_gym_ipc::remove_pool_files(&id).unwrap();
     }
 }

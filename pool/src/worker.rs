@@ -3,7 +3,9 @@
 //!
 //! Entry point: [`worker_main`], called by `rogue-gym worker ...`, by the e2e test binary and by
 //! the Python extension (`python -m rogue_gym.worker ...`). Arguments (after the program and its
-//! leading args): `--config <file> --index <k> --generation <g> --ppid <supervisor pid>`.
+//! leading args): `--config <file> --index <k> --generation <g> --ppid <supervisor pid>
+//! --shared-fds <batch>,<books>,<stats>` (the descriptors of the pool's buffers, which the
+//! supervisor keeps open across the worker's `exec`).
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -23,7 +25,7 @@ use crate::wire::books::Books;
 use crate::wire::layout::BlockLayout;
 use crate::wire::slot_layout::SlotLayout;
 use crate::wire::{
-    BATCH_BUFFER, Command, EnvFault, Op, Serve, WorkerConfig, calls, env_fault_path,
+    BATCH_BUFFER, Command, EnvFault, Op, SHARED_FDS, Serve, WorkerConfig, calls, env_fault_path,
     extra_apart_path, successor_go, successor_marker,
 };
 
@@ -31,6 +33,7 @@ mod block;
 mod block_out;
 mod env_state;
 mod envs;
+mod sabotage;
 mod streaming;
 
 use block::BlockHost;
@@ -56,6 +59,8 @@ struct Args {
     /// A planned replacement ([`crate::wire::successor_marker`]): build the envs while the
     /// worker it replaces still serves, say so, then take over its ports once they are free.
     successor: bool,
+    /// The descriptors of the pool's buffers ([`crate::wire::SHARED_FDS`] order).
+    shared_fds: Vec<i32>,
 }
 
 fn parse_args(args: &[String]) -> Result<Args, String> {
@@ -64,6 +69,7 @@ fn parse_args(args: &[String]) -> Result<Args, String> {
     let mut generation = 0u64;
     let mut ppid = None;
     let mut successor = false;
+    let mut shared_fds = Vec::new();
     let mut it = args.iter();
     while let Some(a) = it.next() {
         let mut val = |name: &str| {
@@ -87,6 +93,12 @@ fn parse_args(args: &[String]) -> Result<Args, String> {
             }
             "--ppid" => ppid = Some(val("--ppid")?.parse().map_err(|e| format!("--ppid: {e}"))?),
             "--successor" => successor = true,
+            "--shared-fds" => {
+                shared_fds = val("--shared-fds")?
+                    .split(',')
+                    .map(|f| f.parse::<i32>().map_err(|e| format!("--shared-fds: {e}")))
+                    .collect::<Result<_, _>>()?;
+            }
             other => return Err(format!("unexpected argument {other:?}")),
         }
     }
@@ -96,6 +108,9 @@ fn parse_args(args: &[String]) -> Result<Args, String> {
         generation,
         ppid: ppid.ok_or("missing --ppid <supervisor pid>")?,
         successor,
+        shared_fds: (shared_fds.len() == SHARED_FDS.len())
+            .then_some(shared_fds)
+            .ok_or("missing --shared-fds <batch>,<books>,<stats>")?,
     })
 }
 
@@ -108,7 +123,7 @@ pub fn worker_main(args: &[String], registry: &EnvRegistry) -> i32 {
         Ok(a) => a,
         Err(e) => {
             eprintln!(
-                "rogue-gym worker: {e}\nusage: worker --config <file> --index <k> --generation <g> --ppid <pid>"
+                "rogue-gym worker: {e}\nusage: worker --config <file> --index <k> --generation <g> --ppid <pid> --shared-fds <batch>,<books>,<stats>"
             );
             return 2;
         }
@@ -241,6 +256,8 @@ struct Worker<'a> {
     /// The rows are written with streaming stores ([`streaming`]).
     streamed: bool,
     fault_path: PathBuf,
+    /// Reset and step commands served so far.
+    served: u64,
 }
 
 /// How a worker waits for its next command: polls for the gap the caller usually leaves, or
@@ -283,6 +300,12 @@ impl<'a> Worker<'a> {
             )));
         }
         let id = PoolId::from_parts(&cfg.pool_name, &cfg.runtime_dir)?;
+        // First thing: the pool's buffers, so that nothing this worker starts inherits them.
+        // SAFETY: the supervisor opened these descriptors for this process (`--shared-fds`),
+        // and nothing else here takes them.
+        let [batch, books, stats] =
+            unsafe { [0, 1, 2].map(|i| rogue_gym_ipc::buffer::take_inherited(a.shared_fds[i])) };
+        let (batch, books, stats) = (batch?, books?, stats?);
         let fault_path = env_fault_path(&id, a.index, a.generation);
         let globals = envs.start as u64..envs.end as u64;
         let mut building = globals.start;
@@ -350,9 +373,9 @@ impl<'a> Worker<'a> {
         let w = Worker {
             args: a,
             cfg,
-            batch: SharedBuffer::open(&id, BATCH_BUFFER, slots_bytes)?,
-            stats: StatsBuffer::open(&id, cfg.num_workers)?,
-            books: Books::open(&id, cfg.num_envs)?,
+            batch: SharedBuffer::from_fd(batch, BATCH_BUFFER, slots_bytes)?,
+            stats: StatsBuffer::from_fd(stats, cfg.num_workers)?,
+            books: Books::from_fd(books, cfg.num_envs)?,
             id,
             first_env: envs.start,
             envs: hosted,
@@ -368,6 +391,7 @@ impl<'a> Worker<'a> {
             scratch,
             streamed,
             fault_path,
+            served: 0,
         };
         w.send(0, BlockKind::Ready)?;
         Ok(w)
@@ -497,6 +521,8 @@ impl<'a> Worker<'a> {
                 .seeds;
         }
         let me = self.args.index;
+        self.served += 1;
+        let misdeed = self.misdeed(self.served);
         let mut block = self.ports.loan_block(self.layout.words())?;
         *block.user_header_mut() = self.header(seq, BlockKind::Data);
         let serving = stamp();
@@ -543,7 +569,7 @@ impl<'a> Worker<'a> {
             // midway included: its rows are written again before anyone reads them).
             streaming::fence();
         }
-        let answer = out.answer.finish(epw);
+        let mut answer = out.answer.finish(epw);
         // Info too long for its room goes beside the answer, in a private file named by it;
         // the supervisor takes it with the answer.
         let apart = match (&served, out.apart()) {
@@ -573,6 +599,9 @@ impl<'a> Worker<'a> {
             }
         };
         self.envs.write_books(&self.books, seq, self.first_env);
+        if let Some(m) = &misdeed {
+            self.commit(m, seq, target, &mut answer);
+        }
         if target != 0 {
             block.payload_mut()[..ANSWER_WORDS].copy_from_slice(&answer.encode());
         }

@@ -37,7 +37,7 @@ if TYPE_CHECKING:  # the lazy names below, for type checkers
         StairRewardEnv,
         StatusFlag,
     )
-    from .errors import EnvFailedError, PoolClosedError, WorkerCrashedError
+    from .errors import CorruptInfoError, EnvFailedError, PoolClosedError, WorkerCrashedError
     from .sb3 import PoolVecEnv, RogueVecEnv
     from .tuning import tune
     from .vector import PoolVectorEnv, RogueVectorEnv, make_vec
@@ -46,6 +46,7 @@ __all__ = [
     "ACTIONS",
     "ENV_ID",
     "PAPER_CONFIG",
+    "CorruptInfoError",
     "DungeonType",
     "EnvFailedError",
     "FirstFloorEnv",
@@ -87,7 +88,7 @@ _LAZY = {
     },
     **{
         name: ("errors", name)
-        for name in ("EnvFailedError", "PoolClosedError", "WorkerCrashedError")
+        for name in ("CorruptInfoError", "EnvFailedError", "PoolClosedError", "WorkerCrashedError")
     },
     **{name: ("vector", name) for name in ("PoolVectorEnv", "RogueVectorEnv", "make_vec")},
     "RogueVecEnv": ("sb3", "RogueVecEnv"),

@@ -168,6 +168,9 @@ def check_pool(build: Callable[[], Any], seconds: float) -> tuple[Check, Optiona
                 None,
                 str(exc),
             )
+        if exc.errno == errno.ENOMEM:
+            fix = "fewer envs or smaller observations, or more memory for the job"
+            return Check("a pool", False, f"did not start: {exc}", fix), None, ""
         return Check("a pool", False, f"did not start: {exc}"), None, ""
     except Exception as exc:
         return Check("a pool", False, f"did not start: {type(exc).__name__}: {exc}"), None, ""
@@ -179,10 +182,11 @@ def check_pool(build: Callable[[], Any], seconds: float) -> tuple[Check, Optiona
             envs.step(envs.action_space.sample())
             steps += envs.num_envs
         rate = steps / (time.monotonic() - t1)
-        need = envs.stats().shm_bytes
+        stats = envs.stats()
+        need = stats.shm_bytes
         detail = (
             f"started in {started:.2f} s, {rate:,.0f} steps/s with {envs.num_workers} workers "
-            f"over {seconds:g} s"
+            f"over {seconds:g} s; its buffers take {_mib(stats.buffer_bytes)} of memory"
         )
         return Check("a pool", True, detail), need, ""
     except Exception as exc:

@@ -7,6 +7,7 @@ from typing import Any, Optional
 from gymnasium.error import ClosedEnvironmentError
 
 __all__ = [
+    "CorruptInfoError",
     "EnvFailedError",
     "PoolClosedError",
     "WorkerCrashedError",
@@ -21,6 +22,38 @@ CLOSED_MESSAGE = "the pool is closed: its workers are stopped for good; create a
 class PoolClosedError(ClosedEnvironmentError, RuntimeError):
     """A call on a closed pool: gymnasium's ``ClosedEnvironmentError`` (what its vector envs
     raise), and a ``RuntimeError`` as before."""
+
+
+class CorruptInfoError(RuntimeError):
+    """The info bytes a worker wrote for an env could not be decoded: the worker (or code it
+    runs, such as an env's C extension) wrote garbage into shared memory. The decoding error is
+    the ``__cause__``. The call's results are lost; the pool goes on (``reset()`` starts every
+    env afresh).
+
+    Attributes:
+        env: the env whose info it was.
+        worker: the worker that hosts it, and its process id (``None`` where unknown).
+        pid: see ``worker``.
+    """
+
+    def __init__(self, env: int, what: str) -> None:
+        self.env = env
+        self.worker: Optional[int] = None
+        self.pid: Optional[int] = None
+        self.what = what
+        super().__init__(self._message())
+
+    def _message(self) -> str:
+        by = "" if self.worker is None else f" (worker {self.worker}, pid {self.pid})"
+        return (
+            f"the info bytes of env {self.env}{by} cannot be decoded ({self.what}): its worker "
+            "wrote garbage into the pool's shared memory, a bug of the env or of code it runs"
+        )
+
+    def name_worker(self, worker: int, pid: Optional[int]) -> None:
+        """Say which worker hosts the env (the caller's side knows it, the kind does not)."""
+        self.worker, self.pid = worker, pid
+        self.args = (self._message(),)
 
 
 class WorkerCrashedError(RuntimeError):

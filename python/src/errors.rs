@@ -25,6 +25,9 @@ pub(crate) fn pool_error(py: Python<'_>, e: PoolError) -> PyErr {
         e @ PoolError::Ipc(rogue_gym_ipc::IpcError::NoRoom { .. }) => {
             PyOSError::new_err((nix_enospc(), e.to_string()))
         }
+        e @ PoolError::Ipc(rogue_gym_ipc::IpcError::NoMemory { .. }) => {
+            PyOSError::new_err((ENOMEM, e.to_string()))
+        }
         PoolError::EnvFailed { fault, worker, pid } => {
             let msg = format!(
                 "env {} failed in {} (worker {worker}, pid {pid}): {}; call reset() to continue",
@@ -62,6 +65,9 @@ pub(crate) fn pool_error(py: Python<'_>, e: PoolError) -> PyErr {
         e => PyRuntimeError::new_err(e.to_string()),
     }
 }
+
+/// `ENOMEM`, the errno of no memory (an `OSError` with it reads as "Cannot allocate memory").
+const ENOMEM: i32 = 12;
 
 /// `ENOSPC`, the errno of a full filesystem (an `OSError` with it reads as "No space left").
 fn nix_enospc() -> i32 {

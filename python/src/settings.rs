@@ -63,6 +63,10 @@ pub(crate) struct PyPoolSettings {
     /// Observation rows written with streaming stores (`PoolConfig::streaming_stores`).
     #[serde(default)]
     streaming_stores: Option<bool>,
+    /// A worker's misdeed, for the package's tests of what the caller checks
+    /// (`PoolConfig::sabotage`); no public setting sends it.
+    #[serde(default)]
+    sabotage: Option<rogue_gym_pool::wire::sabotage::Sabotage>,
 }
 
 pub(crate) fn duration(what: &str, secs: f64) -> PyResult<Duration> {
@@ -123,5 +127,6 @@ pub(crate) fn pool_config(
     }
     cfg.cpu_affinity = s.cpu_affinity;
     cfg.streaming_stores = s.streaming_stores;
+    cfg.sabotage = s.sabotage;
     Ok(cfg)
 }

@@ -424,3 +424,32 @@ class ModulesEnv(CountingEnv):
         import sys
 
         self.modules = sorted(m for m in sys.modules if m.split(".")[0] == "rogue_gym")
+
+
+def _batch_mappings() -> list[tuple[int, int]]:
+    """This process's mappings of a pool's batch buffer, as ``(start, end)`` addresses."""
+    out = []
+    with open("/proc/self/maps") as f:
+        for line in f:
+            if "memfd:rogue-gym-batch" in line:
+                start, end = (int(x, 16) for x in line.split()[0].split("-"))
+                out.append((start, end))
+    return out
+
+
+class ScribblingEnv(RaisingEnv):
+    """CartPole-like spaces; at its ``at``-th step it writes ``byte`` over every byte of its
+    worker's mapping of the pool's batch buffer (as a corrupting C extension could), once."""
+
+    def __init__(self, at: int = 5, byte: int = 0xFF) -> None:
+        super().__init__(fail_after=10**9)
+        self.at, self.byte = at, byte
+
+    def step(self, action: Any) -> Any:
+        out = super().step(action)
+        if self.t == self.at:
+            import ctypes
+
+            for start, end in _batch_mappings():
+                ctypes.memset(start, self.byte, end - start)
+        return out

@@ -27,11 +27,15 @@ def test_this_machine_passes_for_a_small_native_pool() -> None:
 
 
 def test_a_pool_that_does_not_fit_a_small_shm_fails_with_the_fix() -> None:
+    """Only the workers' channels live in /dev/shm: 32 workers need about 2 MiB of it, more
+    than what a 64 MiB /dev/shm has left once something else filled it to 1 MiB."""
     done = _in_small_shm(
         """
         import sys
         from rogue_gym import doctor
-        sys.exit(doctor.main(["RogueGym-v0", "--num-envs", "4096", "--seconds", "0.2"]))
+        with open("/dev/shm/filler", "wb") as f:
+            f.write(bytes(63 << 20))
+        sys.exit(doctor.main(["RogueGym-v0", "--num-envs", "64", "--num-workers", "32", "--seconds", "0.2"]))
         """
     )
     assert done.returncode == 1, done.stdout + done.stderr

@@ -192,7 +192,7 @@ def test_observations_are_lent_kept_intact_or_views(pool, monkeypatch) -> None:
         assert not obs["pos"].flags.owndata
     # One slot: the batch's observations, columns and extra-info room, each 64-byte aligned.
     slot = sum(-(-a.nbytes // 64) * 64 for a in two._core.pool.slot_views()[0] if a is not None)
-    assert env.stats().shm_bytes - two.stats().shm_bytes == (LENDING_SLOTS - 2) * slot
+    assert env.stats().buffer_bytes - two.stats().buffer_bytes == (LENDING_SLOTS - 2) * slot
 
     views = pool([cartpole] * 2, num_workers=1, copy=False)
     obs, _ = views.reset(seed=0)

@@ -53,7 +53,9 @@ use crate::stats::{StatsBuffer, SupervisorCounts, WorkerStats};
 use crate::wire::books::Books;
 use crate::wire::layout::BlockLayout;
 use crate::wire::slot_layout::{Flag, SlotLayout};
-use crate::wire::{BATCH_BUFFER, Command, Op, WorkerConfig, block_range_of, shm_need};
+use crate::wire::{
+    BATCH_BUFFER, Command, Op, WorkerConfig, block_range_of, buffers_bytes, shm_need,
+};
 
 pub use actions::{Actions, validate_actions};
 pub use async_api::RecvWant;
@@ -89,8 +91,10 @@ struct Supervisor {
     /// The flag columns whose bytes are checked in every answer written in place
     /// (`Supervisor::check_flags`).
     flags: Vec<crate::wire::slot_layout::Flag>,
-    /// Bytes the pool needs in /dev/shm ([`Pool::shm_bytes`]).
+    /// Bytes the pool needs in /dev/shm ([`Pool::shm_bytes`]), and its own buffers'
+    /// ([`Pool::buffer_bytes`]).
     shm_need: u64,
+    buffers_need: u64,
     next_slot: usize,
     /// The machine's usable cores: workers past them are told to wait for their next command
     /// without polling ([`Command::block_at_once`]; in the async API from as many workers
@@ -189,7 +193,8 @@ impl Pool {
         };
         // Before anything is created: a pool that does not fit /dev/shm fails now, with the
         // fixes, not later with a SIGBUS in a worker.
-        let shm_need = shm_need(cfg.batch_slots, &slot_layout, &layouts);
+        let shm_need = shm_need(&layouts);
+        let buffers_need = buffers_bytes(cfg.batch_slots, &slot_layout, cfg.num_workers);
         let mut flags = vec![Flag::Terminated, Flag::Truncated];
         flags.extend(spec.flag_info_rows().into_iter().map(Flag::Info));
         if slot_layout.final_obs {
@@ -220,6 +225,7 @@ impl Pool {
             block_unit: cfg.block_unit,
             cpu_affinity: cfg.cpu_affinity,
             streaming_stores: cfg.streaming_stores,
+            sabotage: cfg.sabotage.clone(),
         };
         let config_path = id.aux_dir().join("worker.json");
         let num_workers = cfg.num_workers;
@@ -245,6 +251,7 @@ impl Pool {
                 books: None,
                 flags,
                 shm_need,
+                buffers_need,
                 next_slot: 0,
                 closed: false,
                 reload_seeds: vec![false; num_workers],
@@ -280,11 +287,10 @@ impl Pool {
         let json = serde_json::to_string(wcfg)
             .map_err(|e| PoolError::Config(format!("cannot serialize worker config: {e}")))?;
         rogue_gym_ipc::private::write_private_file(&c.config_path, json.as_bytes())?;
-        c.stats = Some(StatsBuffer::create(&c.id, c.cfg.num_workers)?);
-        c.books = Some(Books::create(&c.id, c.cfg.num_envs)?);
+        c.stats = Some(StatsBuffer::create(c.cfg.num_workers)?);
+        c.books = Some(Books::create(c.cfg.num_envs)?);
         c.counts = vec![SupervisorCounts::default(); c.cfg.num_workers];
         c.batch = Some(std::sync::Arc::new(rogue_gym_ipc::SharedBuffer::create(
-            &c.id,
             BATCH_BUFFER,
             c.cfg.batch_slots * c.slot_layout.bytes(),
         )?));
@@ -375,9 +381,14 @@ impl Pool {
         self.sup.cfg.num_workers
     }
     /// Bytes the pool needs in `/dev/shm`, checked against its free space before the pool was
-    /// created: the batch buffer (its pages reserved) and the blocks' records and infos.
+    /// created: each worker's channels (the blocks' records and infos).
     pub fn shm_bytes(&self) -> u64 {
         self.sup.shm_need
+    }
+    /// Bytes of the pool's own buffers (the batch slots, the episode books, the counters):
+    /// memory of the process, not of `/dev/shm`, its pages reserved when the pool was made.
+    pub fn buffer_bytes(&self) -> u64 {
+        self.sup.buffers_need
     }
     /// The envs whose worker was replaced by plan (`recycle_after_steps`,
     /// `recycle_above_rss`) during the last call (async: the rows of the last `recv` whose
@@ -574,7 +585,12 @@ impl Pool {
             .for_each(|p| p.store(0, std::sync::atomic::Ordering::Relaxed));
         self.listener = None;
         c.node = None;
-        c.batch = None;
+        // Views of the batch buffer may outlive the pool; its descriptor does not.
+        if let Some(b) = c.batch.take() {
+            b.close_fd();
+        }
+        c.books = None;
+        c.stats = None;
         rogue_gym_ipc::remove_pool_files(&c.id)?;
         Ok(())
     }

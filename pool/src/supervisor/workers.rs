@@ -167,6 +167,7 @@ impl Supervisor {
         let log = self.id.aux_dir().join(format!("w{k}.g{generation}.stderr"));
         let file = rogue_gym_ipc::private::create_private_file(&log)?;
         let w = &self.cfg.worker;
+        let fds = self.shared_fds()?;
         let mut command = std::process::Command::new(&w.program);
         command
             .args(&w.args)
@@ -174,7 +175,15 @@ impl Supervisor {
             .arg(&self.config_path)
             .args(["--index", &k.to_string()])
             .args(["--generation", &generation.to_string()])
-            .args(["--ppid", &std::process::id().to_string()]);
+            .args(["--ppid", &std::process::id().to_string()])
+            .args(["--shared-fds", &fds.map(|f| f.to_string()).join(",")]);
+        // The pool's buffers reach this worker alone: kept open across its exec only.
+        // SAFETY: the closure makes async-signal-safe calls only (`fcntl`).
+        unsafe {
+            std::os::unix::process::CommandExt::pre_exec(&mut command, move || {
+                rogue_gym_ipc::buffer::inheritable(&fds)
+            });
+        }
         if successor {
             command.arg("--successor");
         }
@@ -193,6 +202,18 @@ impl Supervisor {
                 stderr_tail: String::new(),
             })?;
         Ok((child, log))
+    }
+
+    /// The descriptors of the pool's buffers, in [`crate::wire::SHARED_FDS`] order.
+    fn shared_fds(&self) -> Result<[std::os::fd::RawFd; 3], PoolError> {
+        let fd = |b: Option<&rogue_gym_ipc::SharedBuffer>| {
+            b.and_then(|b| b.raw_fd()).ok_or(PoolError::Closed)
+        };
+        Ok([
+            fd(self.batch.as_deref())?,
+            fd(self.books.as_ref().map(|b| b.buffer()))?,
+            fd(self.stats.as_ref().map(|s| s.buffer()))?,
+        ])
     }
 
     pub(super) fn spawn(&mut self, k: usize, then_reset: bool) -> Result<(), PoolError> {

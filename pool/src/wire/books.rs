@@ -11,7 +11,7 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use rogue_gym_ipc::{IpcError, PoolId, SharedBuffer};
+use rogue_gym_ipc::{IpcError, SharedBuffer};
 
 /// Name of the pool's books buffer (`/dev/shm/<pool>books`).
 pub(crate) const BOOKS_BUFFER: &str = "books";
@@ -56,16 +56,21 @@ pub(crate) struct Books {
 }
 
 impl Books {
-    /// Create them (supervisor; zero-filled, private).
-    pub(crate) fn create(id: &PoolId, num_envs: usize) -> Result<Self, IpcError> {
-        let buf = SharedBuffer::create(id, BOOKS_BUFFER, books_bytes(num_envs))?;
+    /// Create them (supervisor; zero-filled, sealed: [`SharedBuffer::create`]).
+    pub(crate) fn create(num_envs: usize) -> Result<Self, IpcError> {
+        let buf = SharedBuffer::create(BOOKS_BUFFER, books_bytes(num_envs))?;
         Ok(Books { buf, num_envs })
     }
 
-    /// Map them (worker).
-    pub(crate) fn open(id: &PoolId, num_envs: usize) -> Result<Self, IpcError> {
-        let buf = SharedBuffer::open(id, BOOKS_BUFFER, books_bytes(num_envs))?;
+    /// Map them from the descriptor the supervisor handed down (worker).
+    pub(crate) fn from_fd(fd: std::os::fd::OwnedFd, num_envs: usize) -> Result<Self, IpcError> {
+        let buf = SharedBuffer::from_fd(fd, BOOKS_BUFFER, books_bytes(num_envs))?;
         Ok(Books { buf, num_envs })
+    }
+
+    /// The buffer (its descriptor, for the workers).
+    pub(crate) fn buffer(&self) -> &SharedBuffer {
+        &self.buf
     }
 
     fn word(&self, seq: u64, env: usize, w: usize) -> &AtomicU64 {

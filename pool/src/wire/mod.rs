@@ -9,6 +9,7 @@ pub(crate) mod books;
 pub mod calls;
 pub(crate) mod command;
 pub mod layout;
+pub mod sabotage;
 pub mod slot_layout;
 
 use std::path::PathBuf;
@@ -60,22 +61,36 @@ const BLOCKS_IN_USE: usize = 2;
 /// Room counted for iceoryx2's own segments of one worker (management, commands, events).
 const SHM_PER_WORKER: usize = 64 * 1024;
 
-/// Bytes a pool needs in `/dev/shm` before it creates anything: the batch buffer (reserved
-/// when created: every slot holds the rows of every env, [`slot_layout::SlotLayout::bytes`]),
-/// the episode books, and per worker the records, final observations and extra infos of the
-/// blocks in use and iceoryx2's own segments. In the async API observations travel in the
-/// blocks too ([`layout::BlockLayout::words`]), which this does not count.
-pub(crate) fn shm_need(
+/// Bytes a pool needs in `/dev/shm` before it creates anything: per worker, the records, final
+/// observations and extra infos of the blocks in use, and iceoryx2's own segments. In the
+/// async API observations travel in the blocks too ([`layout::BlockLayout::words`]), which
+/// this does not count.
+pub(crate) fn shm_need(layouts: &[layout::BlockLayout]) -> u64 {
+    layouts
+        .iter()
+        .map(|l| (BLOCKS_IN_USE * l.side_bytes() + SHM_PER_WORKER) as u64)
+        .sum()
+}
+
+/// Bytes of a pool's own buffers, reserved when they are made (not in `/dev/shm`:
+/// [`rogue_gym_ipc::SharedBuffer`]): the batch buffer (every slot holds the rows of every env,
+/// [`slot_layout::SlotLayout::bytes`]), the episode books and the workers' counters.
+pub(crate) fn buffers_bytes(
     batch_slots: usize,
     slot: &slot_layout::SlotLayout,
-    layouts: &[layout::BlockLayout],
+    num_workers: usize,
 ) -> u64 {
-    let blocks: usize = layouts
-        .iter()
-        .map(|l| BLOCKS_IN_USE * l.side_bytes() + SHM_PER_WORKER)
-        .sum();
-    (batch_slots * slot.bytes() + books::books_bytes(slot.num_envs) + blocks) as u64
+    (batch_slots * slot.bytes()
+        + books::books_bytes(slot.num_envs)
+        + crate::stats::buffer_bytes(num_workers)) as u64
 }
+
+/// The order of the pool's buffers on a worker's command line (`--shared-fds`).
+pub(crate) const SHARED_FDS: [&str; 3] = [
+    BATCH_BUFFER,
+    books::BOOKS_BUFFER,
+    crate::stats::STATS_BUFFER,
+];
 /// The file a successor (a planned replacement of worker `index`, as generation `generation`)
 /// creates once its envs are built: the supervisor then closes the worker it replaces.
 pub(crate) fn successor_marker(
@@ -150,6 +165,9 @@ pub struct WorkerConfig {
     /// Observation rows written with streaming stores ([`crate::PoolConfig::streaming_stores`]).
     #[serde(default)]
     pub streaming_stores: Option<bool>,
+    /// A worker's misdeed, for tests of the caller's checks ([`crate::PoolConfig::sabotage`]).
+    #[serde(default)]
+    pub sabotage: Option<sabotage::Sabotage>,
 }
 
 fn default_block_unit() -> usize {

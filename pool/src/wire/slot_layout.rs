@@ -282,7 +282,11 @@ impl SlotRows {
             "flag byte {} in the {} column{} of env {}",
             bytes[r],
             COLUMNS[c].name,
-            if c == INFO_BOOL { format!(" (info {j})") } else { String::new() },
+            if c == INFO_BOOL {
+                format!(" (info {j})")
+            } else {
+                String::new()
+            },
             rows.start + r
         ))
     }
@@ -295,6 +299,24 @@ impl SlotRows {
         self.put(TRUNCATED, row, 1u8);
         self.put(RESTARTED, row, 1u8);
         self.put(HAS_FINAL, row, 0u8);
+    }
+    /// Write byte `byte` as env `row`'s flag `flag` (a worker's misdeed:
+    /// [`crate::wire::sabotage`]).
+    pub(crate) fn write_flag_byte(&self, flag: Flag, row: usize, byte: u8) {
+        assert!(row < self.layout.num_envs);
+        let (c, j) = match flag {
+            Flag::Terminated => (TERMINATED, 0),
+            Flag::Truncated => (TRUNCATED, 0),
+            Flag::Restarted => (RESTARTED, 0),
+            Flag::HasFinalObs => (HAS_FINAL, 0),
+            Flag::Info(j) => (INFO_BOOL, j.min(self.layout.n_info.saturating_sub(1))),
+        };
+        self.put_info(c, j, row, byte);
+    }
+    /// Write env `row`'s extra-info length alone (a worker's misdeed).
+    pub(crate) fn write_extra_len(&self, row: usize, len: u32) {
+        assert!(row < self.layout.num_envs);
+        self.put(EXTRA_LEN, row, len);
     }
     /// Clear env `row`'s `restarted` flag (its worker was not restarted).
     pub fn clear_restarted(&self, row: usize) {

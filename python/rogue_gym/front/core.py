@@ -68,10 +68,10 @@ class Core:
             try:
                 self.pool: Any = _native.Pool(json.dumps(settings), list(facts.worker_command))
             except OSError as err:
-                if not (settings.get("batch_slots") and err.errno == errno.ENOSPC):
+                if not (settings.get("batch_slots") and err.errno == errno.ENOMEM):
                     raise
-                # /dev/shm has no room for the slots asked for: the default two (lending every
-                # other batch of a loop); still too big: the error.
+                # No memory for the slots asked for: the default two (lending every other
+                # batch of a loop); still too big: the error.
                 settings["batch_slots"] = None
                 self.pool = _native.Pool(json.dumps(settings), list(facts.worker_command))
         except EnvFailedError as err:
@@ -307,6 +307,7 @@ class Core:
             batches_copied=self.copied,
             batches_viewed=self.viewed,
             shm_bytes=int(self.pool.shm_bytes()),
+            buffer_bytes=int(self.pool.buffer_bytes()),
         )
 
     @property
@@ -318,6 +319,14 @@ class Core:
     def restarts(self) -> int:
         """Worker restarts so far."""
         return int(self.pool.restarts())
+
+    def worker_of(self, env: int) -> tuple[int, Optional[int]]:
+        """The worker that hosts ``env``, and its process id (``None`` once closed)."""
+        for k in range(self.num_workers):
+            if env in self.envs_of_worker(k):
+                pids = self.worker_pids
+                return k, pids[k] if k < len(pids) else None
+        raise ValueError(f"env {env} is not one of the pool's {self.num_envs} envs")
 
     def envs_of_worker(self, worker: int) -> range:
         """Indices of the envs hosted by ``worker``."""

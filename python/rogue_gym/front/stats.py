@@ -82,9 +82,12 @@ class PoolStats:
     batches_lent: int = 0
     batches_copied: int = 0
     batches_viewed: int = 0
-    #: Bytes the pool needs in ``/dev/shm`` (checked against its free space at creation; the
-    #: batch slots' pages reserved): not a count, the same in a difference of two readings.
+    #: Bytes the pool needs in ``/dev/shm`` (each worker's channels; checked against its free
+    #: space at creation), and of its own buffers (the batch slots, episode books and counters:
+    #: memory of the process, reserved at creation): not counts, the same in a difference of
+    #: two readings.
     shm_bytes: int = 0
+    buffer_bytes: int = 0
 
     @property
     def env_steps(self) -> int:
@@ -132,7 +135,7 @@ class PoolStats:
         """The counts since ``base`` (an earlier reading of the same pool)."""
         changes: dict[str, Any] = {}
         for f in dataclasses.fields(self):
-            if f.name not in ("workers", "shm_bytes"):
+            if f.name not in ("workers", "shm_bytes", "buffer_bytes"):
                 changes[f.name] = getattr(self, f.name) - getattr(base, f.name)
         workers = []
         for k, w in enumerate(self.workers):

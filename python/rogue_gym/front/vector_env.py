@@ -10,6 +10,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
+from ..errors import CorruptInfoError
 from ..kinds.result import Result, copy_tree
 from ..protocol.ops import refuse_op
 from ..settings import parse_autoreset_mode
@@ -266,7 +267,11 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         ``env_id`` for ``recv``). Read before the observations: a kind may complete those from
         its infos."""
         core = self._core
-        infos = self._kind.infos(res, only)
+        try:
+            infos = self._kind.infos(res, only)
+        except CorruptInfoError as err:
+            err.name_worker(*core.worker_of(err.env))
+            raise
         if res.env_ids is not None:
             infos["env_id"] = res.env_ids
         restarted = res.restarted

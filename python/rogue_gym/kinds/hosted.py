@@ -26,7 +26,7 @@ from gymnasium.error import CustomSpaceError
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_differing_spaces
 
-from ..errors import out_of_range, scalar_actions
+from ..errors import CorruptInfoError, out_of_range, scalar_actions
 from ..protocol import NO_SEED, registry
 from ..protocol.infos import RESET_OBS, STEP_OBS, InfoDecoder, split_joined, vector_infos
 from ..protocol.layout import FIXED_SPACES, SpaceLayout, UnsupportedSpaceError, space_leaves
@@ -421,7 +421,29 @@ class HostedKind:
 
     def _env_infos(self, result: Result, final: set[int]) -> dict[str, Any]:
         """The envs' own infos (those of ``final``: their reset's; their last step's info and
-        final dynamic leaves are kept for :meth:`_final`)."""
+        final dynamic leaves are kept for :meth:`_final`). Bytes that do not decode raise
+        :class:`~rogue_gym.errors.CorruptInfoError` naming the env, the error as its cause."""
+        try:
+            return self._decoded_infos(result, final)
+        except Exception as err:
+            raise CorruptInfoError(self._culprit(result), f"{type(err).__name__}: {err}") from err
+
+    def _culprit(self, result: Result) -> int:
+        """The env of the first row whose info bytes do not decode on their own (the first
+        row that has some when each does)."""
+        if result.extras is None:
+            return int(result.ids()[0])
+        joined, data, size, ends = result.extras
+        rows = split_joined(joined, data, size, ends, result.rows)
+        for row, data in rows:
+            try:
+                InfoDecoder().entries(bytes(data))
+            except Exception:
+                return int(result.ids()[row])
+        return int(result.ids()[rows[0][0] if rows else 0])
+
+    def _decoded_infos(self, result: Result, final: set[int]) -> dict[str, Any]:
+        """:meth:`_env_infos`, trusting the bytes."""
         rows = result.rows
         infos: dict[str, Any] = {}
         extras: list[tuple[int, bytes]] = []

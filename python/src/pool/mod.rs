@@ -195,6 +195,12 @@ impl PyPool {
         self.peek(py, |p| p.shm_bytes())
     }
 
+    /// Bytes of the pool's own buffers (batch slots, episode books, counters): memory of the
+    /// process, its pages reserved at creation.
+    fn buffer_bytes(&self, py: Python<'_>) -> PyResult<u64> {
+        self.peek(py, |p| p.buffer_bytes())
+    }
+
     /// Register the pool with the XLA handlers (once) and return its key: the `handle` of
     /// `rogue_gym.xla`'s jitted functions. The handlers hold the pool weakly: after `close()`
     /// a compiled call fails with an error that says so.
