@@ -35,7 +35,10 @@ fn third_answer(
     let got = p.step(&[1; 4]);
     if got.is_err() {
         let e = p.step(&[1; 4]).unwrap_err().to_string();
-        assert!(e.contains("call reset()"), "the next step asks for a reset: {e}");
+        assert!(
+            e.contains("call reset()"),
+            "the next step asks for a reset: {e}"
+        );
         p.reset().expect("a reset recovers");
     }
     p.step(&[2; 4]).expect("the pool steps after");

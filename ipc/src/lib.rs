@@ -38,7 +38,9 @@
 
 pub mod buffer;
 pub mod cleanup;
+pub mod cores;
 pub mod error;
+pub mod ledger;
 pub mod naming;
 pub mod pool_files;
 pub mod ports;
@@ -57,6 +59,7 @@ pub use iceoryx2;
 
 pub use buffer::SharedBuffer;
 pub use cleanup::{cleanup_dead_nodes, remove_pool_files, sweep_stale_pools};
+pub use cores::{Cores, cores, usable_cores};
 pub use error::IpcError;
 pub use naming::{PoolId, pool_shm_files, process_start_time};
 pub use pool_files::{create_node_counter, verify_pool_files};

@@ -256,6 +256,19 @@ pub fn open_private_file(path: &Path) -> Result<File, IpcError> {
     Ok(f)
 }
 
+/// [`open_private_file`], for reading and writing.
+pub fn open_private_file_rw(path: &Path) -> Result<File, IpcError> {
+    let f = OpenOptions::new()
+        .read(true)
+        .write(true)
+        .custom_flags(libc::O_NOFOLLOW | libc::O_CLOEXEC)
+        .open(path)
+        .map_err(io("open private file", path))?;
+    let meta = f.metadata().map_err(io("inspect private file", path))?;
+    check_private(path, &meta, false)?;
+    Ok(f)
+}
+
 /// Read a whole file opened by [`open_private_file`].
 pub fn read_private_file(path: &Path) -> Result<Vec<u8>, IpcError> {
     let mut data = Vec::new();

@@ -61,6 +61,18 @@ impl WorkerCommand {
     }
 }
 
+/// How a pool pins its workers to cores.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CpuAffinity {
+    /// Worker `k` runs on the `(offset + k)`-th core the pool's process may use, wrapping
+    /// around (EnvPool's `thread_affinity_offset`).
+    Offset(usize),
+    /// Each worker on a core of its own that no other pool of the user holds, wherever the
+    /// pools start: the user's pool ledger hands them out, and too few free cores is an error.
+    Disjoint,
+}
+
 /// Configuration of a pool.
 #[derive(Debug, Clone)]
 pub struct PoolConfig {
@@ -103,10 +115,9 @@ pub struct PoolConfig {
     /// agents of one multi-agent env, one env each): `num_envs` must be a multiple of it and
     /// every worker gets whole groups ([`crate::wire::block_range_of`]). 1: any split.
     pub block_unit: usize,
-    /// Pin the workers to cores (opt-in): worker `k` runs on the `(offset + k)`-th core the
-    /// pool's process may use (wrapping around), as EnvPool's `thread_affinity_offset` does.
-    /// `None` (the default): the kernel places them.
-    pub cpu_affinity: Option<usize>,
+    /// Pin the workers to cores (opt-in; [`CpuAffinity`]). `None` (the default): the kernel
+    /// places them.
+    pub cpu_affinity: Option<CpuAffinity>,
     /// Write the observation rows with streaming (non-temporal) stores, which bypass the
     /// cache: `Some(true)` always, `Some(false)` never, `None` (the default) when the
     /// observations of all the batch slots take more than a third of the last-level cache (the

@@ -47,7 +47,7 @@ pub mod wire;
 pub mod worker;
 
 pub use batch::{BatchOutput, Block, SlotAnswer, SlotExtras};
-pub use config::{AutoresetMode, FailurePolicy, PoolConfig, WorkerCommand};
+pub use config::{AutoresetMode, CpuAffinity, FailurePolicy, PoolConfig, WorkerCommand};
 pub use env::{
     Dtype, Env, EnvBlock, EnvError, EnvSpec, MAX_INFO, StepOutcome, action_out_of_range,
 };
@@ -57,7 +57,9 @@ pub use registry::{BlockCtor, Built, EnvCtor, EnvRegistry};
 pub use rogue_gym_ipc::WaitPolicy;
 pub use seeds::{SeedPolicy, SeedSchedule, SeedSet, Shard};
 pub use stats::WorkerStats;
-pub use supervisor::{Actions, InterruptCheck, Pool, Received, RecvWant, validate_actions};
+pub use supervisor::{
+    Actions, InterruptCheck, MachineView, Pool, Received, RecvWant, validate_actions,
+};
 pub use wire::answer::EXTRA_HEAD;
 pub use wire::layout::{
     EnvRecord, FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED,

@@ -25,8 +25,8 @@ use crate::wire::books::Books;
 use crate::wire::layout::BlockLayout;
 use crate::wire::slot_layout::SlotLayout;
 use crate::wire::{
-    BATCH_BUFFER, Command, EnvFault, Op, SHARED_FDS, Serve, WorkerConfig, calls, env_fault_path,
-    extra_apart_path, successor_go, successor_marker,
+    BATCH_BUFFER, Command, EnvFault, Op, Pace, SHARED_FDS, Serve, WorkerConfig, calls,
+    env_fault_path, extra_apart_path, successor_go, successor_marker,
 };
 
 mod block;
@@ -144,8 +144,8 @@ pub fn worker_main(args: &[String], registry: &EnvRegistry) -> i32 {
             return 2;
         }
     };
-    if let Some(offset) = cfg.cpu_affinity
-        && let Err(e) = pin_to_core(offset + a.index)
+    if let Some(core) = cfg.cpu_cores.as_ref().and_then(|c| c.get(a.index))
+        && let Err(e) = pin_to_core(*core)
     {
         // Not fatal: the worker runs where the kernel puts it.
         eprintln!(
@@ -183,20 +183,12 @@ fn wait_for_go(id: &PoolId, a: &Args) -> Result<(), WorkerError> {
     Ok(())
 }
 
-/// Pin this process to the `n`-th core (wrapping around) of those it may run on.
-fn pin_to_core(n: usize) -> Result<usize, nix::Error> {
-    use nix::sched::{CpuSet, sched_getaffinity, sched_setaffinity};
-    use nix::unistd::Pid;
-    let allowed = sched_getaffinity(Pid::from_raw(0))?;
-    let cores: Vec<usize> = (0..CpuSet::count())
-        .filter(|&c| allowed.is_set(c).unwrap_or(false))
-        .collect();
-    let Some(&core) = cores.get(n % cores.len().max(1)) else {
-        return Err(nix::Error::EINVAL);
-    };
+/// Pin this process to core `core` (the supervisor chose it: `WorkerConfig::cpu_cores`).
+fn pin_to_core(core: usize) -> Result<usize, nix::Error> {
+    use nix::sched::{CpuSet, sched_setaffinity};
     let mut one = CpuSet::new();
     one.set(core)?;
-    sched_setaffinity(Pid::from_raw(0), &one)?;
+    sched_setaffinity(nix::unistd::Pid::from_raw(0), &one)?;
     Ok(core)
 }
 
@@ -260,11 +252,10 @@ struct Worker<'a> {
     served: u64,
 }
 
-/// How a worker waits for its next command: polls for the gap the caller usually leaves, or
-/// blocks at once where the command before said so ([`Command::block_at_once`]).
+/// How a worker waits for its next command: as the command before said ([`Pace`]).
 struct Pacing {
     policy: WaitPolicy,
-    block_at_once: bool,
+    pace: Pace,
     /// How long the last command took to come after the answer before it.
     last_gap: Duration,
 }
@@ -272,10 +263,10 @@ struct Pacing {
 impl Pacing {
     /// The policy of the next wait.
     fn now(&self) -> WaitPolicy {
-        let poll_budget = if self.block_at_once {
-            Duration::ZERO
-        } else {
-            expected_poll(self.policy.poll_budget, self.last_gap)
+        let poll_budget = match self.pace {
+            Pace::Expected => expected_poll(self.policy.poll_budget, self.last_gap),
+            Pace::Short => self.policy.poll_budget,
+            Pace::Block => Duration::ZERO,
         };
         WaitPolicy {
             poll_budget,
@@ -406,7 +397,7 @@ impl<'a> Worker<'a> {
                 yield_cpu: self.cfg.poll_yield,
                 sleep_first: Duration::ZERO,
             },
-            block_at_once: false,
+            pace: Pace::Expected,
             last_gap: Duration::MAX,
         };
         loop {
@@ -440,7 +431,7 @@ impl<'a> Worker<'a> {
             let h = *cmd.user_header();
             let command = Command::decode(h.kind)
                 .map_err(|e| WorkerError::Msg(format!("command {}: {e}", h.seq)))?;
-            pacing.block_at_once = command.block_at_once;
+            pacing.pace = command.pace;
             let n = (h.len as usize).min(cmd.payload().len());
             let Some(dst) = self.payload.get_mut(..n) else {
                 return Err(WorkerError::Msg(format!(

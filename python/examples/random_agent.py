@@ -11,7 +11,6 @@ random actions and prints the throughput (env steps per second) and the mean epi
 from __future__ import annotations
 
 import argparse
-import os
 import time
 
 import numpy as np
@@ -93,7 +92,7 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     p.add_argument("--num-envs", type=int, default=64)
-    p.add_argument("--num-workers", type=int, default=min(2, os.cpu_count() or 1))
+    p.add_argument("--num-workers", type=int, default=min(2, rogue_gym._native.usable_cores()))
     p.add_argument("--steps", type=int, default=200_000, help="env steps to time")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--compare", action="store_true", help="also time gymnasium's AsyncVectorEnv")

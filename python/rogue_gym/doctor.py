@@ -6,9 +6,10 @@ Command line::
     python -m rogue_gym.doctor CartPole-v1 --num-envs 256 --num-workers 8
     python -m rogue_gym.doctor ALE/Pong-v5 --num-envs 64 --copy
 
-It reports the CPUs this process may use (affinity and the cgroup's quota), ``/dev/shm``'s size
-and free space against the pool's need, the open-file limit, the runtime directory, and whether
-a pool of that layout starts and steps for one second. Each problem comes with its fix; the
+It reports the CPUs this process may use (affinity and the cgroup's quota), your other live
+pools on the machine and how booked it is, ``/dev/shm``'s size and free space against the
+pool's need, the open-file limit, the runtime directory, and whether a pool of that layout
+starts and steps for one second. Each problem comes with its fix; the
 exit status is 1 when any check failed. ``docs/containers.md`` shows it in Docker, Kubernetes
 and Slurm.
 """
@@ -57,20 +58,11 @@ def _mib(n: float) -> str:
     return f"{n / 2**20:.1f} MiB"
 
 
-def cpu_quota() -> Optional[float]:
-    """The cgroup v2 CPU quota in CPUs (``cpu.max``), or ``None`` when there is none."""
-    try:
-        with open("/sys/fs/cgroup/cpu.max") as f:
-            quota, period = f.read().split()[:2]
-    except (OSError, ValueError):
-        return None
-    return None if quota == "max" else int(quota) / int(period)
-
-
 def check_cpus(num_workers: int) -> Check:
-    usable = len(os.sched_getaffinity(0))
-    quota = cpu_quota()
-    cpus = min(usable, quota) if quota is not None else usable
+    """The cores this process may use (its affinity mask and its cgroup's CPU quota, as the
+    pool reads them) against ``num_workers``."""
+    usable, quota = _native.cpu_limits()
+    cpus = _native.usable_cores()
     detail = f"{usable} usable (affinity)" + (f", cgroup quota {quota:g}" if quota else "")
     if num_workers > 2 * cpus:
         return Check(
@@ -82,6 +74,24 @@ def check_cpus(num_workers: int) -> Check:
             "--cpus-per-task)",
         )
     return Check("cpus", True, f"{detail}; {num_workers} workers")
+
+
+def check_other_pools(num_workers: int) -> Check:
+    """Your other live pools on this machine (the pools' ledger) and how booked it is with one
+    more of ``num_workers`` workers: past its cores, every pool's workers and callers block
+    rather than poll (docs/performance.md, "Many pools on one machine")."""
+    try:
+        pools = _native.live_pools()
+    except (OSError, RuntimeError) as exc:
+        return Check("other pools", False, f"the pools' ledger cannot be read: {exc}")
+    cores = _native.usable_cores()
+    demand = num_workers + sum(p["workers"] + 1 for p in pools)
+    listed = ", ".join(f"{p['pool']} (pid {p['pid']}, {p['workers']} workers)" for p in pools)
+    detail = f"{len(pools)} live" + (f": {listed}" if pools else "")
+    detail += f"; with this pool {demand} processes for {cores} cores"
+    if demand > cores:
+        detail += " (booked: the pools' workers and callers block rather than poll)"
+    return Check("other pools", True, detail)
 
 
 def check_shm(need: Optional[int], refused: str = "") -> Check:
@@ -204,10 +214,12 @@ def run_checks(
     seconds: float = 1.0,
 ) -> list[Check]:
     """Every check for a pool of ``num_envs`` envs of ``env`` on ``num_workers`` workers."""
-    workers = num_workers or min(num_envs, len(os.sched_getaffinity(0)))
+    workers = num_workers or min(num_envs, _native.usable_cores())
+    others = check_other_pools(workers)
     pool, need, refused = check_pool(_builder(env, num_envs, workers, copy), seconds)
     return [
         check_cpus(workers),
+        others,
         check_shm(need, refused),
         check_open_files(workers),
         check_runtime_dir(),

@@ -38,7 +38,6 @@ from __future__ import annotations
 import contextlib
 import functools
 import math
-import os
 from collections import namedtuple
 from dataclasses import dataclass, field
 from typing import Any, Optional
@@ -179,7 +178,7 @@ def _resolve(task_id: str, kwargs: dict[str, Any]) -> tuple[EnvSpec, Any, int, i
     opts.pop("env_type", None)
     num_envs = int(opts.pop("num_envs", 1))
     batch_size = int(opts.pop("batch_size", 0) or num_envs)
-    num_threads = int(opts.pop("num_threads", 0) or min(num_envs, os.cpu_count() or 1))
+    num_threads = int(opts.pop("num_threads", 0) or min(num_envs, _native.usable_cores()))
     seed = int(opts.pop("seed", 42))
     for name in THREAD_OPTIONS:
         opts.pop(name, None)

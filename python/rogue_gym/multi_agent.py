@@ -35,6 +35,7 @@ from typing import Any, Callable
 
 from gymnasium.vector import AutoresetMode
 
+from . import _native
 from .worker.agent_rows import AgentRows, block_rows, parallel
 
 __all__ = ["AgentRows", "agent_rows_fn", "hosted_rows", "num_agents"]
@@ -64,7 +65,6 @@ def hosted_rows(
     """What :meth:`rogue_gym.PoolVectorEnv.from_pettingzoo` hosts: the vector-env function of
     ``num_envs`` envs of ``env_fn`` (one row per agent, whole envs per worker) and the pool
     options, ``num_workers`` resolved against the envs (not the rows)."""
-    import os
 
     from .kinds.hosted import VectorEnvFn
 
@@ -72,7 +72,7 @@ def hosted_rows(
         raise ValueError(f"num_envs must be at least 1, got {num_envs}")
     workers = options.get("num_workers")
     if workers is None:
-        workers = min(int(num_envs), os.cpu_count() or 1)
+        workers = min(int(num_envs), _native.usable_cores())
     if not 1 <= int(workers) <= int(num_envs):
         raise ValueError(
             f"num_workers must be between 1 and num_envs ({num_envs}): each worker hosts whole "

@@ -18,6 +18,7 @@ from typing import Any, Mapping, Optional, Sequence, Union
 
 from gymnasium.vector import AutoresetMode
 
+from . import _native
 from ._config import ConfigLike
 
 __all__ = ["FAILURE_POLICIES", "SEED_POLICIES", "PoolOptions", "PoolSettings", "SeedsLike"]
@@ -53,7 +54,7 @@ class PoolOptions:
     recycle_after_steps: Optional[int] = None
     recycle_above_rss: Optional[int] = None
     batch_slots: Optional[int] = None
-    cpu_affinity: Optional[int] = None
+    cpu_affinity: Union[int, str, None] = None
     streaming_stores: Optional[bool] = None
 
     @classmethod
@@ -74,7 +75,7 @@ class PoolOptions:
         option) and with their defaults resolved, as keyword values."""
         num_workers = self.num_workers
         if num_workers is None:
-            num_workers = min(num_envs, os.cpu_count() or 1)
+            num_workers = min(num_envs, _native.usable_cores())
         if not 1 <= int(num_workers) <= num_envs:
             raise ValueError(
                 f"num_workers must be between 1 and num_envs ({num_envs}), got {num_workers}"
@@ -89,12 +90,15 @@ class PoolOptions:
             value = getattr(self, name)
             if value is not None and int(value) < 0:
                 raise ValueError(f"{name} must be a number of microseconds >= 0, got {value}")
-        if self.cpu_affinity is not None and (
-            isinstance(self.cpu_affinity, bool) or int(self.cpu_affinity) < 0
+        affinity = self.cpu_affinity
+        if (
+            affinity is not None
+            and affinity != "disjoint"
+            and (isinstance(affinity, (bool, str)) or int(affinity) < 0)
         ):
             raise ValueError(
-                f"cpu_affinity must be a core offset >= 0 (or None: no pinning), got "
-                f"{self.cpu_affinity!r}"
+                f'cpu_affinity must be a core offset >= 0, "disjoint" or None (no pinning), '
+                f"got {affinity!r}"
             )
         if self.streaming_stores not in (None, True, False):
             raise ValueError(
@@ -119,7 +123,7 @@ class PoolOptions:
             "recycle_after_steps": _optional_int(self.recycle_after_steps),
             "recycle_above_rss": _optional_int(self.recycle_above_rss),
             "batch_slots": _optional_int(self.batch_slots),
-            "cpu_affinity": _optional_int(self.cpu_affinity),
+            "cpu_affinity": affinity if affinity in (None, "disjoint") else int(affinity),
             "streaming_stores": self.streaming_stores,
         }
 
@@ -155,7 +159,8 @@ class PoolSettings(PoolOptions):
         num_envs: number of games.
         config: game config: ``"paper"`` (32x16, 2x2 rooms, no monsters, seeds [0, 40)), a
             dict, a JSON string or a path; ``{}`` is the original default game.
-        num_workers: worker processes, at most ``num_envs`` (default: the CPU count, at most
+        num_workers: worker processes, at most ``num_envs`` (default: the cores this process
+            may use, its affinity mask and its cgroup's CPU quota rounded up, at most
             ``num_envs``); each hosts a contiguous block of envs, the blocks differing by at
             most one env.
         seed: base of the episode-seed schedule (default: random).
@@ -200,10 +205,13 @@ class PoolSettings(PoolOptions):
             worker serves on, then takes over between two calls; the worker's envs start new
             episodes there (``truncated``, info ``worker_recycled``). Counted in ``stats()``
             as ``recycles``, apart from crash restarts and outside the restart budget.
-        cpu_affinity: pin the workers to cores (opt-in): worker ``k`` runs on the
-            ``(cpu_affinity + k)``-th core this process may use, wrapping around (EnvPool's
-            ``thread_affinity_offset``). ``None`` (the default): the kernel places them. On a
-            machine of several NUMA nodes run one pool per node (docs/performance.md).
+        cpu_affinity: pin the workers to cores (opt-in): an offset ``o`` runs worker ``k`` on
+            the ``(o + k)``-th core this process may use, wrapping around (EnvPool's
+            ``thread_affinity_offset``); ``"disjoint"`` gives each worker a core that no other
+            pool of yours on the machine holds, wherever the pools start (the pools' ledger
+            hands them out; too few free cores is an error naming the pools that hold them).
+            ``None`` (the default): the kernel places them. On a machine of several NUMA nodes
+            run one pool per node (docs/performance.md).
         streaming_stores: write the observation rows with streaming (non-temporal) stores,
             which bypass the cache: ``True`` always, ``False`` never, ``None`` (the default)
             when the observations of all the ``batch_slots`` take more than a third of the

@@ -16,6 +16,7 @@ mod errors;
 mod game;
 mod gil;
 mod holders;
+mod machine;
 mod pool;
 mod settings;
 mod spec;
@@ -74,6 +75,9 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(worker_main, m)?)?;
     m.add_function(wrap_pyfunction!(block_range, m)?)?;
     m.add_function(wrap_pyfunction!(default_runtime_dir, m)?)?;
+    m.add_function(wrap_pyfunction!(machine::usable_cores, m)?)?;
+    m.add_function(wrap_pyfunction!(machine::cpu_limits, m)?)?;
+    m.add_function(wrap_pyfunction!(machine::live_pools, m)?)?;
     m.add_function(wrap_pyfunction!(summary::floor_summary, m)?)?;
     m.add_function(wrap_pyfunction!(xla::xla_handlers, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

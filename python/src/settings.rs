@@ -6,7 +6,9 @@ use std::time::Duration;
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use rogue_gym_pool::{AutoresetMode, FailurePolicy, PoolConfig, SeedSchedule, WorkerCommand};
+use rogue_gym_pool::{
+    AutoresetMode, CpuAffinity, FailurePolicy, PoolConfig, SeedSchedule, WorkerCommand,
+};
 use serde::Deserialize;
 use serde_json::Value;
 
@@ -57,9 +59,9 @@ pub(crate) struct PyPoolSettings {
     /// The workers' yield-poll budget before they block, µs.
     #[serde(default)]
     worker_poll_us: Option<u64>,
-    /// Pin worker `k` to the `(offset + k)`-th usable core (`PoolConfig::cpu_affinity`).
+    /// Pin the workers (`PoolConfig::cpu_affinity`): a core offset, or `"disjoint"`.
     #[serde(default)]
-    cpu_affinity: Option<usize>,
+    cpu_affinity: Option<AffinitySetting>,
     /// Observation rows written with streaming stores (`PoolConfig::streaming_stores`).
     #[serde(default)]
     streaming_stores: Option<bool>,
@@ -67,6 +69,14 @@ pub(crate) struct PyPoolSettings {
     /// (`PoolConfig::sabotage`); no public setting sends it.
     #[serde(default)]
     sabotage: Option<rogue_gym_pool::wire::sabotage::Sabotage>,
+}
+
+/// `cpu_affinity` as Python sends it.
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+enum AffinitySetting {
+    Offset(usize),
+    Named(String),
 }
 
 pub(crate) fn duration(what: &str, secs: f64) -> PyResult<Duration> {
@@ -125,7 +135,16 @@ pub(crate) fn pool_config(
     if let Some(us) = s.worker_poll_us {
         cfg.worker_wait.poll_budget = Duration::from_micros(us);
     }
-    cfg.cpu_affinity = s.cpu_affinity;
+    cfg.cpu_affinity = match s.cpu_affinity {
+        None => None,
+        Some(AffinitySetting::Offset(o)) => Some(CpuAffinity::Offset(o)),
+        Some(AffinitySetting::Named(n)) if n == "disjoint" => Some(CpuAffinity::Disjoint),
+        Some(AffinitySetting::Named(n)) => {
+            return Err(PyValueError::new_err(format!(
+                "cpu_affinity must be a core offset or \"disjoint\", got {n:?}"
+            )));
+        }
+    };
     cfg.streaming_stores = s.streaming_stores;
     cfg.sabotage = s.sabotage;
     Ok(cfg)

@@ -100,3 +100,6 @@ def test_two_users_run_pools_side_by_side() -> None:
     assert r["theirs"]["steps"] == 200
     assert r["mine"] == "/tmp/rogue-gym-0"
     assert r["theirs"]["dir"] == f"/tmp/rogue-gym-{OTHER}"
+    # Each user's ledger of live pools holds its own pool only, both pools alive.
+    assert r["ledger"] == [r["name"]], r
+    assert r["theirs"]["ledger"] == [r["theirs"]["name"]], r

@@ -102,6 +102,38 @@ def test_rllib_trains_a_hosted_gymnasium_env_through_pools(cluster: None) -> Non
         algo.stop()
 
 
+def test_two_env_runners_share_the_node_and_train(cluster: None) -> None:
+    """Two EnvRunners on the 2-CPU node, a pool each: the pools see each other in their user's
+    ledger (so neither polls long), and the training is what one runner's would be: it runs,
+    sampling from both."""
+    from ray.rllib.algorithms.ppo import PPOConfig
+
+    config = PPOConfig().training(train_batch_size_per_learner=200, minibatch_size=50, num_epochs=1)
+    config = configure_rllib(
+        config,
+        "CartPole-v1",
+        num_env_runners=2,
+        num_envs_per_env_runner=4,
+        num_workers=1,
+        num_cpus_per_env_runner=1,
+    )
+    algo = config.build_algo()
+    try:
+        runners = algo.train()["env_runners"]
+        assert runners["num_env_steps_sampled_lifetime"] >= 200
+        assert runners["num_episodes_lifetime"] > 0
+        seen = algo.env_runner_group.foreach_env_runner(
+            lambda r: (r.env.unwrapped.stats().machine, r.env.unwrapped.pool_name),
+            local_env_runner=False,
+        )
+    finally:
+        algo.stop()
+    assert len(seen) == 2
+    names = {name for _, name in seen}
+    for machine, name in seen:
+        assert {o["pool"] for o in machine["others"]} == names - {name}, machine
+
+
 @pytest.mark.parametrize("num_actors", [1, 2])
 def test_actor_envs_play_what_one_local_pool_plays(cluster: None, num_actors: int) -> None:
     envs = RayVectorEnv("RogueGym-v0", 7, num_actors=num_actors, seed=5, **POOL)

@@ -30,6 +30,7 @@ mod actions;
 mod async_api;
 mod async_envs;
 mod calls;
+mod machine;
 mod recycling;
 mod slot_answers;
 mod state;
@@ -60,6 +61,7 @@ use crate::wire::{
 pub use actions::{Actions, validate_actions};
 pub use async_api::RecvWant;
 pub use async_envs::Received;
+pub use machine::MachineView;
 use state::{AsyncState, CallInFlight, Failures, Recycling};
 use workers::{LinkState, WorkerLink};
 
@@ -96,10 +98,9 @@ struct Supervisor {
     shm_need: u64,
     buffers_need: u64,
     next_slot: usize,
-    /// The machine's usable cores: workers past them are told to wait for their next command
-    /// without polling ([`Command::block_at_once`]; in the async API from as many workers
-    /// as cores), and the caller polls for answers only while the workers leave it a core.
-    cores: usize,
+    /// The machine: its usable cores and the user's other pools, from which the pool decides
+    /// how its workers and its caller wait (`machine.rs`).
+    machine: machine::Machine,
     closed: bool,
     /// Workers must re-read the seed schedule at their next reset.
     reload_seeds: Vec<bool>,
@@ -204,6 +205,9 @@ impl Pool {
         let runtime_dir = rogue_gym_ipc::resolve_runtime_dir(cfg.runtime_dir.as_deref())?;
         rogue_gym_ipc::sweep_stale_pools(&runtime_dir);
         let id = PoolId::new_unique(&runtime_dir)?;
+        // In the ledger from here on (left when `machine` drops: on any error below, at close).
+        let (machine, pinned) =
+            machine::Machine::join(&runtime_dir, id.name(), cfg.num_workers, cfg.cpu_affinity)?;
         id.create_dirs()?;
         let settings = ChannelSettings {
             num_workers: cfg.num_workers,
@@ -223,7 +227,7 @@ impl Pool {
             poll_yield: cfg.worker_wait.yield_cpu,
             batch_slots: cfg.batch_slots,
             block_unit: cfg.block_unit,
-            cpu_affinity: cfg.cpu_affinity,
+            cpu_cores: pinned,
             streaming_stores: cfg.streaming_stores,
             sabotage: cfg.sabotage.clone(),
         };
@@ -245,7 +249,7 @@ impl Pool {
                 arrived: VecDeque::new(),
                 pids: (0..num_workers).map(|_| Default::default()).collect(),
                 node: None,
-                cores: std::thread::available_parallelism().map_or(1, |c| c.get()),
+                machine,
                 batch: None,
                 slot_layout,
                 books: None,
@@ -424,6 +428,11 @@ impl Pool {
     pub fn pids_handle(&self) -> std::sync::Arc<[std::sync::atomic::AtomicU32]> {
         self.sup.pids.clone()
     }
+    /// The machine as this pool sees it: its usable cores, the demand it counts, how its
+    /// workers and caller wait, and the user's other live pools (`supervisor/machine.rs`).
+    pub fn machine(&mut self) -> MachineView {
+        self.sup.machine.view()
+    }
     /// Worker restarts so far.
     pub fn restarts(&self) -> u32 {
         self.sup.failures.restarts
@@ -583,6 +592,7 @@ impl Pool {
         c.pids
             .iter()
             .for_each(|p| p.store(0, std::sync::atomic::Ordering::Relaxed));
+        c.machine.leave();
         self.listener = None;
         c.node = None;
         // Views of the batch buffer may outlive the pool; its descriptor does not.

@@ -113,16 +113,19 @@ impl Pool {
 }
 
 impl Supervisor {
-    /// How to wait for the answers of the whole-batch call sent at `sent`, when the workers
-    /// leave the caller a core (fewer workers than cores) and the last call took at most
+    /// How to wait for the answers of the whole-batch call sent at `sent`, when the machine
+    /// leaves the caller a core (`machine.rs`) and the last call took at most
     /// [`EXPECTED_AT_MOST`]: poll through a call of under [`FULL_POLL`] (for up to twice its
     /// time); for a longer one, sleep until three quarters of it have passed since the call
     /// was sent (less 200 us: the CPU is free meanwhile, and an early answer still wakes it),
     /// then poll for up to half of it (at most 2 ms), so that the answer is seen without a
     /// wake-up. `None`: the pool's own policy.
-    pub(super) fn expected_wait(&self, sent: Instant) -> Option<rogue_gym_ipc::WaitPolicy> {
+    pub(super) fn expected_wait(&mut self, sent: Instant) -> Option<rogue_gym_ipc::WaitPolicy> {
+        if !self.machine.caller_polls() {
+            return None;
+        }
         let expected = self.call.expected_answer?;
-        if self.workers.len() >= self.cores || expected > EXPECTED_AT_MOST {
+        if expected > EXPECTED_AT_MOST {
             return None;
         }
         if expected < FULL_POLL {

@@ -129,18 +129,10 @@ impl Supervisor {
         self.blocks[k].clone()
     }
 
-    /// A command to the workers, paced: [`Command::block_at_once`] for workers past the usable
-    /// cores (in the async API from as many workers as cores: pollers there take the CPU from
-    /// the workers with work, and first-ready-first-served then serves the pollers' envs again
-    /// and again).
-    fn command(&self, op: Op, target: u32) -> Command {
-        let past = if self.async_api.on {
-            self.workers.len() >= self.cores
-        } else {
-            self.workers.len() > self.cores
-        };
+    /// A command to the workers, paced as the machine's booking says (`machine.rs`).
+    fn command(&mut self, op: Op, target: u32) -> Command {
         Command {
-            block_at_once: past,
+            pace: self.machine.worker_pace(self.async_api.on),
             ..Command::new(op, target)
         }
     }

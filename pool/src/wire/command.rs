@@ -44,10 +44,25 @@ pub(crate) struct Command {
     /// payload carries, after the action words, one word per env of the block, 1 for an env
     /// that steps, 0 for one left as it is (its row of the answer is not to be read).
     pub subset: bool,
-    /// After answering, wait for the next command without polling. The async API sets it on a
-    /// machine with no core to spare: workers that poll take the CPU from the workers with
-    /// work, and first-ready-first-served then serves the pollers' envs again and again.
-    pub block_at_once: bool,
+    /// How to wait for the next command after answering this one.
+    pub pace: Pace,
+}
+
+/// How a worker waits for its next command after answering one (the supervisor decides, from
+/// the machine's booking: `supervisor/machine.rs`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub(crate) enum Pace {
+    /// Poll for the gap the caller usually leaves between an answer and the next command (up
+    /// to 2 ms): a tight loop's next command finds the worker polling, no wake-up paid.
+    #[default]
+    Expected,
+    /// Poll for the pool's base budget only, then block: other pools share the machine, and a
+    /// long poll takes a core from a process with work.
+    Short,
+    /// Block at once: the async API on a machine with no core to spare (pollers there take the
+    /// CPU from the workers with work, and first-ready-first-served then serves the pollers'
+    /// envs again and again).
+    Block,
 }
 
 const OP_BITS: u32 = 0xff;
@@ -56,8 +71,9 @@ const TARGET_MASK: u32 = 0xff << TARGET_SHIFT;
 const RELOAD_SEEDS: u32 = 1 << 16;
 const ACTION_EXTRAS: u32 = 1 << 17;
 const SUBSET: u32 = 1 << 18;
-const BLOCK_AT_ONCE: u32 = 1 << 19;
-const KNOWN: u32 = OP_BITS | TARGET_MASK | RELOAD_SEEDS | ACTION_EXTRAS | SUBSET | BLOCK_AT_ONCE;
+const PACE_SHIFT: u32 = 19;
+const PACE_MASK: u32 = 0b11 << PACE_SHIFT;
+const KNOWN: u32 = OP_BITS | TARGET_MASK | RELOAD_SEEDS | ACTION_EXTRAS | SUBSET | PACE_MASK;
 
 impl Command {
     /// A command with no flags set.
@@ -68,7 +84,7 @@ impl Command {
             reload_seeds: false,
             action_extras: false,
             subset: false,
-            block_at_once: false,
+            pace: Pace::Expected,
         }
     }
 
@@ -86,7 +102,11 @@ impl Command {
             | flag(self.reload_seeds, RELOAD_SEEDS)
             | flag(self.action_extras, ACTION_EXTRAS)
             | flag(self.subset, SUBSET)
-            | flag(self.block_at_once, BLOCK_AT_ONCE)
+            | (match self.pace {
+                Pace::Expected => 0,
+                Pace::Short => 1,
+                Pace::Block => 2,
+            } << PACE_SHIFT)
     }
 
     /// The command a word on the wire holds; an error naming the word if it holds none.
@@ -101,13 +121,19 @@ impl Command {
         if word & !KNOWN != 0 {
             return Err(format!("unknown command flags in word {word:#x}"));
         }
+        let pace = match (word & PACE_MASK) >> PACE_SHIFT {
+            0 => Pace::Expected,
+            1 => Pace::Short,
+            2 => Pace::Block,
+            p => return Err(format!("unknown pace {p} in word {word:#x}")),
+        };
         Ok(Command {
             op,
             target: (word & TARGET_MASK) >> TARGET_SHIFT,
             reload_seeds: word & RELOAD_SEEDS != 0,
             action_extras: word & ACTION_EXTRAS != 0,
             subset: word & SUBSET != 0,
-            block_at_once: word & BLOCK_AT_ONCE != 0,
+            pace,
         })
     }
 
@@ -144,7 +170,8 @@ mod tests {
         fn every_command_survives_the_wire(
             op in op(),
             target in 0u32..=super::super::MAX_BATCH_SLOTS as u32,
-            flags in any::<[bool; 4]>(),
+            flags in any::<[bool; 3]>(),
+            pace in prop_oneof![Just(Pace::Expected), Just(Pace::Short), Just(Pace::Block)],
         ) {
             let c = Command {
                 op,
@@ -152,7 +179,7 @@ mod tests {
                 reload_seeds: flags[0],
                 action_extras: flags[1],
                 subset: flags[2],
-                block_at_once: flags[3],
+                pace,
             };
             prop_assert_eq!(Command::decode(c.encode()), Ok(c));
         }
@@ -170,6 +197,11 @@ mod tests {
             Command::decode(2 | (1 << 25))
                 .unwrap_err()
                 .contains("flags")
+        );
+        assert!(
+            Command::decode(2 | (3 << 19))
+                .unwrap_err()
+                .contains("pace 3")
         );
     }
 }

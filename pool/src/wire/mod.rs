@@ -21,7 +21,7 @@ use serde_json::Value;
 use crate::config::AutoresetMode;
 pub use crate::error::EnvFault;
 use crate::seeds::SeedSchedule;
-pub(crate) use command::{Command, Op, Serve};
+pub(crate) use command::{Command, Op, Pace, Serve};
 
 /// Payload value of a reset ([`Op::Reset`]) for an env that is *not* reset (partial reset): the
 /// env keeps its state and re-writes its current observation ([`crate::Env::observe`]).
@@ -159,9 +159,10 @@ pub struct WorkerConfig {
     /// Envs that stay together on one worker ([`crate::PoolConfig::block_unit`]).
     #[serde(default = "default_block_unit")]
     pub block_unit: usize,
-    /// Pin worker `k` to the `(offset + k)`-th usable core ([`crate::PoolConfig::cpu_affinity`]).
+    /// The core worker `k` runs on, `cpu_cores[k]` ([`crate::PoolConfig::cpu_affinity`]);
+    /// `None`: where the kernel puts it.
     #[serde(default)]
-    pub cpu_affinity: Option<usize>,
+    pub cpu_cores: Option<Vec<usize>>,
     /// Observation rows written with streaming stores ([`crate::PoolConfig::streaming_stores`]).
     #[serde(default)]
     pub streaming_stores: Option<bool>,

@@ -308,6 +308,7 @@ class Core:
             batches_viewed=self.viewed,
             shm_bytes=int(self.pool.shm_bytes()),
             buffer_bytes=int(self.pool.buffer_bytes()),
+            machine=dict(self.pool.machine()),
         )
 
     @property

@@ -88,6 +88,12 @@ class PoolStats:
     #: two readings.
     shm_bytes: int = 0
     buffer_bytes: int = 0
+    #: The machine as the pool sees it when read: ``cores`` it may use at once, the ``demand``
+    #: it counts (its workers, and each other live pool of yours: its workers and its caller),
+    #: how its workers wait for their next command (``worker_pace``: ``"expected"``,
+    #: ``"short"`` or ``"block"``), whether its ``caller_polls`` through a call, and the ``others`` (each a dict: ``pool``, ``pid``, ``workers``,
+    #: ``caller_polls``, ``cores``). docs/performance.md, "Many pools on one machine".
+    machine: dict[str, Any] = dataclasses.field(default_factory=dict)
 
     @property
     def env_steps(self) -> int:
@@ -135,7 +141,7 @@ class PoolStats:
         """The counts since ``base`` (an earlier reading of the same pool)."""
         changes: dict[str, Any] = {}
         for f in dataclasses.fields(self):
-            if f.name not in ("workers", "shm_bytes", "buffer_bytes"):
+            if f.name not in ("workers", "shm_bytes", "buffer_bytes", "machine"):
                 changes[f.name] = getattr(self, f.name) - getattr(base, f.name)
         workers = []
         for k, w in enumerate(self.workers):

@@ -4,12 +4,12 @@ duels; bounded by the time it announces."""
 from __future__ import annotations
 
 import dataclasses
-import os
 import random
 import sys
 import time
 from typing import Any, Optional, Sequence
 
+from .. import _native
 from ..front import leases
 from ..settings import PoolOptions
 from .candidates import Candidate, EnvLike, candidates, resolve
@@ -84,7 +84,7 @@ def tune(
     kind, env_fn, gym_id = resolve(env)
     if isinstance(env_fn, list) and len(env_fn) != num_envs:
         num_envs = len(env_fn)
-    ncpu = cpus or os.cpu_count() or 1
+    ncpu = cpus or _native.usable_cores()
     lends = num_envs * obs_bytes(kind, env_fn) >= leases.LEND_MIN_BYTES
     cands = candidates(kind, int(num_envs), gym_id, ncpu, lends)
     say = (lambda m: print(m, file=out, flush=True)) if out is not None else (lambda m: None)

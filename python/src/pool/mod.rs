@@ -170,6 +170,16 @@ impl PyPool {
             .collect())
     }
 
+    /// The machine as this pool sees it (`{}` once closed): its usable cores, the demand it
+    /// counts, whether its workers block and its caller polls, the user's other live pools.
+    fn machine<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let mut guard = lock_gil_free(py, &self.pool)?;
+        match guard.as_mut() {
+            Some(p) => crate::machine::view_dict(py, &p.machine()),
+            None => Ok(PyDict::new(py)),
+        }
+    }
+
     /// Worker restarts so far.
     fn restarts(&self, py: Python<'_>) -> PyResult<u32> {
         self.peek(py, Pool::restarts)

@@ -197,33 +197,49 @@ def race() -> dict[str, Any]:
 
 
 def two_users() -> dict[str, Any]:
-    """A second user runs a pool at the same time as the first, each in its own directory."""
-    done = os.pipe()
+    """A second user runs a pool at the same time as the first, each in its own directory,
+    each user's pool ledger listing its own pools only (read while both pools are alive)."""
+    done, other_up, mine_up = os.pipe(), os.pipe(), os.pipe()
 
     def other_pool() -> int:
-        os.close(done[0])
+        from rogue_gym import _native
+
+        for fd in (done[0], other_up[0], mine_up[1]):
+            os.close(fd)
         envs = native()
         envs.reset()
+        os.write(other_up[1], b"x")
+        os.read(mine_up[0], 1)  # both pools are alive from here
+        ledger = [p["pool"] for p in _native.live_pools()]
         steps = 0
         for _ in range(200):
             envs.step(envs.action_space.sample())
             steps += 1
         rd = envs._core.pool.runtime_dir()
+        name = envs._core.name
         envs.close()
-        os.write(done[1], json.dumps({"steps": steps, "dir": rd}).encode())
+        out = {"steps": steps, "dir": rd, "ledger": ledger, "name": name}
+        os.write(done[1], json.dumps(out).encode())
         return 0
 
+    from rogue_gym import _native
+
     pid = as_other(other_pool, wait=False)
-    os.close(done[1])
+    for fd in (done[1], other_up[1], mine_up[0]):  # a side that dies is seen as an end of file
+        os.close(fd)
     envs = native()
     envs.reset()
+    os.read(other_up[0], 1)
+    ledger = [p["pool"] for p in _native.live_pools()]
+    os.write(mine_up[1], b"x")
     for _ in range(200):
         envs.step(envs.action_space.sample())
     mine = envs._core.pool.runtime_dir()
+    name = envs._core.name
     envs.close()
     code = os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
     theirs = json.loads(os.read(done[0], 4096) or b"{}")
-    return {"mine": mine, "theirs": theirs, "other_exit": code}
+    return {"mine": mine, "theirs": theirs, "other_exit": code, "ledger": ledger, "name": name}
 
 
 SCENARIOS: dict[str, Callable[[], dict[str, Any]]] = {
