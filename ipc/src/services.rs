@@ -79,7 +79,8 @@ pub fn cmd_service(
         .max_subscribers(1)
         .max_nodes(4)
         .history_size(0)
-        .subscriber_max_buffer_size(2)
+        // Commands of a worker whose envs run on threads may queue (several in flight).
+        .subscriber_max_buffer_size(8)
         .subscriber_max_borrowed_samples(1)
         .enable_safe_overflow(true)
         .open_or_create()

@@ -138,6 +138,13 @@ pub struct PoolConfig {
     /// [`rogue_gym_ipc::default_runtime_dir`] (`$ROGUE_GYM_RUNTIME_DIR`, else
     /// `$XDG_RUNTIME_DIR/rogue-gym`, else `/tmp/rogue-gym-<uid>`).
     pub runtime_dir: Option<PathBuf>,
+    /// Threads that step each worker's envs, for envs that wait (a socket, a remote simulator,
+    /// a subprocess, a sleep): a waiting env then holds only its own thread, and in the async
+    /// API with rows in place each env is answered as it finishes (`worker/concurrent.rs`).
+    /// 0 (the default): one env after the other on the worker's own thread, which is faster
+    /// for envs that compute. Envs of one [`crate::Env`] each only (not an
+    /// [`crate::EnvBlock`]).
+    pub env_threads: usize,
     /// A bad value one worker writes on purpose, for the pool's own tests of what the caller
     /// checks ([`crate::wire::sabotage`]). `None` (always, outside those tests).
     pub sabotage: Option<crate::wire::sabotage::Sabotage>,
@@ -180,6 +187,7 @@ impl PoolConfig {
                 sleep_first: Duration::ZERO,
             },
             runtime_dir: None,
+            env_threads: 0,
             sabotage: None,
         }
     }

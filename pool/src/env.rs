@@ -134,8 +134,9 @@ impl EnvError {
 
 /// An environment the pool can host. Observations are written in place into the caller's byte
 /// slice (in a worker: straight into the shared-memory sample), which is exactly
-/// [`EnvSpec::obs_bytes`] long and, for `f32` observations, 4-byte aligned.
-pub trait Env {
+/// [`EnvSpec::obs_bytes`] long and, for `f32` observations, 4-byte aligned. `Send`: a worker
+/// may run each of its envs on a thread of its own (`WorkerConfig::env_threads`).
+pub trait Env: Send {
     /// The env's spec; must not change over the env's life.
     fn spec(&self) -> EnvSpec;
     /// Start a new episode from `seed` and write its first observation.

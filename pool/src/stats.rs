@@ -29,7 +29,15 @@ pub(crate) enum Counter {
     PublishNs = 3,
     /// Step and reset commands served.
     Commands = 4,
+    /// Nanoseconds the envs spent off the CPU inside their step/reset (waiting on I/O, a
+    /// sleep, a lock), counted where the envs run on threads (`env_threads`).
+    EnvWaitNs = 5,
 }
+
+/// The word of a worker's row the supervisor writes: how many answers it took from the
+/// worker's current process. A worker whose envs run on threads and answer one by one holds
+/// its answers while three are untaken (see `worker/concurrent.rs`).
+const TAKEN: usize = 7;
 
 /// Counters per worker row (room to grow without changing the file's layout).
 pub(crate) const ROW_WORDS: usize = 8;
@@ -84,6 +92,21 @@ impl StatsBuffer {
     pub(crate) fn get(&self, worker: usize, c: Counter) -> u64 {
         self.word(worker, c as usize).load(Ordering::Relaxed)
     }
+
+    /// (supervisor) One more answer taken from `worker`.
+    pub(crate) fn took(&self, worker: usize) {
+        self.word(worker, TAKEN).fetch_add(1, Ordering::Release);
+    }
+
+    /// (supervisor) A new process of `worker` starts: none of its answers taken yet.
+    pub(crate) fn reset_taken(&self, worker: usize) {
+        self.word(worker, TAKEN).store(0, Ordering::Release);
+    }
+
+    /// (worker) Answers the supervisor took from this process so far.
+    pub(crate) fn taken(&self, worker: usize) -> u64 {
+        self.word(worker, TAKEN).load(Ordering::Acquire)
+    }
 }
 
 /// What the supervisor counts of one worker.
@@ -104,8 +127,12 @@ pub struct WorkerStats {
     pub env_steps: u64,
     /// Step and reset commands served.
     pub commands: u64,
-    /// Nanoseconds inside the envs' step/reset.
+    /// Nanoseconds inside the envs' step/reset (with envs on threads: their sum, so more than
+    /// the time that passed).
     pub env_ns: u64,
+    /// Of those, nanoseconds the envs spent off the CPU (waiting); counted where the envs run
+    /// on threads.
+    pub env_wait_ns: u64,
     /// Nanoseconds waiting for the next command.
     pub wait_ns: u64,
     /// Nanoseconds publishing answers.
@@ -130,6 +157,7 @@ impl StatsBuffer {
             env_steps: self.get(k, Counter::EnvSteps),
             commands: self.get(k, Counter::Commands),
             env_ns: self.get(k, Counter::EnvNs),
+            env_wait_ns: self.get(k, Counter::EnvWaitNs),
             wait_ns: self.get(k, Counter::WaitNs),
             publish_ns: self.get(k, Counter::PublishNs),
             restarts: sup.restarts,

@@ -8,6 +8,7 @@
 //! supervisor keeps open across the worker's `exec`).
 
 use std::path::PathBuf;
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use rogue_gym_ipc::iceoryx2::node::Node;
@@ -31,6 +32,7 @@ use crate::wire::{
 
 mod block;
 mod block_out;
+mod concurrent;
 mod env_state;
 mod envs;
 mod sabotage;
@@ -237,9 +239,14 @@ struct Worker<'a> {
     batch: SharedBuffer,
     stats: StatsBuffer,
     books: Books,
-    /// Dropped before the node they were made from.
-    ports: WorkerPorts,
+    /// Dropped before the node they were made from (shared with the command relay of a
+    /// worker whose envs run on threads).
+    ports: std::sync::Arc<WorkerPorts>,
     _node: Node<Svc>,
+    /// Answers published by this process (the supervisor counts those it took:
+    /// `StatsBuffer::taken`), and answers to partial commands.
+    answers: u64,
+    answer_no: u64,
     /// The seed schedule (re-read when a reset says so).
     seeds: crate::seeds::SeedSchedule,
     /// The payload of the command being served.
@@ -308,18 +315,23 @@ impl<'a> Worker<'a> {
                 let _ = fault.write(&fault_path);
                 WorkerError::Msg(format!("cannot build env {building}: {e}"))
             })?;
-        let hosted = match built {
-            Built::Envs(list) => WorkerEnvs::Each(
-                list.into_iter()
-                    .zip(globals)
-                    .map(|(env, g)| EnvState::new(env, g))
-                    .collect(),
-            ),
-            Built::Block(block) => WorkerEnvs::Block(BlockHost::new(block, globals)),
-        };
-        let spec = match &hosted {
-            WorkerEnvs::Each(envs) => envs[0].env.spec(),
-            WorkerEnvs::Block(host) => host.spec(),
+        let each = |list: Vec<Box<dyn crate::Env>>| list.into_iter().zip(globals.clone());
+        let (hosted, spec) = match built {
+            Built::Envs(list) if cfg.env_threads > 0 => {
+                let spec = list[0].spec();
+                let envs = each(list).map(|(env, g)| Mutex::new(EnvState::new(env, g)));
+                (WorkerEnvs::Shared(envs.collect()), spec)
+            }
+            Built::Envs(list) => {
+                let spec = list[0].spec();
+                let envs = each(list).map(|(env, g)| EnvState::new(env, g));
+                (WorkerEnvs::Each(envs.collect()), spec)
+            }
+            Built::Block(block) => {
+                let host = BlockHost::new(block, globals);
+                let spec = host.spec();
+                (WorkerEnvs::Block(host), spec)
+            }
         };
         let layout = BlockLayout {
             envs: envs.len(),
@@ -361,7 +373,7 @@ impl<'a> Worker<'a> {
             ..Scratch::default()
         };
         let action_words = spec.action_words();
-        let w = Worker {
+        let mut w = Worker {
             args: a,
             cfg,
             batch: SharedBuffer::from_fd(batch, BATCH_BUFFER, slots_bytes)?,
@@ -375,8 +387,10 @@ impl<'a> Worker<'a> {
             action_bytes: spec.action_bytes,
             layout,
             slot_layout,
-            ports,
+            ports: std::sync::Arc::new(ports),
             _node: node,
+            answers: 0,
+            answer_no: 0,
             seeds: cfg.seeds.clone(),
             payload: vec![0; envs.len() * (action_words + 1)],
             scratch,
@@ -390,6 +404,9 @@ impl<'a> Worker<'a> {
 
     /// Serve commands until the supervisor closes the worker (or is gone).
     fn run(&mut self) -> Result<(), WorkerError> {
+        if matches!(self.envs, WorkerEnvs::Shared(_)) {
+            return self.run_concurrent(self.cfg.env_threads);
+        }
         let mut pacing = Pacing {
             policy: WaitPolicy {
                 poll_budget: Duration::from_micros(self.cfg.poll_budget_us),
@@ -444,11 +461,22 @@ impl<'a> Worker<'a> {
         }
     }
 
-    /// Send an answer without data (`kind`) to command `seq`.
-    fn send(&self, seq: u64, kind: BlockKind) -> Result<(), WorkerError> {
+    /// Send an answer without data (`kind`) to command `seq` (its first word 0: it names no
+    /// rows, see [`crate::wire::answer::rows_of`]).
+    fn send(&mut self, seq: u64, kind: BlockKind) -> Result<(), WorkerError> {
         let mut block = self.ports.loan_block(self.layout.words())?;
         *block.user_header_mut() = self.header(seq, kind);
+        block.payload_mut()[0] = 0;
+        self.publish(block)
+    }
+
+    /// Publish `block` and count it (see [`Worker::answers`]).
+    fn publish(&mut self, block: rogue_gym_ipc::BlockSampleMut) -> Result<(), WorkerError> {
+        let t = stamp();
         self.ports.send_block(block)?;
+        self.answers += 1;
+        self.stats
+            .add(self.args.index, Counter::PublishNs, ns_since(t));
         Ok(())
     }
 
@@ -464,7 +492,7 @@ impl<'a> Worker<'a> {
 
     /// Report env fault `f` as the answer to command `seq` (the supervisor raises it to the
     /// caller and requires a reset); the worker itself is fine and serves on.
-    fn report(&self, seq: u64, f: &EnvFault) -> Result<(), WorkerError> {
+    fn report(&mut self, seq: u64, f: &EnvFault) -> Result<(), WorkerError> {
         f.write(&self.fault_path).map_err(WorkerError::Msg)?;
         self.send(seq, BlockKind::Error)
     }
@@ -597,9 +625,6 @@ impl<'a> Worker<'a> {
             block.payload_mut()[..ANSWER_WORDS].copy_from_slice(&answer.encode());
         }
         self.stats.add(me, Counter::EnvSteps, served as u64);
-        let publishing = stamp();
-        self.ports.send_block(block)?;
-        self.stats.add(me, Counter::PublishNs, ns_since(publishing));
-        Ok(())
+        self.publish(block)
     }
 }

@@ -56,6 +56,7 @@ class PoolOptions:
     batch_slots: Optional[int] = None
     cpu_affinity: Union[int, str, None] = None
     streaming_stores: Optional[bool] = None
+    env_concurrency: Union[str, int] = "serial"
 
     @classmethod
     def from_kwargs(cls, options: Mapping[str, Any]) -> Any:
@@ -105,6 +106,18 @@ class PoolOptions:
                 "streaming_stores must be True, False or None (by the batch's size), got "
                 f"{self.streaming_stores!r}"
             )
+        concurrency = self.env_concurrency
+        if concurrency == "serial":
+            env_threads = 0
+        elif concurrency == "threads":
+            env_threads = -(-num_envs // int(num_workers))  # one per env of the largest block
+        elif isinstance(concurrency, int) and not isinstance(concurrency, bool) and concurrency > 0:
+            env_threads = int(concurrency)
+        else:
+            raise ValueError(
+                'env_concurrency must be "serial", "threads" or a number of threads >= 1, got '
+                f"{concurrency!r}"
+            )
         for name in ("recycle_after_steps", "recycle_above_rss"):
             value = getattr(self, name)
             if value is not None and int(value) < 1:
@@ -125,6 +138,7 @@ class PoolOptions:
             "batch_slots": _optional_int(self.batch_slots),
             "cpu_affinity": affinity if affinity in (None, "disjoint") else int(affinity),
             "streaming_stores": self.streaming_stores,
+            "env_concurrency": env_threads,
         }
 
     def pool_json(self, num_envs: int, worker_poll_us: Optional[int] = None) -> dict[str, Any]:
@@ -147,8 +161,15 @@ class PoolOptions:
             "batch_slots": self.batch_slots,
             "cpu_affinity": self.cpu_affinity,
             "streaming_stores": self.streaming_stores,
+            "env_threads": self.env_threads(),
             "runtime_dir": None if self.runtime_dir is None else os.fspath(self.runtime_dir),
         }
+
+    def env_threads(self) -> int:
+        """Threads per worker that step its envs, from the checked ``env_concurrency``: 0 for
+        ``"serial"``."""
+        c = self.env_concurrency
+        return 0 if c == "serial" else int(c) if not isinstance(c, str) else 0
 
 
 @dataclasses.dataclass
@@ -212,6 +233,13 @@ class PoolSettings(PoolOptions):
             hands them out; too few free cores is an error naming the pools that hold them).
             ``None`` (the default): the kernel places them. On a machine of several NUMA nodes
             run one pool per node (docs/performance.md).
+        env_concurrency: how a worker steps its envs (hosted envs of one callable each):
+            ``"serial"`` (the default: one after the other, right for envs that compute: add
+            workers instead), ``"threads"`` (each env on a thread of its own) or a number of
+            threads per worker. For envs that wait (a socket, a remote simulator, a subprocess,
+            a sleep): a waiting env holds only its thread, and in the async API each env's
+            result is handed out as soon as it is ready. ``python -m rogue_gym.tuning`` tries
+            both (docs/performance.md, "Envs that wait").
         streaming_stores: write the observation rows with streaming (non-temporal) stores,
             which bypass the cache: ``True`` always, ``False`` never, ``None`` (the default)
             when the observations of all the ``batch_slots`` take more than a third of the

@@ -122,11 +122,12 @@ class PoolVectorEnv(FrontVectorEnv):
         autoreset_mode: ``NEXT_STEP`` (default), ``SAME_STEP`` or ``DISABLED``.
         on_worker_failure, step_timeout, start_timeout, max_restarts, batch_size,
             worker_command, poll_us, runtime_dir, recycle_after_steps, recycle_above_rss,
-            batch_slots, cpu_affinity, streaming_stores: the pool's options (see
-            :class:`rogue_gym.settings.PoolSettings`: ``recycle_*`` replace a worker by plan,
-            for envs that leak; ``batch_slots`` trades ``/dev/shm`` for lent instead of copied
+            batch_slots, cpu_affinity, streaming_stores, env_concurrency: the pool's options
+            (see :class:`rogue_gym.settings.PoolSettings`: ``recycle_*`` replace a worker by
+            plan, for envs that leak; ``batch_slots`` trades memory for lent instead of copied
             batches; ``cpu_affinity`` pins the workers to cores; ``streaming_stores`` writes
-            large batches past the cache).
+            large batches past the cache; ``env_concurrency="threads"`` steps each env on a
+            thread of its own, for envs that wait).
         worker_poll_us: how long the workers poll before they block, in µs (default
             :data:`rogue_gym.kinds.hosted.HOSTED_WORKER_POLL_US`; in the async API on a
             machine with no core to spare, workers block at once whatever it says).
@@ -175,8 +176,9 @@ class PoolVectorEnv(FrontVectorEnv):
         recycle_after_steps: Optional[int] = None,
         recycle_above_rss: Optional[int] = None,
         batch_slots: Optional[int] = None,
-        cpu_affinity: Optional[int] = None,
+        cpu_affinity: Union[int, str, None] = None,
         streaming_stores: Optional[bool] = None,
+        env_concurrency: Union[str, int] = PoolOptions.env_concurrency,
     ) -> None:
         del context, daemon  # always spawned workers
         if not (observation_mode in ("same", "different") or _is_space_pair(observation_mode)):
@@ -201,6 +203,7 @@ class PoolVectorEnv(FrontVectorEnv):
             batch_slots=batch_slots,
             cpu_affinity=cpu_affinity,
             streaming_stores=streaming_stores,
+            env_concurrency=env_concurrency,
         )
         kind = HostedKind(
             env_fns,

@@ -69,6 +69,9 @@ pub(crate) struct PyPoolSettings {
     /// (`PoolConfig::sabotage`); no public setting sends it.
     #[serde(default)]
     sabotage: Option<rogue_gym_pool::wire::sabotage::Sabotage>,
+    /// Threads that step each worker's envs (`PoolConfig::env_threads`; 0: serial).
+    #[serde(default)]
+    env_threads: usize,
 }
 
 /// `cpu_affinity` as Python sends it.
@@ -147,5 +150,6 @@ pub(crate) fn pool_config(
     };
     cfg.streaming_stores = s.streaming_stores;
     cfg.sabotage = s.sabotage;
+    cfg.env_threads = s.env_threads;
     Ok(cfg)
 }

@@ -4,6 +4,7 @@ that fail on purpose. Workers import this module by name (it is on the caller's 
 from __future__ import annotations
 
 import os
+import random
 import time
 from typing import Any, Optional
 
@@ -453,3 +454,52 @@ class ScribblingEnv(RaisingEnv):
             for start, end in _batch_mappings():
                 ctypes.memset(start, self.byte, end - start)
         return out
+
+
+class JitterEnv(gym.Env):
+    """Waits a random 0-3 ms at each step and reset (so that envs on threads finish in a
+    different order every time), and plays a trajectory of its own seed: observations and
+    rewards from its generator, an episode end at random."""
+
+    observation_space = spaces.Box(0.0, 1.0, (3,), np.float32)
+    action_space = spaces.Discrete(3)
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> Any:
+        super().reset(seed=seed)
+        time.sleep(random.random() * 0.003)
+        return self.np_random.random(3).astype(np.float32), {
+            "start": int(self.np_random.integers(100))
+        }
+
+    def step(self, action: Any) -> Any:
+        time.sleep(random.random() * 0.003)
+        r = self.np_random
+        obs = r.random(3).astype(np.float32)
+        return (
+            obs,
+            float(r.random() + int(action)),
+            bool(r.random() < 0.1),
+            False,
+            {"x": float(r.random())},
+        )
+
+
+class FailingSleeper(SleepEnv):
+    """A ``SleepEnv`` that raises ``SpecialError`` at its ``fail_at``-th step when its seed is
+    ``fail_seed`` (one env of a pool fails; its mates go on sleeping)."""
+
+    def __init__(self, delay: float = 0.01, fail_at: int = 3, fail_seed: int = 2) -> None:
+        super().__init__(delay)
+        self.fail_at, self.fail_seed, self.t, self.seed_ = fail_at, fail_seed, 0, None
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> Any:
+        if seed is not None:
+            self.seed_ = seed
+        self.t = 0
+        return super().reset(seed=seed, options=options)
+
+    def step(self, action: Any) -> Any:
+        self.t += 1
+        if self.seed_ == self.fail_seed and self.t == self.fail_at:
+            raise SpecialError(f"env of seed {self.seed_} failed at step {self.t}")
+        return super().step(action)

@@ -12,6 +12,10 @@ use super::{Pool, Supervisor};
 use crate::error::PoolError;
 use crate::wire::answer::Answer;
 
+/// Partial commands a worker whose envs run on threads may have in flight at once (its
+/// command port holds 8: room is left).
+const MAX_PARTIAL: usize = 4;
+
 /// How many envs an async [`Pool::recv_want`] hands over, and how long it may wait for them:
 /// it returns as soon as `max_batch` envs are ready, or at the deadline with every ready env
 /// (up to `max_batch`) if at least `min_batch` are; with fewer it fails with
@@ -326,20 +330,37 @@ impl Supervisor {
             }
             // Planned replacements happen here, between two commands (see `recycling`); a
             // worker replaced now takes its staged envs once it is back.
-            if self.recycle_if_due(k)? || !matches!(self.workers[k].state, LinkState::Idle) {
+            if self.recycle_if_due(k)? {
+                continue;
+            }
+            // A worker whose envs run on threads takes more partial commands while some of
+            // its envs are in flight (up to `MAX_PARTIAL` commands: its command port holds 8);
+            // any other, one command at a time.
+            let busy_partial = self.workers[k].partial
+                && matches!(self.workers[k].state, LinkState::Pending { .. });
+            let idle = matches!(self.workers[k].state, LinkState::Idle);
+            let room = busy_partial && self.async_api.envs.partial_commands(k) < MAX_PARTIAL;
+            if !(idle || room) {
                 continue;
             }
             let envs = self.blocks[k].clone();
-            let Some((words, only)) = self.async_api.envs.dispatch(k, envs.clone()) else {
+            let staged = self.async_api.envs.staged_rows(envs.clone());
+            let slot = self.async_api.envs.target_for(envs.clone(), &staged);
+            let partial = self.concurrent && slot.is_some();
+            if busy_partial && !partial {
+                continue; // no slot to answer in place: wait until the worker is idle
+            }
+            let Some((words, only)) = self.async_api.envs.dispatch(k, envs) else {
                 continue;
             };
             let whole = only.iter().all(|&w| w != 0);
-            let target = self
-                .async_api
-                .envs
-                .target_for(envs, &only)
-                .map_or(0, |t| t as u32 + 1);
-            self.send_words(k, &words, (!whole).then_some(&only[..]), target)?;
+            let target = slot.map_or(0, |t| t as u32 + 1);
+            self.send_words(k, &words, (!whole).then_some(&only[..]), target, partial)?;
+            if let Some(slot) = slot.filter(|_| partial) {
+                let count = only.iter().filter(|&&w| w != 0).count();
+                let seq = self.workers[k].seq;
+                self.async_api.envs.sent_partial(k, count, slot, seq);
+            }
         }
         Ok(())
     }

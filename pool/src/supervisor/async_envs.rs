@@ -121,6 +121,10 @@ pub(super) struct AsyncEnvs {
     caller_slot: Vec<Option<usize>>,
     /// Batch slots step answers may be written in place in (0: none; they come by block).
     pub(super) in_place: usize,
+    /// Of each env in flight under a partial command (its worker's envs run on threads and
+    /// are answered one by one): the slot its rows go to, and the command it went with and
+    /// when.
+    partial: Vec<Option<(usize, u64, std::time::Instant)>>,
 }
 
 impl AsyncEnvs {
@@ -149,6 +153,7 @@ impl AsyncEnvs {
             blocks: Vec::new(),
             free: Vec::new(),
             held_of: vec![VecDeque::new(); num_workers],
+            partial: vec![None; num_envs],
         }
     }
 
@@ -166,6 +171,7 @@ impl AsyncEnvs {
         self.held_of.iter_mut().for_each(VecDeque::clear);
         self.staged_of.fill(0);
         self.caller_slot.fill(None);
+        self.partial.fill(None);
     }
 
     /// Envs whose result is ready.
@@ -178,9 +184,84 @@ impl AsyncEnvs {
         self.turn.iter().filter(|t| **t != Turn::Caller).count()
     }
 
-    /// The envs of worker `k`'s outstanding command.
+    /// The envs of worker `k`'s outstanding commands.
     pub(super) fn sent_to(&self, k: usize) -> &[usize] {
         &self.sent[k]
+    }
+
+    /// The envs of `envs` just dispatched (the last ones in worker `k`'s sent list) went with
+    /// partial command `seq`, their rows to slot `slot`.
+    pub(super) fn sent_partial(&mut self, k: usize, count: usize, slot: usize, seq: u64) {
+        let now = std::time::Instant::now();
+        let sent = &self.sent[k];
+        for &e in &sent[sent.len().saturating_sub(count)..] {
+            self.partial[e] = Some((slot, seq, now));
+        }
+    }
+
+    /// The slot env `e`'s rows go to, if it is in flight under a partial command.
+    pub(super) fn partial_slot(&self, e: usize) -> Option<usize> {
+        self.partial[e].map(|(slot, _, _)| slot)
+    }
+
+    /// Partial commands of worker `k` with envs still in flight.
+    pub(super) fn partial_commands(&self, k: usize) -> usize {
+        let mut seqs: Vec<u64> = (self.sent[k].iter())
+            .filter_map(|&e| self.partial[e].map(|(_, s, _)| s))
+            .collect();
+        seqs.sort_unstable();
+        seqs.dedup();
+        seqs.len()
+    }
+
+    /// When the oldest env in flight with worker `k` under a partial command was sent.
+    pub(super) fn oldest_partial(&self, k: usize) -> Option<std::time::Instant> {
+        (self.sent[k].iter())
+            .filter_map(|&e| self.partial[e].map(|(_, _, t)| t))
+            .min()
+    }
+
+    /// Envs `envs` of worker `k`, in flight under partial commands, are done: their rows are in
+    /// their slots, and `apart` has the extra info that did not fit their rooms. An env not in
+    /// flight so is the worker's error (the string says which), and nothing is taken.
+    pub(super) fn arrive_rows(
+        &mut self,
+        k: usize,
+        envs: &[usize],
+        mut apart: Vec<(usize, Vec<u8>)>,
+    ) -> Result<(), String> {
+        if let Some(&e) = envs
+            .iter()
+            .find(|&&e| self.partial[e].is_none() || !self.sent[k].contains(&e))
+        {
+            return Err(format!(
+                "an answer for env {e}, which is not in flight with it"
+            ));
+        }
+        for &e in envs {
+            let Some((slot, _, _)) = self.partial[e].take() else {
+                continue;
+            };
+            self.sent[k].retain(|&x| x != e);
+            let mine = apart
+                .iter()
+                .position(|(a, _)| *a == e)
+                .map(|i| apart.swap_remove(i).1);
+            self.recycled[e] = false;
+            self.rows[e] = Some(Row::InSlot { slot, apart: mine });
+            self.turn[e] = Turn::Ready;
+            self.ready.push_back(e);
+        }
+        Ok(())
+    }
+
+    /// Env `e` of worker `k` failed under a partial command: it is no longer in flight (the
+    /// failure is raised, and a reset starts it afresh).
+    pub(super) fn fail_row(&mut self, k: usize, e: usize) {
+        if self.partial[e].take().is_some() {
+            self.sent[k].retain(|&x| x != e);
+            self.turn[e] = Turn::Caller;
+        }
     }
 
     /// Every env of `envs` is in flight (a reset was sent to all of them).
@@ -231,6 +312,12 @@ impl AsyncEnvs {
         (0..self.in_place.min(64)).find(|s| busy & (1 << s) == 0)
     }
 
+    /// Which envs of `envs` (a worker's block) are staged: one word each, 1 or 0.
+    pub(super) fn staged_rows(&self, envs: std::ops::Range<usize>) -> Vec<u64> {
+        envs.map(|e| u64::from(self.turn[e] == Turn::Staged))
+            .collect()
+    }
+
     /// Take the staged envs of `envs` (worker `k`'s) for its next command: they are in flight
     /// from now. Returns their action words (`aw` per env of `envs`, zero for the others) and
     /// whether each steps; `None` if none is staged.
@@ -269,6 +356,9 @@ impl AsyncEnvs {
         let n = block.env_ids().len();
         let b = self.hold(block);
         let sent = std::mem::take(&mut self.sent[k]);
+        for &e in &sent {
+            self.partial[e] = None; // a restart's answer covers its partial envs too
+        }
         if !self.block(b).restarted() {
             for e in sent {
                 self.recycled[e] = false;

@@ -98,6 +98,9 @@ struct Supervisor {
     shm_need: u64,
     buffers_need: u64,
     next_slot: usize,
+    /// The workers' envs run on threads ([`PoolConfig::env_threads`], envs of one `Env` each):
+    /// async steps in place go as partial commands, answered env by env.
+    concurrent: bool,
     /// The machine: its usable cores and the user's other pools, from which the pool decides
     /// how its workers and its caller wait (`machine.rs`).
     machine: machine::Machine,
@@ -229,10 +232,12 @@ impl Pool {
             block_unit: cfg.block_unit,
             cpu_cores: pinned,
             streaming_stores: cfg.streaming_stores,
+            env_threads: cfg.env_threads,
             sabotage: cfg.sabotage.clone(),
         };
         let config_path = id.aux_dir().join("worker.json");
         let num_workers = cfg.num_workers;
+        let concurrent = cfg.env_threads > 0 && !whole_blocks;
         let envs = async_envs::AsyncEnvs::new(&blocks, aw);
         let mut pool = Pool {
             listener: None,
@@ -249,6 +254,7 @@ impl Pool {
                 arrived: VecDeque::new(),
                 pids: (0..num_workers).map(|_| Default::default()).collect(),
                 node: None,
+                concurrent,
                 machine,
                 batch: None,
                 slot_layout,
@@ -322,6 +328,7 @@ impl Pool {
                 rss: 0,
                 rss_growth: 0,
                 recycle_pause: None,
+                partial: false,
                 cut: false,
                 restart_streak: 0,
                 delivered: None,

@@ -11,14 +11,14 @@ use std::time::{Duration, Instant};
 
 use rogue_gym_ipc::{BlockSample, SupervisorPorts};
 
-use super::Supervisor;
 use super::actions::Actions;
+use super::{Supervisor, slot_answers};
 use crate::batch::Block;
 use crate::config::FailurePolicy;
 use crate::error::{FailureCause, PoolError, WorkerFailure};
-use crate::wire::answer::BlockKind;
+use crate::wire::answer::{ANSWER_WORDS, Answer, BlockKind, rows_of};
 use crate::wire::books::{next_episode, next_seq};
-use crate::wire::{Command, EnvFault, KEEP_EPISODE, Op, calls, env_fault_path};
+use crate::wire::{Command, EnvFault, KEEP_EPISODE, Op, calls, env_fault_path, env_fault_path_of};
 
 pub(super) enum LinkState {
     /// Dead, waiting out its restart backoff; respawned at `until` (restart policy).
@@ -86,6 +86,9 @@ pub(super) struct WorkerLink {
     pub(super) rss_growth: u64,
     /// No successor is started before this (one failed).
     pub(super) recycle_pause: Option<Instant>,
+    /// Its envs run on threads, and some are in flight under partial commands
+    /// ([`Command::partial`]): it answers them one by one, and takes more commands meanwhile.
+    pub(super) partial: bool,
 }
 
 /// The longest wait before a restart.
@@ -209,6 +212,9 @@ impl Supervisor {
     }
 
     pub(super) fn spawn(&mut self, k: usize, then_reset: bool) -> Result<(), PoolError> {
+        if let Some(stats) = &self.stats {
+            stats.reset_taken(k); // a new process: none of its answers taken
+        }
         let (child, log) = self.start_process(k, self.workers[k].generation, false)?;
         self.pids[k].store(child.id(), std::sync::atomic::Ordering::Relaxed);
         let s = &mut self.workers[k];
@@ -216,6 +222,7 @@ impl Supervisor {
         s.child = Some(child);
         s.stderr_path = log;
         s.served = 0;
+        s.partial = false;
         s.rss_read = None;
         s.rss = 0;
         s.rss_growth = 0;
@@ -333,6 +340,7 @@ impl Supervisor {
         words: &[u64],
         only: Option<&[u64]>,
         target: u32,
+        partial: bool,
     ) -> Result<(), PoolError> {
         if self.workers[k].cut {
             self.workers[k].restarted = true;
@@ -345,6 +353,7 @@ impl Supervisor {
         let cmd = Command {
             action_extras: self.write_action_extras(k)?,
             subset: !only.is_empty(),
+            partial,
             ..self.command(Op::Step, target)
         };
         let s = &mut self.workers[k];
@@ -357,9 +366,13 @@ impl Supervisor {
                 a.copy_from_slice(words);
                 o.copy_from_slice(only);
             })?;
-        s.state = LinkState::Pending {
-            since: Instant::now(),
-        };
+        if !(partial && s.partial) {
+            // A worker already answering partial commands stays pending since its oldest.
+            s.state = LinkState::Pending {
+                since: Instant::now(),
+            };
+        }
+        s.partial |= partial;
         Ok(())
     }
 
@@ -419,6 +432,17 @@ impl Supervisor {
                 if h.generation != s.generation {
                     continue; // from a dead incarnation
                 }
+                if let Some(stats) = &self.stats {
+                    stats.took(k); // the worker may answer again (see `worker/concurrent.rs`)
+                }
+                if s.partial && matches!(s.state, LinkState::Pending { .. }) {
+                    match BlockKind::from_word(h.kind) {
+                        Some(BlockKind::Rows) => self.take_rows(k, &sample)?,
+                        Some(BlockKind::Error) => self.take_row_fault(k, &sample)?,
+                        _ => {} // stale: nothing else answers a partial command
+                    }
+                    continue;
+                }
                 match (&s.state, BlockKind::from_word(h.kind)) {
                     (LinkState::Starting { then_reset, .. }, Some(BlockKind::Ready)) => {
                         if *then_reset {
@@ -467,6 +491,91 @@ impl Supervisor {
             }
         }
         Ok(())
+    }
+
+    /// Worker `k`'s answer for envs of its partial commands, done one by one (its envs run on
+    /// threads): they are ready, their rows in their slots, checked as any answer in place;
+    /// a bad answer is the worker's failure.
+    fn take_rows(&mut self, k: usize, sample: &BlockSample) -> Result<(), PoolError> {
+        let (words, n) = slot_answers::answer_words(sample);
+        let block = self.blocks[k].clone();
+        let checked = rows_of(sample.payload(), ANSWER_WORDS, block.len()).and_then(|rows| {
+            let a = Answer::decode(&words, self.slot_layout.extra_bytes)?;
+            Ok((rows, a))
+        });
+        let (rows, answer) = match checked {
+            Ok(v) => v,
+            Err(what) => return self.lose_corrupt(k, format!("its answer {n}: {what}")),
+        };
+        let envs: Vec<usize> = rows.iter().map(|&j| block.start + j).collect();
+        for &e in &envs {
+            let Some(slot) = self.async_api.envs.partial_slot(e) else {
+                continue;
+            };
+            let rows = self.rows_of(slot)?;
+            if let Err(what) = self.check_flags(&rows, e..e + 1) {
+                return self.lose_corrupt(k, format!("its answer {n}: {what}"));
+            }
+        }
+        let apart = if answer.apart {
+            match self.take_apart(k, n) {
+                Ok(a) => a,
+                Err(what) => return self.lose_corrupt(k, what),
+            }
+        } else {
+            Vec::new()
+        };
+        if let Err(what) = self.async_api.envs.arrive_rows(k, &envs, apart) {
+            return self.lose_corrupt(k, format!("its answer {n}: {what}"));
+        }
+        self.workers[k].restart_streak = 0;
+        self.settle_partial(k);
+        Ok(())
+    }
+
+    /// Worker `k`'s report of an env of a partial command that failed: raised with the call's
+    /// other failures (the caller resets), the env no longer in flight.
+    fn take_row_fault(&mut self, k: usize, sample: &BlockSample) -> Result<(), PoolError> {
+        let n = sample.user_header().seq;
+        let block = self.blocks[k].clone();
+        let rows = match rows_of(sample.payload(), 0, block.len()) {
+            Ok(rows) if rows.len() == 1 => rows,
+            Ok(rows) => {
+                return self.lose_corrupt(k, format!("an error answer naming {} envs", rows.len()));
+            }
+            Err(what) => return self.lose_corrupt(k, format!("its error answer {n}: {what}")),
+        };
+        let e = block.start + rows[0];
+        let path = env_fault_path_of(&self.id, k, self.workers[k].generation, n);
+        let fault = EnvFault::take(&path).unwrap_or_else(|why| {
+            EnvFault::new(e as u64, "a command", format!("the env failed; {why}"))
+        });
+        self.async_api.envs.fail_row(k, e);
+        self.failures.must_reset = true;
+        self.call.faults.push(PoolError::EnvFailed {
+            fault: Box::new(fault),
+            worker: k,
+            pid: self.workers[k].pid,
+        });
+        self.settle_partial(k);
+        Ok(())
+    }
+
+    /// After an answer of worker `k`'s partial commands: idle once none of its envs is in
+    /// flight, else pending since its oldest env in flight was sent (what `step_timeout`
+    /// bounds).
+    fn settle_partial(&mut self, k: usize) {
+        let s = &mut self.workers[k];
+        match self.async_api.envs.oldest_partial(k) {
+            Some(since) if !self.async_api.envs.sent_to(k).is_empty() => {
+                s.state = LinkState::Pending { since };
+            }
+            _ if self.async_api.envs.sent_to(k).is_empty() => {
+                s.partial = false;
+                s.state = LinkState::Idle;
+            }
+            _ => {}
+        }
     }
 
     /// Detect dead and hung workers, whatever they were doing (starting, restarting, or

@@ -31,6 +31,29 @@ pub(crate) enum BlockKind {
     Error,
     /// The replies of an env call are written (no data).
     Call,
+    /// Some envs of a [`crate::wire::Command::partial`] command, done: their rows are in the
+    /// slot; the payload is the [`Answer`] of those envs, then their number, then their rows in
+    /// the block ([`rows_of`]).
+    Rows,
+}
+
+/// The rows an answer of kind [`BlockKind::Rows`] (or an error answer of a partial command)
+/// names, checked: at most `envs` of them, each below `envs`. An error says what was wrong.
+pub(crate) fn rows_of(payload: &[u64], at: usize, envs: usize) -> Result<Vec<usize>, String> {
+    let n = *payload.get(at).ok_or("an answer without its rows")? as usize;
+    if n > envs {
+        return Err(format!("an answer naming {n} envs of a block of {envs}"));
+    }
+    let rows = payload
+        .get(at + 1..at + 1 + n)
+        .ok_or_else(|| format!("an answer naming {n} rows, cut short"))?;
+    rows.iter()
+        .map(|&r| {
+            (r < envs as u64)
+                .then_some(r as usize)
+                .ok_or_else(|| format!("an answer naming row {r} of a block of {envs}"))
+        })
+        .collect()
 }
 
 impl BlockKind {
@@ -41,6 +64,7 @@ impl BlockKind {
             BlockKind::Data => 2,
             BlockKind::Error => 3,
             BlockKind::Call => 4,
+            BlockKind::Rows => 5,
         }
     }
 
@@ -51,6 +75,7 @@ impl BlockKind {
             2 => BlockKind::Data,
             3 => BlockKind::Error,
             4 => BlockKind::Call,
+            5 => BlockKind::Rows,
             _ => return None,
         })
     }
@@ -240,7 +265,7 @@ mod tests {
         }
 
         #[test]
-        fn every_block_kind_survives_the_wire(k in 1u32..=4) {
+        fn every_block_kind_survives_the_wire(k in 1u32..=5) {
             let kind = BlockKind::from_word(k).unwrap();
             prop_assert_eq!(kind.word(), k);
         }
@@ -264,7 +289,11 @@ mod tests {
         assert!(Answer::decode(&[UNIFORM, 3, 0, 0], 64).is_err());
         assert!(Answer::decode(&[0, 0], 64).is_err());
         assert_eq!(BlockKind::from_word(0), None);
-        assert_eq!(BlockKind::from_word(5), None);
+        assert_eq!(BlockKind::from_word(6), None);
+        assert_eq!(rows_of(&[2, 0, 3], 0, 4), Ok(vec![0, 3]));
+        assert!(rows_of(&[2, 0, 4], 0, 4).unwrap_err().contains("row 4"));
+        assert!(rows_of(&[9, 0], 0, 4).unwrap_err().contains("9 envs"));
+        assert!(rows_of(&[2, 0], 0, 4).unwrap_err().contains("cut short"));
     }
 
     #[test]

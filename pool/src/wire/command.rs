@@ -46,6 +46,10 @@ pub(crate) struct Command {
     pub subset: bool,
     /// How to wait for the next command after answering this one.
     pub pace: Pace,
+    /// (step, rows in place, a worker whose envs run on threads) Answer each env as it
+    /// finishes ([`super::answer::BlockKind::Rows`]), and take further commands for other envs
+    /// meanwhile; without it, one answer when every env of the command is done.
+    pub partial: bool,
 }
 
 /// How a worker waits for its next command after answering one (the supervisor decides, from
@@ -73,7 +77,9 @@ const ACTION_EXTRAS: u32 = 1 << 17;
 const SUBSET: u32 = 1 << 18;
 const PACE_SHIFT: u32 = 19;
 const PACE_MASK: u32 = 0b11 << PACE_SHIFT;
-const KNOWN: u32 = OP_BITS | TARGET_MASK | RELOAD_SEEDS | ACTION_EXTRAS | SUBSET | PACE_MASK;
+const PARTIAL: u32 = 1 << 21;
+const KNOWN: u32 =
+    OP_BITS | TARGET_MASK | RELOAD_SEEDS | ACTION_EXTRAS | SUBSET | PACE_MASK | PARTIAL;
 
 impl Command {
     /// A command with no flags set.
@@ -85,6 +91,7 @@ impl Command {
             action_extras: false,
             subset: false,
             pace: Pace::Expected,
+            partial: false,
         }
     }
 
@@ -102,6 +109,7 @@ impl Command {
             | flag(self.reload_seeds, RELOAD_SEEDS)
             | flag(self.action_extras, ACTION_EXTRAS)
             | flag(self.subset, SUBSET)
+            | flag(self.partial, PARTIAL)
             | (match self.pace {
                 Pace::Expected => 0,
                 Pace::Short => 1,
@@ -134,6 +142,7 @@ impl Command {
             action_extras: word & ACTION_EXTRAS != 0,
             subset: word & SUBSET != 0,
             pace,
+            partial: word & PARTIAL != 0,
         })
     }
 
@@ -170,7 +179,7 @@ mod tests {
         fn every_command_survives_the_wire(
             op in op(),
             target in 0u32..=super::super::MAX_BATCH_SLOTS as u32,
-            flags in any::<[bool; 3]>(),
+            flags in any::<[bool; 4]>(),
             pace in prop_oneof![Just(Pace::Expected), Just(Pace::Short), Just(Pace::Block)],
         ) {
             let c = Command {
@@ -180,6 +189,7 @@ mod tests {
                 action_extras: flags[1],
                 subset: flags[2],
                 pace,
+                partial: flags[3],
             };
             prop_assert_eq!(Command::decode(c.encode()), Ok(c));
         }

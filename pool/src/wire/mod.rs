@@ -113,6 +113,18 @@ pub(crate) fn env_fault_path(id: &rogue_gym_ipc::PoolId, index: usize, generatio
         .join(format!("w{index}.g{generation}.fault.json"))
 }
 
+/// Where worker `index` (generation `generation`), its envs on threads, reports the failure of
+/// an env of a partial command, in its error answer number `answer`.
+pub(crate) fn env_fault_path_of(
+    id: &rogue_gym_ipc::PoolId,
+    index: usize,
+    generation: u64,
+    answer: u64,
+) -> PathBuf {
+    id.aux_dir()
+        .join(format!("w{index}.g{generation}.fault-{answer}.json"))
+}
+
 /// Where worker `index`, generation `generation`, puts the extra info of its answer `seq` that
 /// did not fit the envs' rooms (entries in the [`calls::encode`] format, one per env flagged
 /// [`layout::FLAG_EXTRA_APART`]); the supervisor reads and removes it.
@@ -166,6 +178,10 @@ pub struct WorkerConfig {
     /// Observation rows written with streaming stores ([`crate::PoolConfig::streaming_stores`]).
     #[serde(default)]
     pub streaming_stores: Option<bool>,
+    /// Threads that step a worker's envs ([`crate::PoolConfig::env_threads`]); 0: one after
+    /// the other, on the worker's own thread.
+    #[serde(default)]
+    pub env_threads: usize,
     /// A worker's misdeed, for tests of the caller's checks ([`crate::PoolConfig::sabotage`]).
     #[serde(default)]
     pub sabotage: Option<sabotage::Sabotage>,

@@ -1,5 +1,8 @@
-//! A worker's envs as one whole: one [`crate::Env`] each or one [`crate::EnvBlock`], how a
-//! command is answered into the block, and the env calls of the call files.
+//! A worker's envs as one whole: one [`crate::Env`] each (owned, or shared with the env
+//! threads of `concurrent.rs`) or one [`crate::EnvBlock`], how a command is answered into the
+//! block, and the env calls of the call files.
+
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
 use rogue_gym_ipc::PoolId;
 
@@ -9,16 +12,27 @@ use super::env_state::{EnvState, ServeCtx, apply};
 use crate::wire::books::Books;
 use crate::wire::{EnvFault, Serve, calls};
 
-/// A worker's envs: one [`crate::Env`] each, or one [`crate::EnvBlock`] for them all.
+/// A worker's envs: one [`crate::Env`] each, owned or shared with the env threads, or one
+/// [`crate::EnvBlock`] for them all.
 pub(super) enum WorkerEnvs {
     Each(Vec<EnvState>),
+    /// One env each, each behind a lock, shared with the threads that step them
+    /// (`concurrent.rs`); the worker's own thread takes an env's lock only while it is idle.
+    Shared(Arc<[Mutex<EnvState>]>),
     Block(BlockHost),
+}
+
+/// Lock a shared env (a lock poisoned by a panicking env is taken all the same: the worker
+/// reports the env's failure and the supervisor resets it).
+pub(super) fn lock(env: &Mutex<EnvState>) -> MutexGuard<'_, EnvState> {
+    env.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
 impl WorkerEnvs {
     pub(super) fn len(&self) -> usize {
         match self {
             WorkerEnvs::Each(slots) => slots.len(),
+            WorkerEnvs::Shared(envs) => envs.len(),
             WorkerEnvs::Block(host) => host.len(),
         }
     }
@@ -30,6 +44,12 @@ impl WorkerEnvs {
         match self {
             WorkerEnvs::Each(slots) => {
                 for (j, s) in slots.iter().enumerate() {
+                    write(j, s.episode, s.seed);
+                }
+            }
+            WorkerEnvs::Shared(envs) => {
+                for (j, s) in envs.iter().enumerate() {
+                    let s = lock(s);
                     write(j, s.episode, s.seed);
                 }
             }
@@ -60,6 +80,14 @@ impl WorkerEnvs {
             }
             (WorkerEnvs::Block(host), Some(_)) => {
                 return Err(host.whole_block_only());
+            }
+            (WorkerEnvs::Shared(envs), _) => {
+                let first = lock(&envs[0]).global;
+                return Err(EnvFault::new(
+                    first,
+                    "a command",
+                    "the envs run on threads: the worker's concurrent loop serves them",
+                ));
             }
             (WorkerEnvs::Each(slots), _) => slots,
         };
@@ -142,6 +170,7 @@ pub(super) fn answer_calls(
         }
         _ => for_each_entry(&path, hosted, first, "a call", |h, j, request| match h {
             WorkerEnvs::Each(slots) => slots[j].env.call(request),
+            WorkerEnvs::Shared(envs) => lock(&envs[j]).env.call(request),
             WorkerEnvs::Block(host) => host.call(j, request),
         })?,
     };
@@ -164,6 +193,7 @@ pub(super) fn take_action_extras(
     let path = calls::action_extras_path(id, index, generation);
     for_each_entry(&path, hosted, first, "actions", |h, j, extra| match h {
         WorkerEnvs::Each(slots) => slots[j].env.set_action_extra(extra),
+        WorkerEnvs::Shared(envs) => lock(&envs[j]).env.set_action_extra(extra),
         WorkerEnvs::Block(_) => Err(crate::EnvError::new(
             "a vector env per worker takes actions of a fixed size only",
         )),

@@ -25,8 +25,12 @@ class WorkerStats:
     env_steps: int = 0
     #: Step and reset commands served.
     commands: int = 0
-    #: Seconds inside the envs' step/reset.
+    #: Seconds inside the envs' step/reset (with ``env_concurrency``: the envs' times added
+    #: up, so more than the time that passed).
     env_s: float = 0.0
+    #: Of ``env_s``, the seconds the envs spent off the CPU, waiting (I/O, a sleep, a lock):
+    #: counted with ``env_concurrency`` (each env on a thread), 0 otherwise.
+    env_wait_s: float = 0.0
     #: Seconds waiting for the next command (for actions).
     wait_s: float = 0.0
     #: Seconds publishing answers (the block, and infos too long for it).
@@ -49,6 +53,7 @@ class WorkerStats:
             env_steps=int(d["env_steps"]),
             commands=int(d["commands"]),
             env_s=d["env_ns"] / 1e9,
+            env_wait_s=d["env_wait_ns"] / 1e9,
             wait_s=d["wait_ns"] / 1e9,
             publish_s=d["publish_ns"] / 1e9,
             restarts=int(d["restarts"]),

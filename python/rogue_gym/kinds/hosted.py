@@ -152,6 +152,11 @@ class HostedKind:
         self.num_envs = len(fns) if hosted is None else int(hosted.num_envs)
         checked = options.checked_pool(self.num_envs)
         self.options = PoolOptions(**{**vars(options), **checked})
+        if hosted is not None and self.options.env_threads():
+            raise ValueError(
+                "env_concurrency: a vector env per worker steps its envs itself; threads are for "
+                "envs of one callable each (PoolVectorEnv(env_fns, env_concurrency=...))"
+            )
         # Probe one env here for the spaces and metadata, as AsyncVectorEnv does.
         probe: Any
         if hosted is None:

@@ -50,6 +50,11 @@ class NativeKind:
                 f"render_mode must be one of {list(RENDER_MODES)} or None, got {render_mode!r}"
             )
         st = settings.checked()
+        if st.env_threads():
+            raise ValueError(
+                'env_concurrency: the native game computes (it never waits): it runs "serial"; '
+                "add workers instead"
+            )
         self.settings = st
         self.config = resolve_config(st.config)
         self.obs_spec = ObsSpec(

@@ -142,6 +142,7 @@ impl PyPool {
             d.set_item("env_steps", w.env_steps)?;
             d.set_item("commands", w.commands)?;
             d.set_item("env_ns", w.env_ns)?;
+            d.set_item("env_wait_ns", w.env_wait_ns)?;
             d.set_item("wait_ns", w.wait_ns)?;
             d.set_item("publish_ns", w.publish_ns)?;
             d.set_item("restarts", w.restarts)?;

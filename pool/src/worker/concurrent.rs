@@ -1,0 +1,701 @@
+//! A worker whose envs run on threads (`WorkerConfig::env_threads` > 0): for envs that wait (a
+//! socket, a remote simulator, a subprocess, a sleep), so that an env that waits holds its own
+//! thread only, not its worker-mates.
+//!
+//! Three kinds of thread:
+//!
+//! * **env threads** (`env_threads` of them) take jobs, one env's reset or step each, from one
+//!   queue; the env writes its observation, final observation and extra info straight into its
+//!   own rows (of the batch slot the command names, or of the worker's answer block), as the
+//!   serial loop does; each env is behind a lock, taken by one thread at a time;
+//! * the **relay** waits for commands on the worker's command port and hands them over;
+//! * the worker's **own thread** starts commands (in order: a command waits until every env it
+//!   names is idle), writes each finished env's record and episode books, and publishes the
+//!   answers: one per command, when all its envs are done; or, for a `partial` command (the
+//!   async API with rows in place), envs as they finish ([`BlockKind::Rows`]), several to an
+//!   answer when they finish together, while further commands for other envs arrive.
+//!
+//! Flow control: the supervisor takes answers only inside the caller's calls. The answer port
+//! holds four; a worker holds its finished envs while three answers are untaken (the count of
+//! answers taken is in shared memory, `StatsBuffer::taken`), and checks again every
+//! millisecond, folding whatever finishes meanwhile into its next answer. Nothing is dropped,
+//! and nothing spins.
+//!
+//! What holds as in the serial loop: each env's trajectory (its state is its own), an env
+//! that fails fails alone (an error answer names it; the others go on), and a worker that dies
+//! costs its envs one restarted episode. What differs: a command's envs finish in any order,
+//! and streaming stores are off (each thread writes its env's rows).
+
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Condvar, Mutex, PoisonError};
+use std::time::{Duration, Instant};
+
+use rogue_gym_ipc::{BlockSampleMut, WaitCall, WaitPolicy, hybrid_wait};
+
+use super::block_out::EnvOut;
+use super::env_state::{EnvState, ServeCtx, apply};
+use super::envs::{WorkerEnvs, lock, take_action_extras};
+use super::{Worker, WorkerError};
+use crate::config::AutoresetMode;
+use crate::seeds::SeedSchedule;
+use crate::stats::Counter;
+use crate::wire::answer::{ANSWER_WORDS, AnswerBuilder, BlockKind};
+use crate::wire::layout::{EnvRecord, RECORD_WORDS};
+use crate::wire::slot_layout::SlotRows;
+use crate::wire::{Command, EnvFault, Op, Serve, calls, env_fault_path_of, extra_apart_path};
+
+/// Answers a worker may have untaken before it holds its finished envs (the answer port
+/// holds four; one is left for an answer that cannot wait, an error's).
+const UNTAKEN: u64 = 3;
+/// How often a worker that holds finished envs checks whether answers were taken.
+const HOLD_CHECK: Duration = Duration::from_millis(1);
+
+/// An area of memory a job writes: an env's rows of a slot, or of an answer block, which
+/// stay mapped while the command is in flight (the slot: the pool's buffer; the block: a
+/// sample the worker's own thread keeps until it publishes it).
+#[derive(Clone, Copy)]
+struct Area {
+    ptr: *mut u8,
+    len: usize,
+}
+
+// SAFETY: a plain area of a mapping that outlives the job; each env's areas are disjoint from
+// every other env's, and one thread writes them at a time (see the module docs).
+unsafe impl Send for Area {}
+
+impl Area {
+    fn of(s: &mut [u8]) -> Area {
+        Area {
+            ptr: s.as_mut_ptr(),
+            len: s.len(),
+        }
+    }
+
+    /// # Safety
+    /// The area must be live and this thread's alone while the slice lives.
+    unsafe fn slice<'a>(self) -> &'a mut [u8] {
+        if self.len == 0 {
+            return &mut [];
+        }
+        // SAFETY: the caller's promise.
+        unsafe { std::slice::from_raw_parts_mut(self.ptr, self.len) }
+    }
+}
+
+/// What a job needs besides its env: the serving context of the command.
+struct Ctx {
+    seeds: SeedSchedule,
+    num_envs: u64,
+    autoreset: AutoresetMode,
+    action_bytes: usize,
+    n_info: usize,
+}
+
+/// One env's reset or step.
+struct Job {
+    j: usize,
+    kind: Serve,
+    words: Vec<u64>,
+    obs: Area,
+    fin: Area,
+    extra: Area,
+    ctx: Arc<Ctx>,
+}
+
+/// A job done.
+struct Done {
+    j: usize,
+    /// The env's record, and its whole extra info (it travels apart when the record says so).
+    result: Result<(EnvRecord, Vec<u8>), EnvFault>,
+    wall_ns: u64,
+    cpu_ns: u64,
+}
+
+/// A command as the relay hands it over: its sequence number, the command, its payload.
+struct Incoming {
+    seq: u64,
+    command: Command,
+    payload: Vec<u64>,
+}
+
+/// What the worker's own thread waits for.
+#[derive(Default)]
+struct Inbox {
+    commands: VecDeque<Incoming>,
+    done: Vec<Done>,
+    /// The relay stopped: the supervisor is gone, or the port failed.
+    ended: Option<WorkerError>,
+}
+
+/// What the threads share.
+struct Shared {
+    envs: Arc<[Mutex<EnvState>]>,
+    jobs: Mutex<VecDeque<Job>>,
+    job_ready: Condvar,
+    inbox: Mutex<Inbox>,
+    wake: Condvar,
+    stop: AtomicBool,
+}
+
+fn guard<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// The CPU time of this thread, ns.
+fn thread_cpu_ns() -> u64 {
+    let mut ts = nix::libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: a valid clock id and a valid out-pointer.
+    unsafe { nix::libc::clock_gettime(nix::libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
+}
+
+/// An env thread: jobs until the worker stops.
+fn env_thread(shared: Arc<Shared>) {
+    loop {
+        let job = {
+            let mut q = guard(&shared.jobs);
+            loop {
+                if shared.stop.load(Ordering::Relaxed) {
+                    return;
+                }
+                if let Some(job) = q.pop_front() {
+                    break job;
+                }
+                q = shared
+                    .job_ready
+                    .wait(q)
+                    .unwrap_or_else(PoisonError::into_inner);
+            }
+        };
+        let (t0, c0) = (Instant::now(), thread_cpu_ns());
+        let mut info = Vec::new();
+        let result = {
+            let mut env = lock(&shared.envs[job.j]);
+            let c = &job.ctx;
+            let ctx = ServeCtx {
+                seeds: &c.seeds,
+                num_envs: c.num_envs,
+                autoreset: c.autoreset,
+                action_bytes: c.action_bytes,
+                n_info: c.n_info,
+            };
+            // SAFETY: the job's areas are its env's rows, live until the worker's own thread
+            // has this job's answer (it keeps the block, the pool keeps the slot), and no one
+            // else touches them meanwhile.
+            let out = unsafe {
+                EnvOut {
+                    obs: job.obs.slice(),
+                    fin: job.fin.slice(),
+                    extra: job.extra.slice(),
+                    info: &mut info,
+                }
+            };
+            apply(&mut env, job.kind, &job.words, out, &ctx)
+        };
+        let done = Done {
+            j: job.j,
+            result: result.map(|rec| (rec, info)),
+            wall_ns: t0.elapsed().as_nanos() as u64,
+            cpu_ns: thread_cpu_ns().saturating_sub(c0),
+        };
+        guard(&shared.inbox).done.push(done);
+        shared.wake.notify_one();
+    }
+}
+
+/// A command started and not yet answered whole.
+struct Running {
+    seq: u64,
+    target: usize,
+    partial: bool,
+    /// Its envs not done yet.
+    remaining: usize,
+    /// The answer block (target 0), kept until it is published, and its records area.
+    block: Option<BlockSampleMut>,
+    records: Area,
+    answer: AnswerBuilder,
+    apart: Vec<(u32, Vec<u8>)>,
+    /// The first env that failed.
+    fault: Option<EnvFault>,
+}
+
+/// Finished envs of partial commands, for the next answer.
+#[derive(Default)]
+struct Finished {
+    rows: Vec<u64>,
+    answer: AnswerBuilder,
+    apart: Vec<(u32, Vec<u8>)>,
+    /// Envs that failed, with their fault: an error answer each.
+    failed: Vec<(usize, EnvFault)>,
+}
+
+impl Worker<'_> {
+    /// Serve commands with the envs on `threads` threads until the supervisor closes the
+    /// worker (or is gone).
+    pub(super) fn run_concurrent(&mut self, threads: usize) -> Result<(), WorkerError> {
+        let WorkerEnvs::Shared(envs) = &self.envs else {
+            return Err(WorkerError::Msg("envs on threads need one env each".into()));
+        };
+        let shared = Arc::new(Shared {
+            envs: envs.clone(),
+            jobs: Mutex::new(VecDeque::new()),
+            job_ready: Condvar::new(),
+            inbox: Mutex::new(Inbox::default()),
+            wake: Condvar::new(),
+            stop: AtomicBool::new(false),
+        });
+        for t in 0..threads.clamp(1, self.layout.envs) {
+            let s = shared.clone();
+            std::thread::Builder::new()
+                .name(format!("rg-env-{t}"))
+                .spawn(move || env_thread(s))
+                .map_err(|e| WorkerError::Msg(format!("cannot start an env thread: {e}")))?;
+        }
+        self.spawn_relay(shared.clone())?;
+        let result = self.serve_concurrently(&shared);
+        // Threads stuck in an env's wait are not joined: the process exits with them.
+        shared.stop.store(true, Ordering::Relaxed);
+        shared.job_ready.notify_all();
+        result
+    }
+
+    /// The relay: commands from the port to the inbox, and the supervisor's liveness.
+    fn spawn_relay(&self, shared: Arc<Shared>) -> Result<(), WorkerError> {
+        let ports = self.ports.clone();
+        let ppid = self.args.ppid;
+        let policy = WaitPolicy {
+            poll_budget: Duration::from_micros(self.cfg.poll_budget_us),
+            block_slice: Duration::from_millis(self.cfg.block_slice_ms.max(1)),
+            yield_cpu: self.cfg.poll_yield,
+            sleep_first: Duration::ZERO,
+        };
+        let relay = move || {
+            let ended = loop {
+                let mut got = None;
+                let waited =
+                    hybrid_wait::<WorkerError>(ports.cmd_listener(), &policy, None, |call| {
+                        if call == WaitCall::Idle {
+                            if shared.stop.load(Ordering::Relaxed) {
+                                return Err(WorkerError::Msg("stopped".into()));
+                            }
+                            if nix::unistd::getppid().as_raw() != ppid {
+                                return Err(WorkerError::ParentGone(ppid));
+                            }
+                        }
+                        got = ports.try_recv_cmd()?;
+                        Ok(got.is_some())
+                    });
+                if let Err(e) = waited {
+                    break e;
+                }
+                let Some(cmd) = got else { continue };
+                let h = *cmd.user_header();
+                let command = match Command::decode(h.kind) {
+                    Ok(c) => c,
+                    Err(e) => break WorkerError::Msg(format!("command {}: {e}", h.seq)),
+                };
+                let n = (h.len as usize).min(cmd.payload().len());
+                let payload = cmd.payload()[..n].to_vec();
+                drop(cmd);
+                guard(&shared.inbox).commands.push_back(Incoming {
+                    seq: h.seq,
+                    command,
+                    payload,
+                });
+                shared.wake.notify_one();
+            };
+            guard(&shared.inbox).ended = Some(ended);
+            shared.wake.notify_one();
+        };
+        std::thread::Builder::new()
+            .name("rg-relay".into())
+            .spawn(relay)
+            .map_err(|e| WorkerError::Msg(format!("cannot start the command relay: {e}")))?;
+        Ok(())
+    }
+
+    /// The worker's own thread (see the module docs).
+    fn serve_concurrently(&mut self, shared: &Shared) -> Result<(), WorkerError> {
+        let epw = self.layout.envs;
+        let mut queue: VecDeque<Incoming> = VecDeque::new();
+        let mut busy = vec![false; epw];
+        // Which running command each busy env belongs to.
+        let mut of_env: Vec<Option<u64>> = vec![None; epw];
+        let mut running: Vec<Running> = Vec::new();
+        let mut finished = Finished::default();
+        loop {
+            let (commands, done, ended) = {
+                let mut inbox = guard(&shared.inbox);
+                let holding = !finished.rows.is_empty() || !finished.failed.is_empty();
+                if inbox.commands.is_empty() && inbox.done.is_empty() && inbox.ended.is_none() {
+                    let wait = if holding {
+                        HOLD_CHECK
+                    } else {
+                        Duration::from_millis(50)
+                    };
+                    inbox = shared
+                        .wake
+                        .wait_timeout(inbox, wait)
+                        .unwrap_or_else(PoisonError::into_inner)
+                        .0;
+                }
+                (
+                    std::mem::take(&mut inbox.commands),
+                    std::mem::take(&mut inbox.done),
+                    inbox.ended.take(),
+                )
+            };
+            if let Some(e) = ended {
+                return match e {
+                    WorkerError::ParentGone(_) => Err(e),
+                    WorkerError::Msg(m) if m == "stopped" => Ok(()),
+                    e => Err(e),
+                };
+            }
+            queue.extend(commands);
+            for d in done {
+                let j = d.j;
+                busy[j] = false;
+                let Some(seq) = of_env[j].take() else {
+                    continue;
+                };
+                let Some(r) = running.iter_mut().find(|r| r.seq == seq) else {
+                    continue;
+                };
+                self.finish(r, d, &mut finished);
+            }
+            // Whole answers of the commands that are done.
+            let mut k = 0;
+            while k < running.len() {
+                if running[k].remaining == 0 && !running[k].partial {
+                    let r = running.remove(k);
+                    self.answer_whole(r)?;
+                } else if running[k].remaining == 0 {
+                    running.remove(k);
+                } else {
+                    k += 1;
+                }
+            }
+            self.answer_partial(&mut finished)?;
+            // Start what the queue holds, in order, while its envs are idle.
+            while let Some(next) = queue.front() {
+                match next.command.op {
+                    Op::Close => return Ok(()),
+                    Op::Call if busy.iter().any(|&b| b) => break,
+                    Op::Call => {
+                        let seq = next.seq;
+                        queue.pop_front();
+                        self.answer_calls(seq)?;
+                    }
+                    Op::Reset | Op::Step => {
+                        let envs = self.named_envs(next)?;
+                        if envs.iter().any(|&j| busy[j]) {
+                            break;
+                        }
+                        let Some(inc) = queue.pop_front() else { break };
+                        let r = self.start_command(shared, inc, &envs)?;
+                        for &j in &envs {
+                            busy[j] = true;
+                            of_env[j] = Some(r.seq);
+                        }
+                        running.push(r);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The envs (rows of the block) a reset or step names, its payload checked.
+    fn named_envs(&self, inc: &Incoming) -> Result<Vec<usize>, WorkerError> {
+        let epw = self.layout.envs;
+        let step = inc.command.op == Op::Step;
+        let per_env = if step { self.action_words } else { 1 };
+        let subset = step && inc.command.subset;
+        let n = inc.payload.len();
+        if n != epw * per_env + if subset { epw } else { 0 } {
+            return Err(WorkerError::Msg(format!(
+                "command {} carries {n} words for {epw} envs of {per_env} words (subset: {subset})",
+                inc.seq
+            )));
+        }
+        Ok(if subset {
+            (0..epw)
+                .filter(|&j| inc.payload[epw * per_env + j] != 0)
+                .collect()
+        } else {
+            (0..epw).collect()
+        })
+    }
+
+    /// Start a reset or step: its envs' jobs go to the env threads.
+    fn start_command(
+        &mut self,
+        shared: &Shared,
+        inc: Incoming,
+        envs: &[usize],
+    ) -> Result<Running, WorkerError> {
+        let Incoming {
+            seq,
+            command,
+            payload,
+        } = inc;
+        let kind = command.serve().unwrap_or(Serve::Reset);
+        let target = command.target as usize;
+        if target > self.cfg.batch_slots {
+            return Err(WorkerError::Msg(format!("bad observation target {target}")));
+        }
+        if command.reload_seeds {
+            self.seeds = super::read_config(&self.args.config)
+                .map_err(WorkerError::Msg)?
+                .seeds;
+        }
+        self.stats.add(self.args.index, Counter::Commands, 1);
+        let mut r = Running {
+            seq,
+            target,
+            partial: command.partial && target != 0,
+            remaining: envs.len(),
+            block: None,
+            records: Area {
+                ptr: std::ptr::null_mut(),
+                len: 0,
+            },
+            answer: AnswerBuilder::default(),
+            apart: Vec::new(),
+            fault: None,
+        };
+        if kind == Serve::Step && command.action_extras {
+            let me = (self.args.index, self.args.generation);
+            if let Err(f) = take_action_extras(&self.id, me, &mut self.envs, self.first_env as u64)
+            {
+                r.fault = Some(f);
+            }
+        }
+        // Where each env writes: its rows of the slot, or of the answer block.
+        let (ob, xb) = (self.layout.obs_bytes, self.layout.extra_bytes);
+        let fb = if self.layout.final_obs { ob } else { 0 };
+        let mut areas: Vec<[Area; 3]> = Vec::with_capacity(envs.len());
+        if target == 0 {
+            let mut block = self.ports.loan_block(self.layout.words())?;
+            let a = self.layout.split_mut(block.payload_mut());
+            r.records = Area::of(rogue_gym_ipc::words_as_bytes_mut(a.records));
+            for &j in envs {
+                areas.push([
+                    Area::of(&mut a.obs[j * ob..(j + 1) * ob]),
+                    Area::of(&mut a.final_obs[j * fb..(j + 1) * fb]),
+                    Area::of(&mut a.extra[j * xb..(j + 1) * xb]),
+                ]);
+            }
+            r.block = Some(block);
+        } else {
+            let rows = self.slot_rows(target);
+            for &j in envs {
+                let e = self.first_env + j;
+                // SAFETY: env `e`'s rows of the slot this command names, this worker's while
+                // the command is in flight (see `serve`).
+                unsafe {
+                    areas.push([
+                        Area::of(rows.obs_rows(e..e + 1)),
+                        Area::of(rows.final_rows(e..e + 1)),
+                        Area::of(rows.extra_rows(e..e + 1)),
+                    ]);
+                }
+            }
+        }
+        if r.fault.is_some() {
+            r.remaining = 0;
+            return Ok(r);
+        }
+        let per_env = if kind == Serve::Step {
+            self.action_words
+        } else {
+            1
+        };
+        let ctx = Arc::new(Ctx {
+            seeds: self.seeds.clone(),
+            num_envs: self.cfg.num_envs as u64,
+            autoreset: self.cfg.autoreset,
+            action_bytes: self.action_bytes,
+            n_info: self.n_info,
+        });
+        let mut q = guard(&shared.jobs);
+        for (&j, [obs, fin, extra]) in envs.iter().zip(areas) {
+            q.push_back(Job {
+                j,
+                kind,
+                words: payload[j * per_env..(j + 1) * per_env].to_vec(),
+                obs,
+                fin,
+                extra,
+                ctx: ctx.clone(),
+            });
+        }
+        drop(q);
+        shared.job_ready.notify_all();
+        Ok(r)
+    }
+
+    /// The rows of slot `target - 1`.
+    fn slot_rows(&self, target: usize) -> SlotRows {
+        // SAFETY: `target <= batch_slots` (checked by the caller): inside the batch buffer,
+        // 64-byte aligned.
+        unsafe {
+            let base = self
+                .batch
+                .as_ptr()
+                .add((target - 1) * self.slot_layout.bytes());
+            self.slot_layout.rows(base)
+        }
+    }
+
+    /// An env of command `r` is done: its record written, its books (both copies: the envs of
+    /// a worker answer at different commands), its rows counted for the answer.
+    fn finish(&mut self, r: &mut Running, d: Done, finished: &mut Finished) {
+        let me = self.args.index;
+        r.remaining -= 1;
+        self.stats.add(me, Counter::EnvNs, d.wall_ns);
+        self.stats
+            .add(me, Counter::EnvWaitNs, d.wall_ns.saturating_sub(d.cpu_ns));
+        self.stats.add(me, Counter::EnvSteps, 1);
+        let (rec, info) = match d.result {
+            Ok(v) => v,
+            Err(f) => {
+                if r.partial {
+                    finished.failed.push((d.j, f));
+                } else {
+                    r.fault.get_or_insert(f);
+                }
+                return;
+            }
+        };
+        {
+            let envs = match &self.envs {
+                WorkerEnvs::Shared(envs) => envs,
+                _ => return,
+            };
+            let s = lock(&envs[d.j]);
+            let e = self.first_env + d.j;
+            self.books.write(r.seq, e, s.episode, s.seed);
+            self.books.write(r.seq + 1, e, s.episode, s.seed);
+        }
+        let xb = self.layout.extra_bytes;
+        if r.target == 0 {
+            let at = d.j * RECORD_WORDS * 8;
+            if at + RECORD_WORDS * 8 <= r.records.len {
+                // SAFETY: env `j`'s record in the block's records area (8-aligned, inside the
+                // area), written by this thread alone: the env threads write other areas.
+                unsafe { r.records.ptr.add(at).cast::<EnvRecord>().write(rec) };
+            }
+        } else {
+            let rows = self.slot_rows(r.target);
+            let e = self.first_env + d.j;
+            rows.record(e, &rec);
+            // SAFETY: env `e`'s room, written by its job, which is done.
+            let room = unsafe { rows.extra_rows(e..e + 1) };
+            let into = if r.partial {
+                &mut finished.answer
+            } else {
+                &mut r.answer
+            };
+            into.add(&rec, &room[..xb.min(room.len())]);
+        }
+        if rec.extra_apart() {
+            let apart = if r.partial {
+                &mut finished.apart
+            } else {
+                &mut r.apart
+            };
+            apart.push((d.j as u32, info));
+        }
+        if r.partial {
+            finished.rows.push(d.j as u64);
+        }
+    }
+
+    /// Publish the answer of a command whose envs are all done (one answer for them all).
+    fn answer_whole(&mut self, r: Running) -> Result<(), WorkerError> {
+        if let Some(f) = r.fault {
+            drop(r.block);
+            f.write(&self.fault_path).map_err(WorkerError::Msg)?;
+            return self.send(r.seq, BlockKind::Error);
+        }
+        if !r.apart.is_empty() {
+            let entries: Vec<(u32, &[u8])> =
+                r.apart.iter().map(|(j, b)| (*j, b.as_slice())).collect();
+            let path = extra_apart_path(&self.id, self.args.index, self.args.generation, r.seq);
+            calls::write(&path, &calls::encode(&entries)).map_err(WorkerError::Msg)?;
+        }
+        let mut block = match r.block {
+            Some(b) => b,
+            None => self.ports.loan_block(self.layout.words())?,
+        };
+        *block.user_header_mut() = self.header(r.seq, BlockKind::Data);
+        if r.target != 0 {
+            let answer = r.answer.finish(self.layout.envs);
+            block.payload_mut()[..ANSWER_WORDS].copy_from_slice(&answer.encode());
+        }
+        self.publish(block)
+    }
+
+    /// Publish what partial commands finished, while the supervisor has taken enough of this
+    /// worker's answers (see the module docs): each failed env in an error answer, the others
+    /// together in one [`BlockKind::Rows`] answer.
+    fn answer_partial(&mut self, finished: &mut Finished) -> Result<(), WorkerError> {
+        while let Some((j, f)) = finished.failed.first().cloned() {
+            if !self.may_answer() {
+                return Ok(());
+            }
+            finished.failed.remove(0);
+            let n = self.next_answer_no();
+            f.write(&env_fault_path_of(
+                &self.id,
+                self.args.index,
+                self.args.generation,
+                n,
+            ))
+            .map_err(WorkerError::Msg)?;
+            let mut block = self.ports.loan_block(self.layout.words())?;
+            *block.user_header_mut() = self.header(n, BlockKind::Error);
+            block.payload_mut()[..2].copy_from_slice(&[1, j as u64]);
+            self.publish(block)?;
+        }
+        if finished.rows.is_empty() || !self.may_answer() {
+            return Ok(());
+        }
+        let f = std::mem::take(finished);
+        let n = self.next_answer_no();
+        let mut answer = f.answer.finish(f.rows.len());
+        if !f.apart.is_empty() {
+            let entries: Vec<(u32, &[u8])> =
+                f.apart.iter().map(|(j, b)| (*j, b.as_slice())).collect();
+            let path = extra_apart_path(&self.id, self.args.index, self.args.generation, n);
+            calls::write(&path, &calls::encode(&entries)).map_err(WorkerError::Msg)?;
+            answer.apart = true;
+        }
+        let mut block = self.ports.loan_block(self.layout.words())?;
+        *block.user_header_mut() = self.header(n, BlockKind::Rows);
+        let p = block.payload_mut();
+        p[..ANSWER_WORDS].copy_from_slice(&answer.encode());
+        p[ANSWER_WORDS] = f.rows.len() as u64;
+        p[ANSWER_WORDS + 1..ANSWER_WORDS + 1 + f.rows.len()].copy_from_slice(&f.rows);
+        self.publish(block)
+    }
+
+    /// Whether the supervisor has taken enough of this worker's answers for one more.
+    fn may_answer(&self) -> bool {
+        self.answers
+            .saturating_sub(self.stats.taken(self.args.index))
+            < UNTAKEN
+    }
+
+    /// The number of this worker's next answer to partial commands (its header's `seq`,
+    /// which names its side files); counts down from the top, apart from command numbers.
+    fn next_answer_no(&mut self) -> u64 {
+        self.answer_no += 1;
+        u64::MAX / 2 + self.answer_no
+    }
+}
