@@ -9,6 +9,10 @@
 //! through a link or from another user. An entry whose process is gone (a pool killed with
 //! SIGKILL) is ignored and removed by the next reader. Other users' pools are in their own
 //! runtime directories: a user's ledger sees its own pools only.
+//!
+//! The directory exists while pools do: the first pool creates it under its lock, and the last
+//! to leave removes it, lock file and all, so a closed run leaves its runtime directory empty.
+//! A lock taken on a lock file that was removed meanwhile is taken again on the new one.
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -16,7 +20,7 @@ use std::path::{Path, PathBuf};
 use crate::error::IpcError;
 use crate::naming::process_start_time;
 use crate::private::{
-    ensure_private_dir, read_private_file, remove_if_present, write_private_file,
+    check_private, ensure_private_dir, read_private_file, remove_if_present, write_private_file,
 };
 
 /// The ledger's directory in a runtime directory.
@@ -115,11 +119,22 @@ pub struct Ledger {
 }
 
 impl Ledger {
-    /// The ledger of runtime directory `runtime_dir` (already verified private), its directory
-    /// created 0700 if missing and refused if it is a link, another user's, or open to others.
+    /// The ledger of runtime directory `runtime_dir` (already verified private). Its directory,
+    /// where it exists, is refused if it is a link, another user's, or open to others; a
+    /// missing one is an empty ledger ([`Ledger::lock`] creates it).
     pub fn open(runtime_dir: &Path) -> Result<Ledger, IpcError> {
         let dir = runtime_dir.join(DIR);
-        ensure_private_dir(&dir)?;
+        match fs::symlink_metadata(&dir) {
+            Ok(meta) => check_private(&dir, &meta, true)?,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(source) => {
+                return Err(IpcError::Io {
+                    what: "inspect the pool ledger",
+                    path: dir,
+                    source,
+                });
+            }
+        }
         Ok(Ledger { dir })
     }
 
@@ -161,25 +176,74 @@ impl Ledger {
         out
     }
 
-    /// Hold the ledger's lock (released when the value drops): cores are handed out under it,
-    /// so that two pools starting together never take the same.
+    /// Hold the ledger's lock (released when the value drops), its directory created 0700 if
+    /// missing: cores are handed out under it, so that two pools starting together never take
+    /// the same, and the last pool to leave removes the directory under it.
     pub fn lock(&self) -> Result<LedgerLock, IpcError> {
+        use std::os::unix::fs::MetadataExt;
         let path = self.dir.join(LOCK);
-        let file = match crate::private::open_private_file_rw(&path) {
-            Ok(f) => f,
-            Err(_) => crate::private::create_private_file(&path)
-                .or_else(|_| crate::private::open_private_file_rw(&path))?,
-        };
-        let lock = nix::fcntl::Flock::lock(file, nix::fcntl::FlockArg::LockExclusive).map_err(
-            |(_, e)| IpcError::Io {
-                what: "lock the pool ledger",
-                path: path.clone(),
-                source: std::io::Error::from(e),
-            },
-        )?;
-        Ok(LedgerLock { _lock: lock })
+        let mut tries = 0;
+        loop {
+            tries += 1;
+            // The directory and its lock file may be removed by a pool leaving meanwhile
+            // ([`Ledger::leave`]): then again, a bounded number of times.
+            let opened = ensure_private_dir(&self.dir).and_then(|()| {
+                crate::private::open_private_file_rw(&path).or_else(|_| {
+                    crate::private::create_private_file(&path)
+                        .or_else(|_| crate::private::open_private_file_rw(&path))
+                })
+            });
+            let file = match opened {
+                Ok(f) => f,
+                Err(e) if tries >= LOCK_TRIES => return Err(e),
+                Err(_) => continue,
+            };
+            let lock = nix::fcntl::Flock::lock(file, nix::fcntl::FlockArg::LockExclusive).map_err(
+                |(_, e)| IpcError::Io {
+                    what: "lock the pool ledger",
+                    path: path.clone(),
+                    source: std::io::Error::from(e),
+                },
+            )?;
+            // Locked: still the ledger's lock file, not one a leaving pool removed?
+            let held = lock.metadata().map(|m| (m.dev(), m.ino()));
+            let named = fs::symlink_metadata(&path).map(|m| (m.dev(), m.ino()));
+            match (held, named) {
+                (Ok(h), Ok(n)) if h == n => return Ok(LedgerLock { _lock: lock }),
+                _ if tries >= LOCK_TRIES => {
+                    return Err(IpcError::Io {
+                        what: "lock the pool ledger (its lock file kept changing)",
+                        path,
+                        source: std::io::Error::from(std::io::ErrorKind::WouldBlock),
+                    });
+                }
+                _ => {}
+            }
+        }
+    }
+
+    /// Remove pool `pool`'s entry and, when no other entry is left, the ledger's directory
+    /// (under its lock, so that no pool joins meanwhile).
+    pub fn leave(&self, pool: &str) -> Result<(), IpcError> {
+        self.remove(pool)?;
+        if !self.dir.exists() {
+            return Ok(());
+        }
+        let _lock = self.lock()?;
+        let others = fs::read_dir(&self.dir)
+            .map(|d| d.flatten().any(|f| f.file_name() != LOCK))
+            .unwrap_or(true);
+        if !others {
+            remove_if_present(&self.dir.join(LOCK), "remove the ledger's lock")?;
+            // A file written meanwhile (a temporary of a live pool's entry) keeps it: no error.
+            let _ = fs::remove_dir(&self.dir);
+        }
+        Ok(())
     }
 }
+
+/// How many times [`Ledger::lock`] tries before it gives up.
+const LOCK_TRIES: u32 = 100;
 
 /// The ledger's lock, held while it lives.
 pub struct LedgerLock {
@@ -212,6 +276,7 @@ mod tests {
     fn entries_round_trip_and_a_dead_pools_entry_is_ignored_and_swept() {
         let base = private_base("rg-ledger");
         let l = Ledger::open(&base).unwrap();
+        drop(l.lock().unwrap()); // creates the directory
         let me = Entry::of_this_process("rgaaaa", 2, true, vec![0, 1]);
         l.write(&me).unwrap();
         let dead = Entry {
@@ -230,7 +295,42 @@ mod tests {
         assert!(!base.join(DIR).join("rgcccc").exists(), "swept");
         l.remove("rgaaaa").unwrap();
         assert_eq!(l.read(), vec![]);
-        let _lock = l.lock().unwrap();
+        fs::remove_dir_all(&base).unwrap();
+    }
+
+    #[test]
+    fn the_last_pool_to_leave_removes_the_ledger_and_the_next_makes_it_again() {
+        let base = private_base("rg-ledger-leave");
+        let l = Ledger::open(&base).unwrap();
+        assert!(!base.join(DIR).exists(), "opening creates nothing");
+        for pool in ["rgaaaa", "rgbbbb"] {
+            let _lock = l.lock().unwrap();
+            l.write(&Entry::of_this_process(pool, 1, false, vec![]))
+                .unwrap();
+        }
+        l.leave("rgaaaa").unwrap();
+        assert_eq!(l.read().len(), 1, "another pool keeps the ledger");
+        l.leave("rgbbbb").unwrap();
+        assert!(!base.join(DIR).exists(), "the last one removed it");
+        // A pool waiting on the lock file that the last one removed takes it again on the new.
+        let held = l.lock().unwrap();
+        let (l2, dir) = (l.clone(), base.join(DIR));
+        let waiter = std::thread::spawn(move || {
+            use std::os::unix::fs::MetadataExt;
+            let lock = l2.lock().unwrap();
+            let ino = fs::metadata(dir.join(LOCK)).unwrap().ino();
+            drop(lock);
+            ino
+        });
+        std::thread::sleep(std::time::Duration::from_millis(200));
+        fs::remove_file(base.join(DIR).join(LOCK)).unwrap();
+        fs::remove_dir(base.join(DIR)).unwrap();
+        drop(held);
+        let ino = waiter.join().unwrap();
+        let _again = l.lock().unwrap();
+        use std::os::unix::fs::MetadataExt;
+        assert_eq!(ino, fs::metadata(base.join(DIR).join(LOCK)).unwrap().ino());
+        assert!(base.join(DIR).join(LOCK).exists());
         fs::remove_dir_all(&base).unwrap();
     }
 

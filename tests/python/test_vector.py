@@ -184,9 +184,9 @@ def test_shards_together_play_what_the_whole_pool_plays(make_vec, policy: str) -
 def test_double_buffer_keeps_previous_observation(make_vec) -> None:
     env = make_vec(4, max_steps=50)
     prev, _ = env.reset(seed=0)
-    # The sync batch is written by the workers straight into shared memory (no copy).
+    # The sync batch is written by the workers straight into the pool's shared buffer (no copy).
     ptr = prev.__array_interface__["data"][0]
-    assert any(lo <= ptr < hi for lo, hi, _ in _shm_ranges())
+    assert any(lo <= ptr < hi for lo, hi, _ in _batch_ranges())
     prev_copy = prev.copy()
     for a in _actions(4, 20):
         obs, *_ = env.step(a)
@@ -245,12 +245,13 @@ def test_killed_worker_raises_with_details(make_vec) -> None:
     env.step(np.zeros(4, np.int64))
 
 
-def _shm_ranges() -> list[tuple[int, int, str]]:
+def _batch_ranges() -> list[tuple[int, int, str]]:
+    """This process's mappings of a pool's batch buffer (a memory file, ipc/src/buffer.rs)."""
     out = []
     with open("/proc/self/maps") as f:
         for line in f:
             parts = line.split()
-            if len(parts) >= 6 and parts[5].startswith("/dev/shm/"):
+            if len(parts) >= 6 and parts[5].startswith("/memfd:rogue-gym-batch"):
                 lo, hi = (int(x, 16) for x in parts[0].split("-"))
                 out.append((lo, hi, parts[5]))
     return out

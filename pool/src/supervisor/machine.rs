@@ -211,7 +211,7 @@ impl Machine {
 
     /// Leave the ledger (the pool closes; also when the value drops).
     pub(super) fn leave(&self) {
-        let _ = self.ledger.remove(&self.me.pool);
+        let _ = self.ledger.leave(&self.me.pool);
     }
 }
 
