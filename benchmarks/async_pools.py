@@ -4,7 +4,12 @@
 - ``dispatch``: 8 zero-latency envs; the figure is the consumer's cost per transition
   (recv, write the actions, send), harvesting ``--transitions`` (1,024) per round.
 - ``slow_reset``: 32 envs with 1 ms steps and a 200 ms reset every 200 steps; the env supply caps
-  it near 16k transitions/s (each env gives 200 steps per 0.4 s).
+  it near 16k transitions/s (each env gives 200 steps per 0.4 s). This pool runs it at 1, 2, 4
+  and 8 envs per worker, with the envs on threads (``env_concurrency="threads"``) and serial.
+- ``io``: 256 envs whose every step waits a random 2-60 ms (log-normal, median 10 ms), as envs
+  that talk to a simulator or a service do; the ceiling is envs / mean latency. This pool with
+  its envs on threads in 2 and 4 workers, against gymnasium's ``AsyncVectorEnv`` (a process per
+  env) and TorchRL's ``AsyncEnvPool``; the table adds the memory (PSS) of their processes.
 
 Both drive each async pool as PR #4182 does: ``min_get=1, max_get=num_envs, timeout=1e-3``
 (here ``recv(min_batch=1, max_batch=num_envs, timeout=1e-3)``), answering every env received at
@@ -24,8 +29,10 @@ from __future__ import annotations
 import argparse
 import functools
 import json
+import math
 import os
 import platform
+import random
 import statistics
 import time
 from pathlib import Path
@@ -41,7 +48,11 @@ WORKLOADS = {
     # envs, step seconds, reset seconds, steps between resets
     "dispatch": (8, 0.0, 0.0, 200),
     "slow_reset": (32, 1e-3, 0.2, 200),
+    # step seconds 0: a random latency a step (`IoEnv`); no episode end.
+    "io": (256, 0.0, 0.0, 10**9),
 }
+#: The ``io`` workload's latency: log-normal with this median and sigma, clipped to these.
+IO_MEDIAN, IO_SIGMA, IO_CLIP = 0.010, 0.75, (0.002, 0.060)
 
 
 class Workload(gym.Env):
@@ -67,6 +78,61 @@ class Workload(gym.Env):
         self.t += 1
         return np.full(4, self.t / self.every, np.float32), 1.0, self.t >= self.every, False, {}
 
+
+class IoEnv(gym.Env):
+    """An env whose every step waits a random latency (see ``IO_*``), from a generator of its
+    own; observations are 4 float32. Its own CPU work is a few microseconds (the standard
+    library's generator, one array made once), as an env that waits on I/O has."""
+
+    observation_space = gym.spaces.Box(-1.0, 1.0, (4,), np.float32)
+    action_space = gym.spaces.Discrete(2)
+    OBS = np.zeros(4, np.float32)
+
+    def __init__(self) -> None:
+        self.rng = random.Random()
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> Any:
+        super().reset(seed=seed)
+        self.rng = random.Random(seed)
+        return self.OBS, {}
+
+    def step(self, action: Any) -> Any:
+        time.sleep(io_latency(self.rng))
+        return self.OBS, 1.0, False, False, {}
+
+
+def io_latency(rng: random.Random) -> float:
+    """One draw of the ``io`` workload's latency, seconds."""
+    lo, hi = IO_CLIP
+    return min(hi, max(lo, rng.lognormvariate(math.log(IO_MEDIAN), IO_SIGMA)))
+
+
+def tree_pss(pid: int) -> int:
+    """Bytes of proportional set size of the processes below ``pid`` (its children and theirs):
+    what a pool's worker processes take."""
+    kids: dict[int, list[int]] = {}
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/stat") as f:
+                    ppid = int(f.read().rsplit(")", 1)[1].split()[1])
+                kids.setdefault(ppid, []).append(int(d))
+            except (OSError, ValueError, IndexError):
+                pass
+    total, todo = 0, list(kids.get(pid, []))
+    while todo:
+        p = todo.pop()
+        todo += kids.get(p, [])
+        try:
+            with open(f"/proc/{p}/smaps_rollup") as f:
+                total += next(int(line.split()[1]) * 1024 for line in f if line.startswith("Pss:"))
+        except (OSError, StopIteration):
+            pass
+    return total
+
+
+#: PSS of the worker processes of the last run of each system (``io``), bytes.
+MEMORY: dict[str, int] = {}
 
 #: Real envs recorded beside the workloads: gymnasium id and number of envs; async with
 #: ``batch_size = num_envs / 2`` against lockstep ``step()`` (HalfCheetah needs mujoco).
@@ -118,7 +184,9 @@ def real_systems(name: str, cores: int) -> dict[str, Callable[[float], float]]:
     return out
 
 
-def maker(name: str) -> Callable[[], Workload]:
+def maker(name: str) -> Callable[[], gym.Env]:
+    if name == "io":
+        return IoEnv
     _, step_s, reset_s, every = WORKLOADS[name]
     return lambda: Workload(step_s, reset_s, every)
 
@@ -139,6 +207,7 @@ def torchrl_env(name: str) -> Any:
             self.action_spec = Categorical(2)
             self.reward_spec = Unbounded(shape=(1,))
             self.t = 0
+            self.rng = random.Random()
 
         def _reset(self, td: Any) -> Any:
             if reset_s:
@@ -150,7 +219,9 @@ def torchrl_env(name: str) -> Any:
             )
 
         def _step(self, td: Any) -> Any:
-            if step_s:
+            if name == "io":
+                time.sleep(io_latency(self.rng))
+            elif step_s:
                 time.sleep(step_s)
             self.t += 1
             done = torch.tensor([self.t >= every])
@@ -181,13 +252,21 @@ def lockstep_rate(env: Any, n: int, seconds: float, acts: Any = None) -> float:
 
 
 def run_pool(
-    name: str, seconds: float, workers: int, lockstep: bool, timeout: Optional[float]
+    name: str,
+    seconds: float,
+    workers: int,
+    lockstep: bool,
+    timeout: Optional[float],
+    concurrency: Any = "serial",
+    label: str = "",
 ) -> float:
     """This pool: async with ``recv(min_batch=1, max_batch=num_envs, timeout=timeout)`` (PR
     #4182's harvest loop with ``timeout=1e-3``; with None, every env ready at once), or
-    lockstep ``step()``."""
+    lockstep ``step()``; ``concurrency``: its ``env_concurrency``."""
     n = WORKLOADS[name][0]
-    env = rogue_gym.PoolVectorEnv([maker(name)] * n, num_workers=workers, batch_size=n)
+    env = rogue_gym.PoolVectorEnv(
+        [maker(name)] * n, num_workers=workers, batch_size=n, env_concurrency=concurrency
+    )
     try:
         if lockstep:
             return lockstep_rate(env, n, seconds)
@@ -203,13 +282,21 @@ def run_pool(
             ids = info["env_id"]
             env.send(np.zeros(len(ids), np.int64), ids)
             done += len(ids)
-        return done / (time.perf_counter() - t0)
+        rate = done / (time.perf_counter() - t0)
+        if label:
+            MEMORY[label] = tree_pss(os.getpid())
+        return rate
     finally:
         env.close()
 
 
 def run_torchrl(
-    name: str, seconds: float, exchange: str, per_worker: int, timeout: Optional[float]
+    name: str,
+    seconds: float,
+    exchange: str,
+    per_worker: int,
+    timeout: Optional[float],
+    label: str = "",
 ) -> float:
     import torch
     from torchrl.envs import AsyncEnvPool
@@ -235,15 +322,22 @@ def run_torchrl(
             nxt["action"] = torch.zeros(k, dtype=torch.long)
             pool.async_step_and_maybe_reset_send(nxt)
             done += k
-        return done / (time.perf_counter() - t0)
+        rate = done / (time.perf_counter() - t0)
+        if label:
+            MEMORY[label] = tree_pss(os.getpid())
+        return rate
     finally:
         pool.shutdown() if hasattr(pool, "shutdown") else pool.close()
 
 
 def supply(name: str, seconds: float) -> float:
     """The env supply: ``num_envs`` times what one env gives in a plain loop here (its sleeps
-    overshoot a little, so this is below the nominal figure)."""
+    overshoot a little, so this is below the nominal figure); for ``io``, envs over the mean
+    latency of the distribution."""
     n = WORKLOADS[name][0]
+    if name == "io":
+        rng = random.Random(0)
+        return n / statistics.fmean(io_latency(rng) for _ in range(200_000))
     env = maker(name)()
     env.reset()
     done, t0 = 0, time.perf_counter()
@@ -255,11 +349,14 @@ def supply(name: str, seconds: float) -> float:
     return n * done / (time.perf_counter() - t0)
 
 
-def run_gym_async(name: str, seconds: float) -> float:
+def run_gym_async(name: str, seconds: float, label: str = "") -> float:
     n = WORKLOADS[name][0]
     env = gym.vector.AsyncVectorEnv([maker(name)] * n)
     try:
-        return lockstep_rate(env, n, seconds)
+        rate = lockstep_rate(env, n, seconds)
+        if label:
+            MEMORY[label] = tree_pss(os.getpid())
+        return rate
     finally:
         env.close()
 
@@ -270,6 +367,20 @@ def systems(name: str, cores: int, quick: bool) -> dict[str, Callable[[float], f
     and AsyncVectorEnv."""
     n = WORKLOADS[name][0]
     out: dict[str, Callable[[float], float]] = {}
+    if name == "io":
+        return io_systems(cores, quick)
+    if name == "slow_reset":
+        # Envs on threads at 1, 2, 4 and 8 envs per worker, serial at 2 and 4 beside them.
+        for per in [1, 2, 4, 8] if not quick else [4]:
+            w = n // per
+            out[f"rogue_gym async, threads, {per} env/worker ({w} workers)"] = lambda s, w=w: (
+                run_pool(name, s, w, False, None, "threads")
+            )
+        for per in [2, 4] if not quick else []:
+            w = n // per
+            out[f"rogue_gym async, serial, {per} env/worker ({w} workers)"] = lambda s, w=w: (
+                run_pool(name, s, w, False, None)
+            )
     # One worker per core, one per env (what tune tries); quick: the one that suits the load.
     layouts = sorted({min(cores, n), n}) if not quick else [n if name == "slow_reset" else cores]
     for w in layouts:
@@ -302,6 +413,32 @@ def systems(name: str, cores: int, quick: bool) -> dict[str, Callable[[float], f
     return out
 
 
+def io_systems(cores: int, quick: bool) -> dict[str, Callable[[float], float]]:
+    """The ``io`` workload's systems (see the module docs)."""
+    n = WORKLOADS["io"][0]
+    out: dict[str, Callable[[float], float]] = {}
+    for w in [4, 2] if not quick else [4]:
+        label = f"rogue_gym async, threads, {w} workers ({n // w} env/worker)"
+        out[label] = lambda s, w=w, label=label: run_pool("io", s, w, False, None, "threads", label)
+    if quick:
+        return out
+    label = f"rogue_gym async, serial, {cores} workers"
+    out[label] = lambda s, label=label: run_pool("io", s, cores, False, None, "serial", label)
+    try:
+        import torchrl  # noqa: F401
+
+        for per in (64, 8):
+            label = f"torchrl AsyncEnvPool shm, {per} env/worker ({n // per} workers)"
+            out[label] = lambda s, per=per, label=label: run_torchrl(
+                "io", s, "shm", per, HARVEST, label
+            )
+    except ImportError:
+        print("torchrl is not installed: its rows are left out")
+    label = f"gymnasium AsyncVectorEnv ({n} processes)"
+    out[label] = lambda s, label=label: run_gym_async("io", s, label)
+    return out
+
+
 def main(argv: Optional[list[str]] = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--seconds", type=float, default=5.0, help="per run")
@@ -318,7 +455,7 @@ def main(argv: Optional[list[str]] = None) -> None:
     supplies: dict[str, float] = {}
     tables: dict[str, dict[str, Callable[[float], float]]] = {}
     for name in args.workloads:
-        if WORKLOADS[name][1] or WORKLOADS[name][2]:
+        if WORKLOADS[name][1] or WORKLOADS[name][2] or name == "io":
             supplies[name] = supply(name, max(args.seconds, 2.5))
             print(f"{name}: env supply here {supplies[name]:,.0f} transitions/s")
         tables[name] = systems(name, cores, args.quick)
@@ -374,27 +511,41 @@ def write(
         med = {k: statistics.median(v) for k, v in table.items() if v and statistics.median(v) > 0}
         trl = [v for k, v in med.items() if k.startswith("torchrl")]
         best_trl = max(trl) if trl else None
-        lines += [
-            f"## {name}: {n} envs, {step_s * 1e3:g} ms step, {reset_s * 1e3:g} ms reset "
-            f"every {every} steps",
-            "",
-        ]
+        title = (
+            f"{n} envs, each step waits {IO_CLIP[0] * 1e3:g}-{IO_CLIP[1] * 1e3:g} ms (log-normal, "
+            f"median {IO_MEDIAN * 1e3:g} ms)"
+            if name == "io"
+            else f"{n} envs, {step_s * 1e3:g} ms step, {reset_s * 1e3:g} ms reset every {every} "
+            "steps"
+        )
+        lines += [f"## {name}: {title}", ""]
+        mem = name == "io"
         lines += [
             "| system | transitions/s (median) | µs per transition | vs TorchRL best |"
-            + (" of the env supply |" if ceiling else ""),
-            "|---|---|---|---|" + ("---|" if ceiling else ""),
+            + (" of the env supply |" if ceiling else "")
+            + (" workers' PSS |" if mem else ""),
+            "|---|---|---|---|" + ("---|" if ceiling else "") + ("---|" if mem else ""),
         ]
         for k, v in sorted(med.items(), key=lambda kv: -kv[1]):
             ratio = f"{v / best_trl:.2f}x" if best_trl else "-"
             row = f"| {k} | {v:,.0f} | {1e6 / v:.1f} | {ratio} |"
             if ceiling:
                 row += f" {v / ceiling:.0%} |"
+            if mem:
+                pss = MEMORY.get(k)
+                row += f" {pss / 2**20:,.0f} MiB |" if pss else " - |"
             lines.append(row)
         if ceiling and nominal:
             lines += [
                 "",
                 f"Env supply: {ceiling:,.0f} transitions/s measured here ({n} x one env in a plain "
                 f"loop; its sleeps overshoot), {nominal:,.0f} nominal.",
+            ]
+        elif ceiling:
+            lines += [
+                "",
+                f"Ceiling: {ceiling:,.0f} transitions/s ({n} envs over the mean latency of the "
+                f"distribution, {n / ceiling * 1e3:.1f} ms).",
             ]
         lines.append("")
     text = "\n".join(lines)
@@ -408,6 +559,7 @@ def write(
                 "reps": args.reps,
                 "supply": supplies,
                 "runs": runs,
+                "pss_bytes": MEMORY,
             },
             indent=1,
         )

@@ -21,6 +21,8 @@ pub struct SupervisorPorts {
     cmd_pub: Publisher<Svc, [u64], CmdHeader>,
     cmd_notifier: Notifier<Svc>,
     block_sub: Subscriber<Svc, [u64], BlockHeader>,
+    /// Commands sent so far (all processes of the worker).
+    sent: std::sync::atomic::AtomicU64,
 }
 
 impl std::fmt::Debug for SupervisorPorts {
@@ -55,6 +57,7 @@ impl SupervisorPorts {
             cmd_pub,
             cmd_notifier,
             block_sub,
+            sent: Default::default(),
         })
     }
 
@@ -79,8 +82,14 @@ impl SupervisorPorts {
         };
         fill(&mut s.payload_mut()[..len]);
         s.send().map_err(ice("send command"))?;
+        self.sent.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         self.cmd_notifier.notify().map_err(ice("notify worker"))?;
         Ok(())
+    }
+
+    /// Commands sent so far through these ports (to every process of the worker).
+    pub fn sent(&self) -> u64 {
+        self.sent.load(std::sync::atomic::Ordering::Relaxed)
     }
 
     /// Take the next received block, if any.

@@ -53,7 +53,7 @@ pub use env::{
 };
 pub use error::{FailureCause, PoolError, WorkerFailure};
 pub use kinds::test_env::TestEnv;
-pub use registry::{BlockCtor, Built, EnvCtor, EnvRegistry};
+pub use registry::{BlockCtor, Built, EnvCtor, EnvRegistry, ThreadScope};
 pub use rogue_gym_ipc::WaitPolicy;
 pub use seeds::{SeedPolicy, SeedSchedule, SeedSet, Shard};
 pub use stats::WorkerStats;

@@ -16,6 +16,11 @@ pub type EnvCtor = fn(&Value, u64) -> Result<Box<dyn Env>, EnvError>;
 /// its JSON spec (see [`EnvBlock`]).
 pub type BlockCtor = fn(&Value, Range<u64>) -> Result<Box<dyn EnvBlock>, EnvError>;
 
+/// Runs the whole life of a worker's env thread (`body`), in a scope the kinds need there:
+/// the extension's keeps the thread's Python thread state for the thread's life, so that each
+/// env call does not make and free one (see [`EnvRegistry::set_thread_scope`]).
+pub type ThreadScope = fn(body: &mut (dyn FnMut() + Send));
+
 /// How a kind builds its envs.
 #[derive(Debug, Clone, Copy)]
 enum Ctor {
@@ -37,6 +42,7 @@ pub enum Built {
 #[derive(Debug, Clone, Default)]
 pub struct EnvRegistry {
     kinds: Vec<(String, Ctor)>,
+    thread_scope: Option<ThreadScope>,
 }
 
 impl EnvRegistry {
@@ -57,6 +63,14 @@ impl EnvRegistry {
     fn insert(&mut self, kind: &str, ctor: Ctor) {
         self.kinds.retain(|(k, _)| k != kind);
         self.kinds.push((kind.to_string(), ctor));
+    }
+    /// Run each env thread of a worker (`WorkerConfig::env_threads`) inside `scope`.
+    pub fn set_thread_scope(&mut self, scope: ThreadScope) {
+        self.thread_scope = Some(scope);
+    }
+    /// The scope env threads run in ([`EnvRegistry::set_thread_scope`]), if one was set.
+    pub fn thread_scope(&self) -> Option<ThreadScope> {
+        self.thread_scope
     }
     /// The registered kinds.
     pub fn kinds(&self) -> Vec<&str> {

@@ -34,9 +34,11 @@ pub(crate) enum Counter {
     EnvWaitNs = 5,
 }
 
-/// The word of a worker's row the supervisor writes: how many answers it took from the
-/// worker's current process. A worker whose envs run on threads and answer one by one holds
-/// its answers while three are untaken (see `worker/concurrent.rs`).
+/// The words of a worker's row that carry flow control for a worker whose envs run on threads
+/// (`worker/concurrent.rs`), counted for the worker's current process: the commands it read
+/// (it writes), and the answers the supervisor took (the supervisor writes). Neither side
+/// sends more than the other's port holds.
+const READ: usize = 6;
 const TAKEN: usize = 7;
 
 /// Counters per worker row (room to grow without changing the file's layout).
@@ -98,9 +100,21 @@ impl StatsBuffer {
         self.word(worker, TAKEN).fetch_add(1, Ordering::Release);
     }
 
-    /// (supervisor) A new process of `worker` starts: none of its answers taken yet.
-    pub(crate) fn reset_taken(&self, worker: usize) {
+    /// (supervisor) A new process of `worker` starts: none of its answers taken, none of its
+    /// commands read yet.
+    pub(crate) fn new_process(&self, worker: usize) {
         self.word(worker, TAKEN).store(0, Ordering::Release);
+        self.word(worker, READ).store(0, Ordering::Release);
+    }
+
+    /// (worker) One more command read.
+    pub(crate) fn read_one(&self, worker: usize) {
+        self.word(worker, READ).fetch_add(1, Ordering::Release);
+    }
+
+    /// (supervisor) Commands `worker`'s current process read so far.
+    pub(crate) fn read(&self, worker: usize) -> u64 {
+        self.word(worker, READ).load(Ordering::Acquire)
     }
 
     /// (worker) Answers the supervisor took from this process so far.

@@ -6,6 +6,13 @@
 //! leading args): `--config <file> --index <k> --generation <g> --ppid <supervisor pid>
 //! --shared-fds <batch>,<books>,<stats>` (the descriptors of the pool's buffers, which the
 //! supervisor keeps open across the worker's `exec`).
+//!
+//! The worker is set-up ([`worker_main`]) and then one function per command op. Its envs are
+//! stepped one after another (`envs.rs`, each env's state machine in `env_state.rs`), as one
+//! [`crate::EnvBlock`] (`block.rs`), or each on a thread of its own (`concurrent.rs`, the
+//! pool's `env_concurrency`); the rows and the answer are built in `block_out.rs`, written
+//! with streaming stores for large batches (`streaming.rs`); `sabotage.rs` is the trust tests'
+//! hook that makes a worker write bad values.
 
 use std::path::PathBuf;
 use std::sync::Mutex;
@@ -237,7 +244,10 @@ struct Worker<'a> {
     layout: BlockLayout,
     slot_layout: SlotLayout,
     batch: SharedBuffer,
-    stats: StatsBuffer,
+    stats: std::sync::Arc<StatsBuffer>,
+    /// The scope the env threads of a worker whose envs run on threads live in
+    /// ([`EnvRegistry::set_thread_scope`]).
+    thread_scope: Option<crate::registry::ThreadScope>,
     books: Books,
     /// Dropped before the node they were made from (shared with the command relay of a
     /// worker whose envs run on threads).
@@ -377,7 +387,7 @@ impl<'a> Worker<'a> {
             args: a,
             cfg,
             batch: SharedBuffer::from_fd(batch, BATCH_BUFFER, slots_bytes)?,
-            stats: StatsBuffer::from_fd(stats, cfg.num_workers)?,
+            stats: std::sync::Arc::new(StatsBuffer::from_fd(stats, cfg.num_workers)?),
             books: Books::from_fd(books, cfg.num_envs)?,
             id,
             first_env: envs.start,
@@ -397,6 +407,7 @@ impl<'a> Worker<'a> {
             streamed,
             fault_path,
             served: 0,
+            thread_scope: registry.thread_scope(),
         };
         w.send(0, BlockKind::Ready)?;
         Ok(w)

@@ -62,6 +62,7 @@ pub(crate) fn registry() -> rogue_gym_pool::EnvRegistry {
         worker::hosted_vector::KIND,
         worker::hosted_vector::make_hosted_vector,
     );
+    r.set_thread_scope(worker::hosted::thread_scope);
     r
 }
 

@@ -36,8 +36,11 @@ def test_tune_finishes_within_its_stated_time_and_names_a_layout() -> None:
     assert took <= stated + 5, (took, stated)
     labels = [t.candidate.label for t in result.timings]
     # 1 CPU: 1 and 2 workers, lent or not; async with 2 workers and with one per env; the
-    # deadline harvest with 1 worker and one per env; and SyncVectorEnv.
-    assert len(labels) == 9 and "SyncVectorEnv" in labels, labels
+    # deadline harvest with 1 worker and one per env; one worker with its envs on threads, in
+    # lockstep and harvested; and SyncVectorEnv.
+    assert len(labels) == 11 and "SyncVectorEnv" in labels, labels
+    threaded = [label for label in labels if "env_concurrency=threads" in label]
+    assert len(threaded) == 2, labels
     assert all(t.error is None and t.median > 0 for t in result.timings)
     # Best first: by median, but for the winner of the side-by-side duels, which it names.
     ranked = result.timings
@@ -147,10 +150,17 @@ def test_three_batch_slots_are_a_candidate_where_batches_are_lent() -> None:
     assert tune_timing.obs_bytes("hosted", lambda: gym.make("CartPole-v1")) == 4 * 4
 
 
-def test_tune_recommends_async_one_env_per_worker_for_slow_resets() -> None:
-    """Envs that spend most of their time in slow resets are best served one per worker, each
-    received as soon as it is ready (the async API or the deadline harvest), not in lockstep."""
+def test_tune_recommends_envs_served_as_they_are_ready_for_slow_resets() -> None:
+    """Envs that spend most of their time in slow resets are best served so that none waits
+    behind another: one per worker or each on a thread of its worker, received as soon as it
+    is ready or stepped together; never one after another in lockstep. Tune times both ways
+    of stepping a worker's envs and says which is faster."""
     result = rogue_gym.tune([SlowResetEnv] * 8, 8, seconds=0.6, rounds=1, cpus=1, out=io.StringIO())
     best = result.best_pool.candidate
-    assert best.mode in ("async", "harvest") and best.kwargs["num_workers"] == 8, result.table()
-    assert "recv" in result.advice()
+    concurrent = best.kwargs["num_workers"] == 8 or best.kwargs.get("env_concurrency") == "threads"
+    assert concurrent, result.table()
+    medians = {t.candidate.label: t.median for t in result.timings}
+    threaded = medians["pool: num_workers=1, env_concurrency=threads"]
+    assert threaded > 3 * medians["pool: num_workers=1, copy=False"], result.table()
+    assert "env_concurrency: " in result.table() and "is faster for this env" in result.table()
+    assert "make_vec(env, 8" in result.advice()

@@ -12,9 +12,9 @@ use super::{Pool, Supervisor};
 use crate::error::PoolError;
 use crate::wire::answer::Answer;
 
-/// Partial commands a worker whose envs run on threads may have in flight at once (its
-/// command port holds 8: room is left).
-const MAX_PARTIAL: usize = 4;
+/// Commands a worker whose envs run on threads may have unread (its command port holds 8:
+/// room is left).
+const UNREAD: u64 = 6;
 
 /// How many envs an async [`Pool::recv_want`] hands over, and how long it may wait for them:
 /// it returns as soon as `max_batch` envs are ready, or at the deadline with every ready env
@@ -334,12 +334,15 @@ impl Supervisor {
                 continue;
             }
             // A worker whose envs run on threads takes more partial commands while some of
-            // its envs are in flight (up to `MAX_PARTIAL` commands: its command port holds 8);
-            // any other, one command at a time.
+            // its envs are in flight, as long as its command port has room (it holds 8: at
+            // most `UNREAD` commands unread); any other, one command at a time.
             let busy_partial = self.workers[k].partial
                 && matches!(self.workers[k].state, LinkState::Pending { .. });
             let idle = matches!(self.workers[k].state, LinkState::Idle);
-            let room = busy_partial && self.async_api.envs.partial_commands(k) < MAX_PARTIAL;
+            let w = &self.workers[k];
+            let read = self.stats.as_ref().map_or(0, |s| s.read(k));
+            let unread = (w.ports.sent() - w.sent_before).saturating_sub(read);
+            let room = busy_partial && unread < UNREAD;
             if !(idle || room) {
                 continue;
             }

@@ -204,16 +204,6 @@ impl AsyncEnvs {
         self.partial[e].map(|(slot, _, _)| slot)
     }
 
-    /// Partial commands of worker `k` with envs still in flight.
-    pub(super) fn partial_commands(&self, k: usize) -> usize {
-        let mut seqs: Vec<u64> = (self.sent[k].iter())
-            .filter_map(|&e| self.partial[e].map(|(_, s, _)| s))
-            .collect();
-        seqs.sort_unstable();
-        seqs.dedup();
-        seqs.len()
-    }
-
     /// When the oldest env in flight with worker `k` under a partial command was sent.
     pub(super) fn oldest_partial(&self, k: usize) -> Option<std::time::Instant> {
         (self.sent[k].iter())

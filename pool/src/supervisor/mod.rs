@@ -21,10 +21,13 @@
 //! The async API (`async_api.rs`: `send`/`recv`, env by env) sends the same commands, a
 //! subset of a block's envs at a time, and turns answers into ready envs
 //! (`async_envs.rs`); env calls go through files (`calls.rs`); planned replacements of
-//! workers are `recycling.rs`; the supervisor's state is grouped by concern in `state.rs`.
+//! workers are `recycling.rs`; the supervisor's state is grouped by concern in `state.rs`;
+//! how its sides wait beside other pools (the machine's cores and the user's live pools) is
+//! `machine.rs`. A worker whose envs run on threads (`env_concurrency`) takes the same
+//! commands and answers each env as it finishes (`worker/concurrent.rs`).
 //!
-//! Modules: `actions`, `async_api`, `async_envs`, `calls`, `recycling`, `slot_answers`,
-//! `state`, `stepping`, `waiting`, `workers`.
+//! Modules: `actions`, `async_api`, `async_envs`, `calls`, `machine`, `recycling`,
+//! `slot_answers`, `state`, `stepping`, `waiting`, `workers`.
 
 mod actions;
 mod async_api;
@@ -322,6 +325,7 @@ impl Pool {
                 state: LinkState::Idle,
                 restarted: false,
                 served: 0,
+                sent_before: 0,
                 successor: None,
                 recycled: false,
                 rss_read: None,

@@ -195,6 +195,10 @@ impl Supervisor {
         if let Some(old) = s.child.take() {
             reap(old, CLOSE_WITHIN);
         }
+        if let Some(stats) = &self.stats {
+            stats.new_process(k); // the successor: none of its answers taken, no command read
+        }
+        self.workers[k].sent_before = self.workers[k].ports.sent();
         rogue_gym_ipc::cleanup_dead_nodes(&self.id)?;
         rogue_gym_ipc::private::create_private_file(&successor_go(&self.id, k, succ.generation))?;
         let s = &mut self.workers[k];

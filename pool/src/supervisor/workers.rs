@@ -75,6 +75,9 @@ pub(super) struct WorkerLink {
     pub(super) action_extras: Option<Vec<u8>>,
     /// Env steps served since this incarnation started (for `recycle_after_steps`).
     pub(super) served: u64,
+    /// Commands sent through its ports before its current process started (those it read
+    /// are counted from then: `StatsBuffer::read`).
+    pub(super) sent_before: u64,
     /// Its successor while it builds its envs (see `recycling`).
     pub(super) successor: Option<Successor>,
     /// It was replaced by plan: the envs of its next block report `worker_recycled`.
@@ -213,7 +216,7 @@ impl Supervisor {
 
     pub(super) fn spawn(&mut self, k: usize, then_reset: bool) -> Result<(), PoolError> {
         if let Some(stats) = &self.stats {
-            stats.reset_taken(k); // a new process: none of its answers taken
+            stats.new_process(k); // a new process: none of its answers taken
         }
         let (child, log) = self.start_process(k, self.workers[k].generation, false)?;
         self.pids[k].store(child.id(), std::sync::atomic::Ordering::Relaxed);
@@ -222,6 +225,7 @@ impl Supervisor {
         s.child = Some(child);
         s.stderr_path = log;
         s.served = 0;
+        s.sent_before = s.ports.sent();
         s.partial = false;
         s.rss_read = None;
         s.rss = 0;

@@ -39,7 +39,7 @@ use super::envs::{WorkerEnvs, lock, take_action_extras};
 use super::{Worker, WorkerError};
 use crate::config::AutoresetMode;
 use crate::seeds::SeedSchedule;
-use crate::stats::Counter;
+use crate::stats::{Counter, StatsBuffer};
 use crate::wire::answer::{ANSWER_WORDS, AnswerBuilder, BlockKind};
 use crate::wire::layout::{EnvRecord, RECORD_WORDS};
 use crate::wire::slot_layout::SlotRows;
@@ -109,7 +109,59 @@ struct Done {
     /// The env's record, and its whole extra info (it travels apart when the record says so).
     result: Result<(EnvRecord, Vec<u8>), EnvFault>,
     wall_ns: u64,
+}
+
+/// How often a busy env thread reads its CPU time (a system call, not a vDSO read): the time
+/// its jobs spent off the CPU is counted in lumps of about this much wall time.
+const CPU_READ_EVERY: Duration = Duration::from_millis(20);
+/// An env thread about to wait for a job reads its CPU time when its jobs since the last read
+/// took at least this long, so that the count is current whenever the envs are idle; envs
+/// that take microseconds still read it once a few hundred jobs at most.
+const CPU_READ_IDLE_NS: u64 = 1_000_000;
+
+/// An env thread's count of its jobs' time on and off the CPU.
+struct CpuClock {
+    /// Wall time of the jobs since the last read, and when and at what CPU time it was.
+    wall_ns: u64,
+    read_at: Instant,
     cpu_ns: u64,
+}
+
+impl CpuClock {
+    fn new() -> CpuClock {
+        CpuClock {
+            wall_ns: 0,
+            read_at: Instant::now(),
+            cpu_ns: thread_cpu_ns(),
+        }
+    }
+
+    /// A job took `wall_ns`: the jobs' time off the CPU since the last read, when it is time
+    /// to read again (else 0). The thread's CPU time outside its jobs (taking them from the
+    /// queue) is small and counted as the jobs'.
+    fn job(&mut self, wall_ns: u64) -> u64 {
+        self.wall_ns += wall_ns;
+        if self.read_at.elapsed() < CPU_READ_EVERY {
+            return 0;
+        }
+        self.read()
+    }
+
+    /// The thread is about to wait for a job: the jobs' time off the CPU since the last read,
+    /// when they took at least [`CPU_READ_IDLE_NS`] (else 0).
+    fn idle(&mut self) -> u64 {
+        if self.wall_ns < CPU_READ_IDLE_NS {
+            return 0;
+        }
+        self.read()
+    }
+
+    fn read(&mut self) -> u64 {
+        let cpu = thread_cpu_ns();
+        let wait = self.wall_ns.saturating_sub(cpu.saturating_sub(self.cpu_ns));
+        (self.wall_ns, self.read_at, self.cpu_ns) = (0, Instant::now(), cpu);
+        wait
+    }
 }
 
 /// A command as the relay hands it over: its sequence number, the command, its payload.
@@ -136,6 +188,10 @@ struct Shared {
     inbox: Mutex<Inbox>,
     wake: Condvar,
     stop: AtomicBool,
+    /// The pool's counters and this worker's index in them (env threads count their time off
+    /// the CPU themselves).
+    stats: Arc<StatsBuffer>,
+    me: usize,
 }
 
 fn guard<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
@@ -155,6 +211,12 @@ fn thread_cpu_ns() -> u64 {
 
 /// An env thread: jobs until the worker stops.
 fn env_thread(shared: Arc<Shared>) {
+    let mut clock = CpuClock::new();
+    let count = |wait_ns: u64| {
+        if wait_ns > 0 {
+            (shared.stats).add(shared.me, Counter::EnvWaitNs, wait_ns);
+        }
+    };
     loop {
         let job = {
             let mut q = guard(&shared.jobs);
@@ -165,13 +227,21 @@ fn env_thread(shared: Arc<Shared>) {
                 if let Some(job) = q.pop_front() {
                     break job;
                 }
+                let wait_ns = clock.idle();
+                if wait_ns > 0 {
+                    // Counted without the queue's lock, then the queue is looked at again.
+                    drop(q);
+                    count(wait_ns);
+                    q = guard(&shared.jobs);
+                    continue;
+                }
                 q = shared
                     .job_ready
                     .wait(q)
                     .unwrap_or_else(PoisonError::into_inner);
             }
         };
-        let (t0, c0) = (Instant::now(), thread_cpu_ns());
+        let t0 = Instant::now();
         let mut info = Vec::new();
         let result = {
             let mut env = lock(&shared.envs[job.j]);
@@ -196,12 +266,13 @@ fn env_thread(shared: Arc<Shared>) {
             };
             apply(&mut env, job.kind, &job.words, out, &ctx)
         };
+        let wall_ns = t0.elapsed().as_nanos() as u64;
         let done = Done {
             j: job.j,
             result: result.map(|rec| (rec, info)),
-            wall_ns: t0.elapsed().as_nanos() as u64,
-            cpu_ns: thread_cpu_ns().saturating_sub(c0),
+            wall_ns,
         };
+        count(clock.job(wall_ns));
         guard(&shared.inbox).done.push(done);
         shared.wake.notify_one();
     }
@@ -247,12 +318,18 @@ impl Worker<'_> {
             inbox: Mutex::new(Inbox::default()),
             wake: Condvar::new(),
             stop: AtomicBool::new(false),
+            stats: self.stats.clone(),
+            me: self.args.index,
         });
         for t in 0..threads.clamp(1, self.layout.envs) {
             let s = shared.clone();
+            let scope = self.thread_scope;
             std::thread::Builder::new()
                 .name(format!("rg-env-{t}"))
-                .spawn(move || env_thread(s))
+                .spawn(move || match scope {
+                    Some(scope) => scope(&mut || env_thread(s.clone())),
+                    None => env_thread(s),
+                })
                 .map_err(|e| WorkerError::Msg(format!("cannot start an env thread: {e}")))?;
         }
         self.spawn_relay(shared.clone())?;
@@ -266,11 +343,16 @@ impl Worker<'_> {
     /// The relay: commands from the port to the inbox, and the supervisor's liveness.
     fn spawn_relay(&self, shared: Arc<Shared>) -> Result<(), WorkerError> {
         let ports = self.ports.clone();
+        let stats = self.stats.clone();
+        let me = self.args.index;
         let ppid = self.args.ppid;
+        // The relay blocks at once: the cores are the env threads' (a poll would take them
+        // from envs that compute between their waits), and a command's wake-up is small
+        // beside an env's wait.
         let policy = WaitPolicy {
-            poll_budget: Duration::from_micros(self.cfg.poll_budget_us),
+            poll_budget: Duration::ZERO,
             block_slice: Duration::from_millis(self.cfg.block_slice_ms.max(1)),
-            yield_cpu: self.cfg.poll_yield,
+            yield_cpu: false,
             sleep_first: Duration::ZERO,
         };
         let relay = move || {
@@ -301,6 +383,7 @@ impl Worker<'_> {
                 let n = (h.len as usize).min(cmd.payload().len());
                 let payload = cmd.payload()[..n].to_vec();
                 drop(cmd);
+                stats.read_one(me);
                 guard(&shared.inbox).commands.push_back(Incoming {
                     seq: h.seq,
                     command,
@@ -523,6 +606,7 @@ impl Worker<'_> {
             n_info: self.n_info,
         });
         let mut q = guard(&shared.jobs);
+        let jobs = envs.len();
         for (&j, [obs, fin, extra]) in envs.iter().zip(areas) {
             q.push_back(Job {
                 j,
@@ -535,7 +619,9 @@ impl Worker<'_> {
             });
         }
         drop(q);
-        shared.job_ready.notify_all();
+        for _ in 0..jobs {
+            shared.job_ready.notify_one();
+        }
         Ok(r)
     }
 
@@ -558,8 +644,6 @@ impl Worker<'_> {
         let me = self.args.index;
         r.remaining -= 1;
         self.stats.add(me, Counter::EnvNs, d.wall_ns);
-        self.stats
-            .add(me, Counter::EnvWaitNs, d.wall_ns.saturating_sub(d.cpu_ns));
         self.stats.add(me, Counter::EnvSteps, 1);
         let (rec, info) = match d.result {
             Ok(v) => v,

@@ -15,6 +15,7 @@ __all__ = [
     "HARVEST",
     "MAX_ONE_PER_ENV",
     "NATIVE_NAMES",
+    "THREADS",
     "Candidate",
     "EnvLike",
     "candidates",
@@ -46,19 +47,24 @@ class Candidate:
 
     @classmethod
     def from_label(cls, label: str) -> Candidate:
-        """The candidate a :attr:`label` names (its keyword values are ints or bools)."""
+        """The candidate a :attr:`label` names (its keyword values are ints, bools or words)."""
         if label == "SyncVectorEnv":
             return cls("sync")
         mode, _, args = label.partition(": ")
         kwargs: dict[str, Any] = {}
         for arg in args.split(", "):
             key, _, value = arg.partition("=")
-            kwargs[key] = value == "True" if value in ("True", "False") else int(value)
+            if value in ("True", "False"):
+                kwargs[key] = value == "True"
+            else:
+                kwargs[key] = int(value) if value.isdigit() else value
         return cls(mode, kwargs)
 
 
 #: Most envs for which tune tries one worker per env.
 MAX_ONE_PER_ENV = 64
+#: The ``env_concurrency`` of the threaded candidates (every other one is serial).
+THREADS = "threads"
 #: The deadline harvest's ``recv`` arguments besides ``max_batch`` (TorchRL's, pytorch/rl PR
 #: #4182).
 HARVEST = {"min_batch": 1, "timeout": 1e-3}
@@ -130,6 +136,16 @@ def candidates(
         out.append(Candidate("async", {"num_workers": w, "batch_size": max(1, num_envs // 2)}))
     for w in sorted({min(cpus, num_envs), *spread}):
         out.append(Candidate("harvest", {"num_workers": w, "batch_size": 1}))
+    # Envs that wait: each env on a thread of its worker, so that a waiting env holds none of
+    # its mates (hosted envs of one callable each), in lockstep and received as they are ready.
+    if kind == "hosted":
+        for w in sorted({1, min(cpus, num_envs)}):
+            out.append(Candidate("pool", {"num_workers": w, "env_concurrency": THREADS}))
+            out.append(
+                Candidate(
+                    "harvest", {"num_workers": w, "batch_size": 1, "env_concurrency": THREADS}
+                )
+            )
     if kind == "hosted" and gym_id is not None and gym.spec(gym_id).vector_entry_point:
         for w in workers:
             out.append(Candidate("vector", {"num_workers": w}))

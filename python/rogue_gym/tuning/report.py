@@ -54,7 +54,26 @@ class TuneResult:
                 f"side by side: {d.first} at {d.ratio:.3f}x {d.second} "
                 f"(median of {len(d.ratios)} pairs)"
             )
+        threads = self.threads_against_serial()
+        if threads is not None:
+            lines.append(threads)
         return "\n".join(lines)
+
+    def threads_against_serial(self) -> Optional[str]:
+        """Which is faster for this env, its envs on threads of their worker or one after the
+        other: the best layout of each (where tune timed both)."""
+        pools = [t for t in self.timings if t.candidate.mode != "sync" and t.median > 0]
+        threaded = [t for t in pools if "env_concurrency" in t.candidate.kwargs]
+        serial = [t for t in pools if "env_concurrency" not in t.candidate.kwargs]
+        if not threaded or not serial:
+            return None
+        a, b = max(threaded, key=lambda t: t.median), max(serial, key=lambda t: t.median)
+        faster = "threads" if a.median > b.median else "serial"
+        return (
+            f"env_concurrency: {faster} is faster for this env; the best threaded layout "
+            f"{a.median:,.0f} steps/s ({a.median / b.median:.2f}x the best serial one, "
+            f"{b.median:,.0f})"
+        )
 
     def advice(self) -> str:
         """The line to paste (or the advice to use ``SyncVectorEnv``)."""
