@@ -98,17 +98,7 @@ impl Copying for Pool {
 pub fn received_output(got: &Received, n_info: usize) -> BatchOutput {
     let mut out = BatchOutput::default();
     for (&e, r) in got.env_ids.iter().zip(&got.records) {
-        out.env_ids.push(e);
-        out.reward.push(r.reward);
-        out.terminated.push(r.terminated());
-        out.truncated.push(r.truncated());
-        out.restarted.push(r.restarted());
-        out.episode_return.push(r.episode_return);
-        out.episode_length.push(r.episode_length);
-        out.episode.push(r.episode);
-        out.seed.push(r.seed);
-        out.info.extend_from_slice(&r.info[..n_info]);
-        out.has_final_obs.push(false);
+        out.push(e, r, n_info, None);
     }
     for (row, bytes) in &got.extras {
         out.extras.push((got.env_ids[*row], bytes.clone()));
@@ -196,7 +186,7 @@ pub fn run_sync(pool: &mut Pool, steps: u64) -> Result<Digests, PoolError> {
     Ok(d)
 }
 
-/// [`run_sync`] through the zero-copy shared batch slots (`reset_shared`/`step_shared`);
+/// [`run_sync`] reading the shared batch slots in place (`reset_read`/`step_read`, no copy);
 /// also checks the double buffering (a step leaves the previous step's slot unchanged).
 pub fn run_sync_shared(pool: &mut Pool, steps: u64) -> Result<Digests, PoolError> {
     let n = pool.num_envs();

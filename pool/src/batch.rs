@@ -57,7 +57,9 @@ impl BatchOutput {
         self.extras.clear();
     }
 
-    pub(crate) fn push(&mut self, env: usize, r: &EnvRecord, n_info: usize, fin: Option<&[u8]>) {
+    /// Append env `env`'s row: its record (the first `n_info` infos) and, where `fin` is the
+    /// room of its final observation, that observation when the record says it has one.
+    pub fn push(&mut self, env: usize, r: &EnvRecord, n_info: usize, fin: Option<&[u8]>) {
         self.env_ids.push(env);
         self.reward.push(r.reward);
         self.terminated.push(r.terminated());

@@ -1,7 +1,8 @@
 """The package's layering, read from its source: the import graph (type-only imports included)
-has no circle, and each side imports only what it may (design.md: the kinds read a declared
-view and import nothing of the front; the protocol imports neither side; the worker's side
-imports nothing of the caller's)."""
+has no circle, and each side imports only what it may (the kinds read a declared view,
+``kinds/view.py``, and import nothing of the front; the protocol imports neither side; the worker's side
+imports nothing of the caller's, and the caller's side imports one module of the worker's:
+``worker/agent_rows.py``, which both run)."""
 
 from __future__ import annotations
 
@@ -112,6 +113,9 @@ def test_each_side_imports_only_what_it_may() -> None:
     assert {e for e in protocol if e.startswith(sides)} == set()
     worker = _imports_of("rogue_gym.worker", graph)
     assert {e for e in worker if e.startswith(("rogue_gym.front", "rogue_gym.kinds"))} == set()
+    callers = {m: es for m, es in graph.items() if not m.startswith("rogue_gym.worker")}
+    of_worker = {e for es in callers.values() for e in es if e.startswith("rogue_gym.worker")}
+    assert of_worker == {"rogue_gym.worker.agent_rows"}, of_worker
 
 
 def test_a_kind_has_at_most_nine_members() -> None:

@@ -240,18 +240,18 @@ def test_the_training_score_counts_finished_episodes(tmp_path: Path) -> None:
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_every_variant_trains_and_resumes_from_its_checkpoint(tmp_path: Path, variant: str) -> None:
     out = tmp_path / variant
-    train(smoke_config(out, variant, frames=1024, eval_every=1024, checkpoint_every=1024))
+    train(smoke_config(out, variant, frames=512, eval_every=512, checkpoint_every=512))
     saved = torch.load(out / "checkpoint.pt", weights_only=False)
-    assert saved["frames"] == 1024 and saved["config"]["variant"] == variant
+    assert saved["frames"] == 512 and saved["config"]["variant"] == variant
     net = build_network(variant, SYMBOLS, HEIGHT, WIDTH, ACTIONS)
     net.load_state_dict(saved["model"])
-    train(smoke_config(out, variant, frames=2048, eval_every=1024, resume=True))
+    train(smoke_config(out, variant, frames=1024, eval_every=512, resume=True))
     rows = _rows(out)
-    assert [int(r["frames"]) for r in rows] == list(range(256, 2049, 256))
-    assert int(rows[-1]["updates"]) == 8
-    assert [r["frames"] for r in rows if r["gen_score"]] == ["1024", "2048"]
+    assert [int(r["frames"]) for r in rows] == list(range(256, 1025, 256))
+    assert int(rows[-1]["updates"]) == 4
+    assert [r["frames"] for r in rows if r["gen_score"]] == ["512", "1024"]
     resumed = torch.load(out / "checkpoint.pt", weights_only=False)
-    assert resumed["frames"] == 2048
+    assert resumed["frames"] == 1024
     if variant == "l2":
         assert resumed["optimizer"]["param_groups"][0]["weight_decay"] == 1e-4
 

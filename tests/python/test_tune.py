@@ -162,5 +162,8 @@ def test_tune_recommends_envs_served_as_they_are_ready_for_slow_resets() -> None
     medians = {t.candidate.label: t.median for t in result.timings}
     threaded = medians["pool: num_workers=1, env_concurrency=threads"]
     assert threaded > 3 * medians["pool: num_workers=1, copy=False"], result.table()
-    assert "env_concurrency: " in result.table() and "is faster for this env" in result.table()
+    # Threads against one worker per env: either may win or they tie; tune says which.
+    assert re.search(
+        r"env_concurrency: (threads|serial) (is faster|and serial are within)", result.table()
+    )
     assert "make_vec(env, 8" in result.advice()

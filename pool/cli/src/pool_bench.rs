@@ -12,11 +12,11 @@ use serde_json::{Value, json};
 /// Sync (lockstep) or async (EnvPool-style send/recv) mode.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Mode {
-    /// `step(actions)` over all envs.
+    /// Sync `step` over all envs, the rows copied out (`Pool::read_slot`).
     Sync,
     /// `send`/`recv` with a batch of `--batch-size` envs.
     Async,
-    /// Sync `step_shared`: workers write into the pool's shared batch slots (no copy).
+    /// Sync `step`: workers write into the pool's shared batch slots, read in place (no copy).
     Shared,
 }
 

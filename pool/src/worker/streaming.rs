@@ -13,11 +13,9 @@
 //! A batch that fits the cache is better written plainly: its lines are still there from the
 //! last time its slot was written, so the stores cost no memory traffic, and the caller reads
 //! it from the cache. [`wanted`] draws the line where the observations of all the batch slots
-//! take more than [`CACHE_SHARE`] of the last-level cache. On the project's 2-core VM (32 MB,
-//! shared with other tenants; two slots) that keeps plain the native game's 384 envs on one
-//! worker and 512 on two (streaming them took 1.06-1.4x and 1.2x as long) and streams 768 on
-//! one (0.42-0.64x) and 1,024 on two (0.58x); 512 on one cost about the same either way
-//! (`benchmarks/streaming.py`).
+//! take more than [`CACHE_SHARE`] of the last-level cache: below it streaming measured slower,
+//! above it faster (`benchmarks/streaming.py`; the figures in docs/performance.md, "Memory
+//! traffic").
 
 /// Stream the rows when the observations of all the batch slots take more than this share of
 /// the last-level cache (as a divisor: a third).

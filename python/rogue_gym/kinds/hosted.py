@@ -45,10 +45,8 @@ __all__ = ["DEFAULT_INFO_BYTES", "HOSTED_WORKER_POLL_US", "HostedKind", "VectorE
 DEFAULT_INFO_BYTES = 4096
 #: How long a worker of hosted envs polls for the next command before it blocks, in µs
 #: (``worker_poll_us``). Between two steps the caller runs Python (decoding, the policy), and a
-#: worker that has gone to sleep costs a wake-up on every step: on the 2-core VM, CartPole x 64
-#: with 2 workers ran at 46k steps/s with the pool's 50 µs and at 65-72k with 1-3 ms; blocking
-#: sooner when waits are long was slower for HalfCheetah and Pong too, even with 4 workers on 2
-#: cores (``benchmarks/results/real_envs/README.md``, "Polling").
+#: worker that has gone to sleep costs a wake-up on every step, which a poll of a few
+#: milliseconds saves (``benchmarks/results/real_envs/README.md``, "Polling", has the figures).
 HOSTED_WORKER_POLL_US = 2000
 
 EnvFn = Callable[[], gym.Env]

@@ -11,6 +11,9 @@ from .timing import Timing
 
 __all__ = ["TuneResult"]
 
+#: Threads and serial closer than this (a fraction of the serial best) are called a tie.
+TIE = 0.03
+
 
 @dataclass
 class TuneResult:
@@ -68,11 +71,18 @@ class TuneResult:
         if not threaded or not serial:
             return None
         a, b = max(threaded, key=lambda t: t.median), max(serial, key=lambda t: t.median)
-        faster = "threads" if a.median > b.median else "serial"
+        x = a.median / b.median
+        procs = (a.candidate.kwargs["num_workers"], b.candidate.kwargs["num_workers"])
+        if abs(x - 1) <= TIE:
+            verdict = (
+                f"threads and serial are within {TIE:.0%} for this env (threads in "
+                f"{procs[0]} worker processes, serial in {procs[1]})"
+            )
+        else:
+            verdict = f"{'threads' if x > 1 else 'serial'} is faster for this env"
         return (
-            f"env_concurrency: {faster} is faster for this env; the best threaded layout "
-            f"{a.median:,.0f} steps/s ({a.median / b.median:.2f}x the best serial one, "
-            f"{b.median:,.0f})"
+            f"env_concurrency: {verdict}; the best threaded layout {a.median:,.0f} steps/s "
+            f"({x:.2f}x the best serial one, {b.median:,.0f})"
         )
 
     def advice(self) -> str:

@@ -39,7 +39,7 @@ impl PyPool {
         self.with_pool(py, |p| p.send_reset())
     }
 
-    /// The second half of `step_send`/`reset_send`: wait at most `timeout` seconds (`None`:
+    /// The second half of `send_step`/`send_reset`: wait at most `timeout` seconds (`None`:
     /// the call's own bound) for every worker; the result as `step` returns it, or `None` when
     /// `timeout` passed first (the request stays pending: wait again).
     #[pyo3(signature = (timeout = None))]
