@@ -60,7 +60,7 @@ impl SharedBuffer {
     /// Create buffer `name` (a label for error messages and `/proc/<pid>/fd`) of `len` bytes,
     /// zero-filled: a memory file of this process alone, its pages reserved now (no memory is
     /// [`IpcError::NoMemory`], never a SIGBUS later), sealed against any change of size, and
-    /// mapped. Hand it to a worker with [`SharedBuffer::fd`] (inherited across `exec`) and
+    /// mapped. Hand it to a worker with `SharedBuffer::fd` (inherited across `exec`) and
     /// [`SharedBuffer::from_fd`].
     pub fn create(name: &str, len: usize) -> Result<Self, IpcError> {
         let flags = MFdFlags::MFD_CLOEXEC | MFdFlags::MFD_ALLOW_SEALING;

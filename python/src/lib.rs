@@ -1,8 +1,8 @@
 //! Native module of the `rogue_gym` Python package: the engine (`Game`), the environment
 //! pool (`Pool`, with zero-copy views of its shared batch slots), the XLA handlers of `xla()`
-//! ([`xla`]) and the worker entry point
+//! (`xla/`) and the worker entry point
 //! (`worker_main`, run by `python -m rogue_gym.worker`), which also hosts gymnasium envs
-//! written in Python ([`worker`]).
+//! written in Python (`worker/`).
 //!
 //! Every Rust error is mapped to a Python exception; nothing panics across the FFI boundary.
 
