@@ -20,7 +20,8 @@ use std::path::{Path, PathBuf};
 use crate::error::IpcError;
 use crate::naming::process_start_time;
 use crate::private::{
-    check_private, ensure_private_dir, read_private_file, remove_if_present, write_private_file,
+    check_private, ensure_private_dir, lstat_if_present, read_private_file, remove_if_present,
+    write_private_file,
 };
 
 /// The ledger's directory in a runtime directory.
@@ -124,16 +125,8 @@ impl Ledger {
     /// missing one is an empty ledger ([`Ledger::lock`] creates it).
     pub fn open(runtime_dir: &Path) -> Result<Ledger, IpcError> {
         let dir = runtime_dir.join(DIR);
-        match fs::symlink_metadata(&dir) {
-            Ok(meta) => check_private(&dir, &meta, true)?,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(source) => {
-                return Err(IpcError::Io {
-                    what: "inspect the pool ledger",
-                    path: dir,
-                    source,
-                });
-            }
+        if let Some(meta) = lstat_if_present(&dir, "inspect the pool ledger")? {
+            check_private(&dir, &meta, true)?;
         }
         Ok(Ledger { dir })
     }

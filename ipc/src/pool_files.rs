@@ -8,7 +8,9 @@ use std::path::Path as StdPath;
 use crate::cleanup::remove_pool_files;
 use crate::error::IpcError;
 use crate::naming::{PoolId, SHM_DIR, pool_shm_files};
-use crate::private::{check_private, create_private_dir, create_private_file, tighten_tree};
+use crate::private::{
+    check_private, create_private_dir, create_private_file, lstat_if_present, tighten_tree,
+};
 
 /// iceoryx2's per-root node counter (`/dev/shm/<prefix><type hash>_node.<version>.global_mgmt`):
 /// the first node of a root creates it world-writable (mode 0666). Create it first,
@@ -46,17 +48,10 @@ pub fn node_counter_path(id: &PoolId) -> Result<std::path::PathBuf, IpcError> {
 pub fn verify_pool_files(id: &PoolId) -> Result<(), IpcError> {
     let me = nix::unistd::geteuid().as_raw();
     for p in pool_shm_files(id) {
-        match std::fs::symlink_metadata(&p) {
-            Ok(m) if std::os::unix::fs::MetadataExt::uid(&m) != me => {}
-            Ok(m) => check_private(&p, &m, false)?,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(source) => {
-                return Err(IpcError::Io {
-                    what: "inspect shared-memory file",
-                    path: p,
-                    source,
-                });
-            }
+        match lstat_if_present(&p, "inspect shared-memory file")? {
+            Some(m) if std::os::unix::fs::MetadataExt::uid(&m) != me => {}
+            Some(m) => check_private(&p, &m, false)?,
+            None => {}
         }
     }
     tighten_tree(&id.root())?;

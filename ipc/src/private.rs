@@ -230,6 +230,19 @@ pub fn write_private_file(path: &Path, data: &[u8]) -> Result<(), IpcError> {
     fs::rename(&tmp, path).map_err(io("rename private file", path))
 }
 
+/// `lstat` of `path` (a link itself, never its target): `None` where nothing is there.
+pub fn lstat_if_present(path: &Path, what: &'static str) -> Result<Option<Metadata>, IpcError> {
+    match fs::symlink_metadata(path) {
+        Ok(meta) => Ok(Some(meta)),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(source) => Err(IpcError::Io {
+            what,
+            path: path.to_path_buf(),
+            source,
+        }),
+    }
+}
+
 /// Remove file `path` (a link itself, never its target); a missing file is not an error.
 pub fn remove_if_present(path: &Path, what: &'static str) -> Result<(), IpcError> {
     match fs::remove_file(path) {
