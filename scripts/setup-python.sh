@@ -4,6 +4,8 @@
 #
 # Usage: bash scripts/setup-python.sh            # everything the test suite needs
 #        bash scripts/setup-python.sh --light    # only the package (numpy, gymnasium): no torch
+#        bash scripts/setup-python.sh --deps     # the downloads only, no build (CI starts
+#                                                # them beside its lints; a later run builds)
 #
 # The full set-up downloads about 3 GB from PyPI (torch and its CUDA libraries are most of it;
 # PyPI has no CPU-only torch for Linux) and fills about 5.6 GB; allow 5-10 minutes on a fresh
@@ -14,10 +16,12 @@ cd "$(dirname "$0")/.."
 ROOT="$PWD"
 PY="${PYTHON:-python3}"
 LIGHT=0
+BUILD=1
 case "${1:-}" in
     --light) LIGHT=1 ;;
+    --deps) BUILD=0 ;;
     "") ;;
-    *) echo "usage: bash scripts/setup-python.sh [--light]" >&2; exit 2 ;;
+    *) echo "usage: bash scripts/setup-python.sh [--light | --deps]" >&2; exit 2 ;;
 esac
 
 # pip with its own network retries, and the whole call retried with a pause: a dropped
@@ -49,6 +53,11 @@ if [ "$LIGHT" = 1 ]; then
 else
     echo "== pip install -r python/requirements-dev.txt"
     pip_install -r python/requirements-dev.txt
+fi
+
+if [ "$BUILD" = 0 ]; then
+    echo "== dependencies installed ($SECONDS s); the extension is built by a later run"
+    exit 0
 fi
 
 echo "== maturin develop --release (rogue_gym._native) ($SECONDS s into the set-up)"
