@@ -398,7 +398,8 @@ def systems(name: str, cores: int, quick: bool) -> dict[str, Callable[[float], f
         import torchrl  # noqa: F401
 
         for exchange in ("shm", "queue") if not quick else ("shm",):
-            for per in sorted({1, max(1, n // cores)}) if not quick else [1]:
+            # Quick: one worker per core (each TorchRL worker imports torch: seconds apiece).
+            for per in sorted({1, max(1, n // cores)}) if not quick else [max(1, n // cores)]:
                 out[f"torchrl AsyncEnvPool {exchange}, {per} env/worker"] = (
                     lambda s, e=exchange, p=per: run_torchrl(name, s, e, p, HARVEST)
                 )
