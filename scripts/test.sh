@@ -41,7 +41,7 @@ ray_setup=
 cat "$ray_log"
 # Every test runs under a time limit (tests/python/conftest.py), so no test can hang the run.
 echo "== pytest ($SECONDS s into the test command)"
-.venv/bin/python -m pytest tests/python -q
+.venv/bin/python -m pytest tests/python -q --durations=15
 .venv/bin/ruff check python tests/python tests/ray benchmarks scripts
 .venv/bin/ruff format --check python tests/python tests/ray benchmarks scripts
 
