@@ -304,20 +304,21 @@ def test_ctrl_c_stops_a_slow_start_up_at_once_and_leaves_nothing(sigint_handler)
     second in raises KeyboardInterrupt at once, not when the start-up ends, and the workers and
     the pool's files are gone."""
     before, shm = children(), set(os.listdir("/dev/shm"))
-    # A runtime directory of its own (short: iceoryx2's socket paths are limited).
-    own_dir = tempfile.TemporaryDirectory(prefix="rgc", dir="/tmp")
-    own = Path(own_dir.name) / "rt"
-    fn = functools.partial(slow_in_workers, os.getpid(), 60.0)
-    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
-    t0 = time.monotonic()
-    timer.start()
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            PoolVectorEnv([fn] * 2, num_workers=2, start_timeout=120.0, runtime_dir=str(own))
-    finally:
-        timer.cancel()
-    assert time.monotonic() - t0 < 10
-    assert wait_until(lambda: children() <= before), "workers left running"
+    # A runtime directory of its own (short: iceoryx2's socket paths are limited), removed
+    # whatever the outcome.
+    with tempfile.TemporaryDirectory(prefix="rgc", dir="/tmp") as own_dir:
+        own = Path(own_dir) / "rt"
+        fn = functools.partial(slow_in_workers, os.getpid(), 60.0)
+        timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+        t0 = time.monotonic()
+        timer.start()
+        try:
+            with pytest.raises(KeyboardInterrupt):
+                PoolVectorEnv([fn] * 2, num_workers=2, start_timeout=120.0, runtime_dir=str(own))
+        finally:
+            timer.cancel()
+        assert time.monotonic() - t0 < 10
+        assert wait_until(lambda: children() <= before), "workers left running"
     # Files of pools that other processes run meanwhile (their directories are in the default
     # runtime directory; this pool's were in its own) are not this pool's.
     others = Path(_native.default_runtime_dir())
@@ -327,4 +328,3 @@ def test_ctrl_c_stops_a_slow_start_up_at_once_and_leaves_nothing(sigint_handler)
         if not (others / f"{f.split('_')[0]}.d").exists()
     }
     assert not left, f"pool files left behind: {sorted(left)[:3]}"
-    own_dir.cleanup()
