@@ -26,8 +26,8 @@ pub trait Copying {
         obs: &mut [u8],
         out: &mut BatchOutput,
     ) -> Result<(), PoolError>;
-    /// [`Pool::reset_envs`], copied out.
-    fn reset_envs_into(
+    /// [`Pool::reset`] with a mask, copied out.
+    fn partial_reset_into(
         &mut self,
         mask: &[bool],
         obs: &mut [u8],
@@ -41,14 +41,17 @@ pub trait Copying {
         actions: impl Into<Actions<'a>>,
         out: &mut BatchOutput,
     ) -> Result<usize, PoolError>;
-    /// [`Pool::reset_envs`], records read into `out`; the slot.
-    fn reset_envs_read(&mut self, mask: &[bool], out: &mut BatchOutput)
-    -> Result<usize, PoolError>;
+    /// [`Pool::reset`] with a mask, records read into `out`; the slot.
+    fn partial_reset_read(
+        &mut self,
+        mask: &[bool],
+        out: &mut BatchOutput,
+    ) -> Result<usize, PoolError>;
 }
 
 impl Copying for Pool {
     fn reset_into(&mut self, obs: &mut [u8], out: &mut BatchOutput) -> Result<(), PoolError> {
-        let a = self.reset()?;
+        let a = self.reset(None)?;
         self.read_slot(&a, Some(obs), out)
     }
     fn step_into<'a>(
@@ -60,17 +63,17 @@ impl Copying for Pool {
         let a = self.step(actions)?;
         self.read_slot(&a, Some(obs), out)
     }
-    fn reset_envs_into(
+    fn partial_reset_into(
         &mut self,
         mask: &[bool],
         obs: &mut [u8],
         out: &mut BatchOutput,
     ) -> Result<(), PoolError> {
-        let a = self.reset_envs(mask)?;
+        let a = self.reset(Some(mask))?;
         self.read_slot(&a, Some(obs), out)
     }
     fn reset_read(&mut self, out: &mut BatchOutput) -> Result<usize, PoolError> {
-        let a = self.reset()?;
+        let a = self.reset(None)?;
         self.read_slot(&a, None, out)?;
         Ok(a.slot)
     }
@@ -83,12 +86,12 @@ impl Copying for Pool {
         self.read_slot(&a, None, out)?;
         Ok(a.slot)
     }
-    fn reset_envs_read(
+    fn partial_reset_read(
         &mut self,
         mask: &[bool],
         out: &mut BatchOutput,
     ) -> Result<usize, PoolError> {
-        let a = self.reset_envs(mask)?;
+        let a = self.reset(Some(mask))?;
         self.read_slot(&a, None, out)?;
         Ok(a.slot)
     }

@@ -357,10 +357,10 @@ fn masked_run(workers: usize, steps: u64, mask: Option<(u64, &[bool])>, copy: bo
             && at == t
         {
             if copy {
-                p.reset_envs_into(m, &mut obs, &mut out).unwrap();
+                p.partial_reset_into(m, &mut obs, &mut out).unwrap();
                 grab(&p, None, &obs, &out);
             } else {
-                let s = p.reset_envs_read(m, &mut out).unwrap();
+                let s = p.partial_reset_read(m, &mut out).unwrap();
                 grab(&p, Some(s), &obs, &out);
             }
         }
@@ -459,18 +459,24 @@ fn partial_reset_needs_a_started_pool_and_a_full_mask() {
     let mut out = BatchOutput::default();
     let m = [true, false, true, false];
     assert!(matches!(
-        p.reset_envs_read(&m, &mut out),
+        p.partial_reset_read(&m, &mut out),
         Err(PoolError::State(_))
     ));
     p.reset_read(&mut out).unwrap();
     assert!(matches!(
-        p.reset_envs_read(&m[..3], &mut out),
+        p.partial_reset_read(&m[..3], &mut out),
         Err(PoolError::BadBuffer { .. })
     ));
-    p.reset_envs_read(&m, &mut out).unwrap();
+    p.partial_reset_read(&m, &mut out).unwrap();
     assert_eq!(out.episode, vec![1, 0, 1, 0]);
-    p.reset_envs_read(&[false; 4], &mut out).unwrap();
+    p.partial_reset_read(&[false; 4], &mut out).unwrap();
     assert_eq!(out.episode, vec![1, 0, 1, 0]);
+    // Its halves, as a full reset's: sent, then waited for.
+    let slot = p.send_reset(Some(&[false, true, false, false])).unwrap();
+    let a = p.wait(Some(Duration::from_secs(10))).unwrap().expect("answered");
+    assert_eq!(a.slot, slot);
+    p.read_slot(&a, None, &mut out).unwrap();
+    assert_eq!(out.episode, vec![1, 1, 1, 0]);
     p.step_read(&[0; 4], &mut out).unwrap();
 }
 

@@ -30,7 +30,7 @@ fn third_answer(
 ) -> Result<rogue_gym_pool::SlotAnswer, PoolError> {
     let mut p = pool(sabotaged(what, 3, policy));
     let id = p.id().clone();
-    p.reset().unwrap();
+    p.reset(None).unwrap();
     p.step(&[0; 4]).unwrap();
     let got = p.step(&[1; 4]);
     if got.is_err() {
@@ -39,7 +39,7 @@ fn third_answer(
             e.contains("call reset()"),
             "the next step asks for a reset: {e}"
         );
-        p.reset().expect("a reset recovers");
+        p.reset(None).expect("a reset recovers");
     }
     p.step(&[2; 4]).expect("the pool steps after");
     p.close().unwrap();
@@ -51,7 +51,7 @@ fn third_answer(
 /// step on; its failure is in the statistics, naming what it wrote.
 fn restarted_for(what: Misdeed, words: &str) {
     let mut p = pool(sabotaged(what, 3, FailurePolicy::Restart));
-    p.reset().unwrap();
+    p.reset(None).unwrap();
     p.step(&[0; 4]).unwrap();
     let a = p.step(&[1; 4]).unwrap();
     assert!(a.restarted);
@@ -115,15 +115,15 @@ fn an_episode_index_at_its_limits_never_wraps_or_keeps_and_the_envs_start_over()
             2,
             FailurePolicy::Raise,
         ));
-        p.reset().unwrap();
+        p.reset(None).unwrap();
         p.step(&[0; 4]).unwrap();
-        let e = p.reset().unwrap_err();
+        let e = p.reset(None).unwrap_err();
         let msg = e.to_string();
         assert!(
             msg.contains("worker 1") && msg.contains(&format!("episode index {episode}")),
             "{msg}"
         );
-        let a = p.reset().unwrap();
+        let a = p.reset(None).unwrap();
         let mut out = rogue_gym_pool::BatchOutput::default();
         p.read_slot(&a, None, &mut out).unwrap();
         assert_eq!(
@@ -139,9 +139,9 @@ fn an_episode_index_at_its_limits_never_wraps_or_keeps_and_the_envs_start_over()
         2,
         FailurePolicy::Restart,
     ));
-    p.reset().unwrap();
+    p.reset(None).unwrap();
     p.step(&[0; 4]).unwrap();
-    p.reset().unwrap();
+    p.reset(None).unwrap();
     assert_eq!(p.restarts(), 1);
     p.step(&[1; 4]).unwrap();
 }
@@ -159,7 +159,7 @@ fn a_worker_killed_between_its_rows_and_its_answer_costs_one_restart() {
 
 fn restarted_for_death() {
     let mut p = pool(sabotaged(Misdeed::DieMidWrite, 3, FailurePolicy::Restart));
-    p.reset().unwrap();
+    p.reset(None).unwrap();
     p.step(&[0; 4]).unwrap();
     let a = p.step(&[1; 4]).unwrap();
     assert!(a.restarted);
@@ -172,7 +172,7 @@ fn no_process_can_resize_the_pools_buffer() {
     // could: the seals refuse it, and the pool steps on untouched.
     let mut p = pool(sabotaged(Misdeed::Truncate, 2, FailurePolicy::Raise));
     let before = p.shared_buffer().unwrap().len();
-    p.reset().unwrap();
+    p.reset(None).unwrap();
     for t in 0..5 {
         p.step(&[t % 5; 4]).unwrap();
     }
@@ -232,7 +232,7 @@ fn the_async_api_checks_rows_written_in_place_as_the_sync_calls_do() {
 #[test]
 fn a_panic_inside_a_call_is_an_error_and_the_pool_goes_on_after_a_reset() {
     let mut p = pool(config(EXE, test_env(), 4, 2));
-    p.reset().unwrap();
+    p.reset(None).unwrap();
     let e = p
         .guarded(|p| -> Result<(), PoolError> {
             p.step(&[0; 4])?;
@@ -245,7 +245,7 @@ fn a_panic_inside_a_call_is_an_error_and_the_pool_goes_on_after_a_reset() {
         "{e}"
     );
     assert!(p.step(&[0; 4]).is_err(), "a reset comes first");
-    p.reset().unwrap();
+    p.reset(None).unwrap();
     p.step(&[1; 4]).unwrap();
     let id = p.id().clone();
     p.close().unwrap();

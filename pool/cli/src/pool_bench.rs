@@ -216,9 +216,9 @@ impl PoolRun {
         let mut out = BatchOutput::default();
         match a.mode {
             Mode::Sync => pool
-                .reset()
+                .reset(None)
                 .and_then(|r| pool.read_slot(&r, Some(&mut obs), &mut out)),
-            Mode::Shared => pool.reset().map(drop),
+            Mode::Shared => pool.reset(None).map(drop),
             Mode::Async => pool.async_reset(),
         }
         .map_err(|e| e.to_string())?;

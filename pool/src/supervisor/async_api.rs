@@ -86,7 +86,7 @@ impl Pool {
         self.drain()?;
         self.sup.async_api.on = true;
         for k in 0..self.sup.workers.len() {
-            self.sup.send_reset(k, 0)?;
+            self.sup.send_reset(k, 0, None)?;
             let envs = self.sup.blocks[k].clone();
             self.sup.async_api.envs.all_in_flight(k, envs);
         }

@@ -1,9 +1,9 @@
 //! Whole-batch calls: a step, reset or partial reset of every env, each per-env output written
 //! by the workers in place into a slot of the shared batch buffer, where the caller reads it.
 //!
-//! Each call is a send ([`Pool::send_step`], [`Pool::send_reset`]) and a wait
-//! ([`Pool::wait`]); [`Pool::step`], [`Pool::reset`] and [`Pool::reset_envs`] are the two
-//! at once. [`Pool::read_slot`] copies an answer's rows out, for callers that want copies.
+//! Each call is a send ([`Pool::send_step`], [`Pool::send_reset`], whole or partial) and a
+//! wait ([`Pool::wait`]); [`Pool::step`] and [`Pool::reset`] are the two at once.
+//! [`Pool::read_slot`] copies an answer's rows out, for callers that want copies.
 
 use std::time::Duration;
 
@@ -24,11 +24,10 @@ impl Pool {
             .ok_or_else(|| PoolError::State("a step without a timeout timed out".into()))
     }
 
-    /// Reset every env (episode index 0 at the first reset, then the next index of each env)
-    /// and wait for the answers, written into the next batch slot. Results of outstanding async
-    /// requests (or of a step interrupted by an error) are discarded.
-    pub fn reset(&mut self) -> Result<SlotAnswer, PoolError> {
-        self.send_reset()?;
+    /// Reset every env, or with `mask` the envs whose entry is true (see
+    /// [`Pool::send_reset`]), and wait for the answers, written into the next batch slot.
+    pub fn reset(&mut self, mask: Option<&[bool]>) -> Result<SlotAnswer, PoolError> {
+        self.send_reset(mask)?;
         self.collect(None)?
             .ok_or_else(|| PoolError::State("a reset without a timeout timed out".into()))
     }
@@ -73,56 +72,50 @@ impl Pool {
 
     /// The first half of [`Pool::reset`] (gymnasium's `reset_async`); collect the answers with
     /// [`Pool::wait`]. Returns the slot they are written in.
-    pub fn send_reset(&mut self) -> Result<usize, PoolError> {
+    ///
+    /// * `None`: a full reset: every env starts its next episode (episode index 0 at the first
+    ///   reset). Results of outstanding async requests (or of a step interrupted by an error)
+    ///   are discarded.
+    /// * `Some(mask)`, one entry per env (gymnasium's `reset_mask`): envs with `mask[i]` start
+    ///   their next scheduled episode (episode index + 1, its seed from the schedule), exactly
+    ///   as a full reset would start it for them, so trajectories stay independent of the
+    ///   worker count. The others keep their state (an episode that ended in NEXT_STEP mode is
+    ///   still autoreset by the next step); the worker writes their current observation into
+    ///   the slot again ([`crate::Env::observe`]), and their row describes their current
+    ///   episode with reward 0 and no flags. A partial reset needs a full reset first (after
+    ///   creation, [`Pool::set_seeds`] or a failure) and no outstanding async requests. A
+    ///   worker restarted during the call resets all its envs (they report `restarted`).
+    pub fn send_reset(&mut self, mask: Option<&[bool]>) -> Result<usize, PoolError> {
         self.begin_call()?;
-        self.drain()?;
+        match mask {
+            None => self.drain()?,
+            Some(mask) => {
+                if mask.len() != self.sup.cfg.num_envs {
+                    return Err(PoolError::BadBuffer {
+                        what: "reset mask",
+                        expected: self.sup.cfg.num_envs,
+                        got: mask.len(),
+                    });
+                }
+                if self.sup.failures.must_reset {
+                    return Err(PoolError::State(
+                        "a partial reset needs every env started: call a full reset() first \
+                         (after creation, set_seeds or a failure)"
+                            .into(),
+                    ));
+                }
+                self.all_idle()?;
+            }
+        }
         let slot = self.sup.next_slot;
         for k in 0..self.sup.workers.len() {
-            self.send_or_fail(|c| c.send_reset(k, slot as u32 + 1))?;
+            self.send_or_fail(|c| c.send_reset(k, slot as u32 + 1, mask))?;
         }
-        self.sup.failures.must_reset = false;
+        if mask.is_none() {
+            self.sup.failures.must_reset = false;
+        }
         self.sup.call.sent_to_all(slot);
         Ok(slot)
-    }
-
-    /// Partial reset (gymnasium's `reset(options={"reset_mask": mask})`), answered into the
-    /// next batch slot like [`Pool::reset`].
-    ///
-    /// * Envs with `mask[i] == true` start their next scheduled episode (episode index + 1, its
-    ///   seed from the schedule), exactly as a full reset would start it for them, so
-    ///   trajectories stay independent of the worker count.
-    /// * Envs with `mask[i] == false` keep their state (an episode that ended in NEXT_STEP mode
-    ///   is still autoreset by the next step); their current observation is written into the
-    ///   slot again by the worker ([`crate::Env::observe`]), and their row describes their
-    ///   current episode with reward 0 and no flags.
-    ///
-    /// Needs a full reset first (after creation, [`Pool::set_seeds`] or a failure) and no
-    /// outstanding async requests (sync only; there is no async partial reset). A worker
-    /// restarted during the call resets all its envs (they report `restarted`).
-    pub fn reset_envs(&mut self, mask: &[bool]) -> Result<SlotAnswer, PoolError> {
-        self.begin_call()?;
-        if mask.len() != self.sup.cfg.num_envs {
-            return Err(PoolError::BadBuffer {
-                what: "reset mask",
-                expected: self.sup.cfg.num_envs,
-                got: mask.len(),
-            });
-        }
-        if self.sup.failures.must_reset {
-            return Err(PoolError::State(
-                "a partial reset needs every env started: call a full reset() first (after \
-                 creation, set_seeds or a failure)"
-                    .into(),
-            ));
-        }
-        self.all_idle()?;
-        let slot = self.sup.next_slot;
-        for k in 0..self.sup.workers.len() {
-            self.send_or_fail(|c| c.send_reset_masked(k, slot as u32 + 1, Some(mask)))?;
-        }
-        self.sup.call.sent_to_all(slot);
-        self.collect(None)?
-            .ok_or_else(|| PoolError::State("a partial reset timed out".into()))
     }
 
     /// The second half of a whole-batch call ([`Pool::send_step`], [`Pool::send_reset`]):

@@ -237,13 +237,9 @@ impl Supervisor {
         Ok(())
     }
 
-    pub(super) fn send_reset(&mut self, k: usize, target: u32) -> Result<(), PoolError> {
-        self.send_reset_masked(k, target, None)
-    }
-
     /// Reset command to worker `k`; with `mask` (the whole pool's), envs whose entry is false
     /// get [`KEEP_EPISODE`] (keep state, re-write the current observation).
-    pub(super) fn send_reset_masked(
+    pub(super) fn send_reset(
         &mut self,
         k: usize,
         target: u32,
@@ -300,7 +296,7 @@ impl Supervisor {
     ) -> Result<(), PoolError> {
         if self.workers[k].cut {
             self.workers[k].restarted = true;
-            return self.send_reset(k, target);
+            return self.send_reset(k, target, None);
         }
         let aw = self.spec.action_words();
         let cmd = Command {
@@ -348,7 +344,7 @@ impl Supervisor {
     ) -> Result<(), PoolError> {
         if self.workers[k].cut {
             self.workers[k].restarted = true;
-            return self.send_reset(k, 0);
+            return self.send_reset(k, 0, None);
         }
         let served = only.map_or(self.blocks[k].len(), |o| {
             o.iter().filter(|&&w| w != 0).count()
@@ -454,7 +450,7 @@ impl Supervisor {
                             // Same observation target as the interrupted command; in the
                             // async API by block (the reset covers envs the caller holds).
                             let target = if self.async_api.on { 0 } else { s.target };
-                            self.send_reset(k, target)?;
+                            self.send_reset(k, target, None)?;
                         } else {
                             s.state = LinkState::Idle;
                         }

@@ -193,21 +193,17 @@ class Core:
         self._steer()
         self.native(self.pool.send_step, actions)
 
-    def send_reset(self) -> None:
-        """The first half of a full reset."""
+    def send_reset(self, mask: Optional[np.ndarray] = None) -> None:
+        """The first half of a reset: of every env, or with ``mask`` of the masked envs (the
+        others' observations written again)."""
         self._steer()
-        self.native(self.pool.send_reset)
+        self.native(self.pool.send_reset, mask)
 
     def wait(self, timeout: Optional[float]) -> Optional[Result]:
         """The second half of :meth:`send_step` or :meth:`send_reset`, or ``None`` when
         ``timeout`` seconds passed first (the call stays pending)."""
         r = self.native(self.pool.wait, timeout)
         return None if r is None else self._took(r)
-
-    def reset_envs(self, mask: np.ndarray) -> Result:
-        """A partial reset (the envs of ``mask``; the others' observations written again)."""
-        self._steer()
-        return self._took(self.native(self.pool.reset_envs, mask))
 
     def set_seeds(self, schedule: dict[str, Any]) -> None:
         """Replace the episode-seed schedule (applies from the next reset)."""

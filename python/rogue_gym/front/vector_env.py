@@ -174,7 +174,9 @@ class FrontVectorEnv(gym.vector.VectorEnv):
         if options:  # for each env's next reset, as AsyncVectorEnv passes them
             self._call_all("set_reset_options", "", (options,))
         if mask is not None:
-            res = core.reset_envs(mask)
+            core.send_reset(mask)
+            res = core.wait(None)
+            assert res is not None  # no timeout: a result or an error
             restarted = res.restarted
             reset = mask if restarted is None else mask | restarted
             state.ended &= ~reset

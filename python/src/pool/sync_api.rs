@@ -34,9 +34,15 @@ impl PyPool {
         self.with_pool(py, move |p| p.send_step(acts.as_actions()))
     }
 
-    /// The first half of a full reset (gymnasium's `reset_async`); returns the slot.
-    fn send_reset(&self, py: Python<'_>) -> PyResult<usize> {
-        self.with_pool(py, |p| p.send_reset())
+    /// The first half of a reset (gymnasium's `reset_async`); returns the slot. Collect with
+    /// `wait`. Without `mask`, every env resets. With `mask` (gymnasium's `reset_mask`: a 1-D
+    /// bool or uint8 array, one entry per env, read as bytes, any nonzero byte true), a partial
+    /// reset: masked envs start their next scheduled episode, the others keep their state and
+    /// their current observation is written again; it needs a full reset first.
+    #[pyo3(signature = (mask = None))]
+    fn send_reset(&self, py: Python<'_>, mask: Option<&Bound<'_, PyAny>>) -> PyResult<usize> {
+        let mask = mask.map(|m| self.reset_mask(py, m)).transpose()?;
+        self.with_pool(py, move |p| p.send_reset(mask.as_deref()))
     }
 
     /// The second half of `send_step`/`send_reset`: wait at most `timeout` seconds (`None`:
@@ -55,42 +61,6 @@ impl PyPool {
             Some(answer) => self.sync_result(py, answer).map(Some),
             None => Ok(None),
         }
-    }
-
-    /// A partial reset (gymnasium's `reset_mask`): envs with `mask[i]` start their next
-    /// scheduled episode, the others keep their state and their current observation is
-    /// written again. `mask`: a 1-D bool (or uint8) array, one entry per env, read as bytes
-    /// (any nonzero byte is true). Returns the result as `step` does (every env's row). Needs
-    /// a full reset first.
-    fn reset_envs<'py>(
-        &self,
-        py: Python<'py>,
-        mask: &Bound<'_, PyAny>,
-    ) -> PyResult<SyncResult<'py>> {
-        let shape_err = || {
-            PyValueError::new_err(format!(
-                "reset_mask must be a 1-D bool numpy array of shape ({},)",
-                self.num_envs
-            ))
-        };
-        let arr = mask.cast::<PyUntypedArray>().map_err(|_| shape_err())?;
-        let dtype = arr.dtype();
-        if arr.ndim() != 1 || dtype.itemsize() != 1 || !matches!(dtype.kind(), b'b' | b'u') {
-            return Err(shape_err());
-        }
-        if arr.len() != self.num_envs {
-            return Err(PyValueError::new_err(format!(
-                "reset_mask must have shape ({},), got ({},)",
-                self.num_envs,
-                arr.len()
-            )));
-        }
-        // As bytes, never as Rust `bool`: a numpy bool array may hold any byte.
-        let bytes = arr.call_method1("view", (numpy::dtype::<u8>(py),))?;
-        let bytes = bytes.cast::<PyArray1<u8>>()?.readonly();
-        let m: Vec<bool> = bytes.as_array().iter().map(|&b| b != 0).collect();
-        let answer = self.with_pool(py, move |p| p.reset_envs(&m))?;
-        self.sync_result(py, answer)
     }
 
     /// Zero-copy uint8 views of every batch slot's areas, in slot order: `(obs, columns,
@@ -157,5 +127,33 @@ impl PyPool {
         let seeds: SeedSchedule = serde_json::from_str(seeds_json)
             .map_err(|e| PyValueError::new_err(format!("invalid seed schedule: {e}")))?;
         self.with_pool(py, move |p| p.set_seeds(seeds))
+    }
+}
+
+impl PyPool {
+    /// A reset mask from Python: a 1-D bool (or uint8) array of one entry per env, read as
+    /// bytes (a numpy bool array may hold any byte, so never as Rust `bool`).
+    fn reset_mask(&self, py: Python<'_>, mask: &Bound<'_, PyAny>) -> PyResult<Vec<bool>> {
+        let shape_err = || {
+            PyValueError::new_err(format!(
+                "reset_mask must be a 1-D bool numpy array of shape ({},)",
+                self.num_envs
+            ))
+        };
+        let arr = mask.cast::<PyUntypedArray>().map_err(|_| shape_err())?;
+        let dtype = arr.dtype();
+        if arr.ndim() != 1 || dtype.itemsize() != 1 || !matches!(dtype.kind(), b'b' | b'u') {
+            return Err(shape_err());
+        }
+        if arr.len() != self.num_envs {
+            return Err(PyValueError::new_err(format!(
+                "reset_mask must have shape ({},), got ({},)",
+                self.num_envs,
+                arr.len()
+            )));
+        }
+        let bytes = arr.call_method1("view", (numpy::dtype::<u8>(py),))?;
+        let bytes = bytes.cast::<PyArray1<u8>>()?.readonly();
+        Ok(bytes.as_array().iter().map(|&b| b != 0).collect())
     }
 }
