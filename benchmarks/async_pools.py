@@ -259,10 +259,13 @@ def run_pool(
     timeout: Optional[float],
     concurrency: Any = "serial",
     label: str = "",
+    normal_scheduling: bool = False,
 ) -> float:
     """This pool: async with ``recv(min_batch=1, max_batch=num_envs, timeout=timeout)`` (PR
     #4182's harvest loop with ``timeout=1e-3``; with None, every env ready at once), or
-    lockstep ``step()``; ``concurrency``: its ``env_concurrency``."""
+    lockstep ``step()``; ``concurrency``: its ``env_concurrency``. ``normal_scheduling``: the
+    control for threaded workers' batch scheduling: their threads are put back on the normal
+    policy once started."""
     n = WORKLOADS[name][0]
     env = rogue_gym.PoolVectorEnv(
         [maker(name)] * n, num_workers=workers, batch_size=n, env_concurrency=concurrency
@@ -272,6 +275,10 @@ def run_pool(
             return lockstep_rate(env, n, seconds)
         # As TorchRL's loop starts: every env reset, then every env sent an action.
         env.reset(seed=0)
+        if normal_scheduling:
+            for pid in env.worker_pids:
+                for tid in os.listdir(f"/proc/{pid}/task"):
+                    os.sched_setscheduler(int(tid), os.SCHED_OTHER, os.sched_param(0))
         env.send(np.zeros(n, np.int64), np.arange(n))
         done, t0 = 0, time.perf_counter()
         while time.perf_counter() - t0 < seconds:
@@ -376,6 +383,10 @@ def systems(name: str, cores: int, quick: bool) -> dict[str, Callable[[float], f
             out[f"rogue_gym async, threads, {per} env/worker ({w} workers)"] = lambda s, w=w: (
                 run_pool(name, s, w, False, None, "threads")
             )
+        if not quick:
+            out["rogue_gym async, threads, 8 env/worker, normal scheduling (control)"] = lambda s: (
+                run_pool(name, s, n // 8, False, None, "threads", normal_scheduling=True)
+            )
         for per in [2, 4] if not quick else []:
             w = n // per
             out[f"rogue_gym async, serial, {per} env/worker ({w} workers)"] = lambda s, w=w: (
@@ -423,6 +434,10 @@ def io_systems(cores: int, quick: bool) -> dict[str, Callable[[float], float]]:
         out[label] = lambda s, w=w, label=label: run_pool("io", s, w, False, None, "threads", label)
     if quick:
         return out
+    label = "rogue_gym async, threads, 2 workers, normal scheduling (control)"
+    out[label] = lambda s, label=label: run_pool(
+        "io", s, 2, False, None, "threads", label, normal_scheduling=True
+    )
     label = f"rogue_gym async, serial, {cores} workers"
     out[label] = lambda s, label=label: run_pool("io", s, cores, False, None, "serial", label)
     try:

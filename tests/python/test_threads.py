@@ -7,6 +7,7 @@ worker killed mid-reset costs its envs one restarted episode, calls stay within 
 
 from __future__ import annotations
 
+import os
 import time
 from collections import Counter
 from typing import Any
@@ -202,3 +203,33 @@ def test_threads_are_for_envs_of_one_callable_each() -> None:
         assert envs.stats().workers[0].env_wait_s > 0, "the envs' sleep counts as waiting"
     finally:
         _closed(envs)
+
+
+def _policies(pid: int) -> set[int]:
+    """The scheduling policies of a worker's own threads, its main thread and those it starts
+    (``rg-*``), not those of the libraries it loads (numpy's BLAS pool): 0 normal, 3 batch."""
+    out = set()
+    for t in os.listdir(f"/proc/{pid}/task"):
+        with open(f"/proc/{pid}/task/{t}/comm") as f:
+            if t != str(pid) and not f.read().startswith("rg-"):
+                continue
+        with open(f"/proc/{pid}/task/{t}/sched") as f:
+            out |= {int(line.split(":")[1]) for line in f if line.startswith("policy")}
+    return out
+
+
+def test_threaded_workers_run_at_batch_scheduling_and_leave_the_caller_alone() -> None:
+    """Their wake-ups do not preempt the caller (docs/performance.md, "Envs that wait");
+    serial workers and the caller keep the normal policy."""
+    threaded = _pool([SleepEnv] * 4, num_workers=2, env_concurrency="threads")
+    serial = _pool([SleepEnv] * 2, num_workers=1)
+    try:
+        threaded.reset(seed=0)
+        serial.reset(seed=0)
+        for pid in threaded._core.pool.worker_pids():
+            assert _policies(pid) == {os.SCHED_BATCH}
+        assert _policies(serial._core.pool.worker_pids()[0]) == {os.SCHED_OTHER}
+        assert os.sched_getscheduler(0) == os.SCHED_OTHER
+    finally:
+        _closed(threaded)
+        _closed(serial)
