@@ -23,22 +23,11 @@ echo "== Python package (setup, types, stubs, pytest, ruff) ($SECONDS s into the
 bash scripts/setup-python.sh
 # Ray's venv is installed meanwhile: its pip runs on one core while the type checks run on the
 # other, and it is done before pytest starts (its output is shown then; killed if a check fails).
-ray_log=$(mktemp)
-setsid bash scripts/setup-ray.sh >"$ray_log" 2>&1 &
-ray_setup=$!
-# (Its process group; or itself, before setsid has made the group.)
-trap 'if [[ -n ${ray_setup:-} ]]; then kill -- -"$ray_setup" 2>/dev/null ||
-    kill "$ray_setup" 2>/dev/null || true; fi; rm -f "$ray_log"' EXIT
+source scripts/background.sh
+bg_start bash scripts/setup-ray.sh
 (cd python && ../.venv/bin/python -m mypy && ../.venv/bin/python -m mypy.stubtest rogue_gym._native)
 echo "== waiting for Ray's set-up ($SECONDS s into the test command)"
-if ! wait "$ray_setup"; then
-    ray_setup=
-    cat "$ray_log"
-    echo "error: bash scripts/setup-ray.sh failed (its output is above)" >&2
-    exit 1
-fi
-ray_setup=
-cat "$ray_log"
+bg_wait
 # Every test runs under a time limit (tests/python/conftest.py), so no test can hang the run.
 echo "== pytest ($SECONDS s into the test command)"
 .venv/bin/python -m pytest tests/python -q --durations=15
