@@ -473,7 +473,10 @@ fn partial_reset_needs_a_started_pool_and_a_full_mask() {
     assert_eq!(out.episode, vec![1, 0, 1, 0]);
     // Its halves, as a full reset's: sent, then waited for.
     let slot = p.send_reset(Some(&[false, true, false, false])).unwrap();
-    let a = p.wait(Some(Duration::from_secs(10))).unwrap().expect("answered");
+    let a = p
+        .wait(Some(Duration::from_secs(10)))
+        .unwrap()
+        .expect("answered");
     assert_eq!(a.slot, slot);
     p.read_slot(&a, None, &mut out).unwrap();
     assert_eq!(out.episode, vec![1, 1, 1, 0]);
