@@ -188,8 +188,9 @@ pub trait Env: Send {
         Err(EnvError::new("this env kind takes no calls"))
     }
     /// Re-write the current observation (the bytes the last `reset`/`step` wrote) without
-    /// changing any state. The pool's partial reset ([`crate::Pool::send_reset`] with a mask) calls it for
-    /// the envs it does *not* reset, so that their current observation lands in the new batch.
+    /// changing any state. The pool's partial reset ([`crate::Pool::send_reset`] with a mask)
+    /// calls it for the envs it does *not* reset, so that their current observation lands in
+    /// the new batch.
     /// The default says the env cannot: such envs support full resets only.
     fn observe(&self, obs: &mut [u8]) -> Result<(), EnvError> {
         let _ = obs;

@@ -131,8 +131,8 @@ impl PyPool {
 }
 
 impl PyPool {
-    /// A reset mask from Python: a 1-D bool (or uint8) array of one entry per env, read as
-    /// bytes (a numpy bool array may hold any byte, so never as Rust `bool`).
+    /// A reset mask from Python: a 1-D bool (or uint8) array, read as bytes (a numpy bool
+    /// array may hold any byte, so never as Rust `bool`).
     fn reset_mask(&self, py: Python<'_>, mask: &Bound<'_, PyAny>) -> PyResult<Vec<bool>> {
         let shape_err = || {
             PyValueError::new_err(format!(
@@ -145,13 +145,7 @@ impl PyPool {
         if arr.ndim() != 1 || dtype.itemsize() != 1 || !matches!(dtype.kind(), b'b' | b'u') {
             return Err(shape_err());
         }
-        if arr.len() != self.num_envs {
-            return Err(PyValueError::new_err(format!(
-                "reset_mask must have shape ({},), got ({},)",
-                self.num_envs,
-                arr.len()
-            )));
-        }
+        // Its length is the pool's to check (`Pool::send_reset`: a `ValueError` too).
         let bytes = arr.call_method1("view", (numpy::dtype::<u8>(py),))?;
         let bytes = bytes.cast::<PyArray1<u8>>()?.readonly();
         Ok(bytes.as_array().iter().map(|&b| b != 0).collect())
