@@ -63,7 +63,9 @@ pub use cores::{Cores, cores, usable_cores};
 pub use error::IpcError;
 pub use naming::{PoolId, pool_shm_files, process_start_time};
 pub use pool_files::{create_node_counter, verify_pool_files};
-pub use ports::{BlockListener, SupervisorPorts, WorkerPorts, words_as_bytes, words_as_bytes_mut};
+pub use ports::{
+    BlockListener, CmdWaker, SupervisorPorts, WorkerPorts, words_as_bytes, words_as_bytes_mut,
+};
 pub use private::{RUNTIME_DIR_ENV, default_runtime_dir, resolve_runtime_dir};
 pub use room::{ShmRoom, check_room, shm_room};
 pub use services::{

@@ -1,5 +1,5 @@
 //! The ports of one worker's channels, seen from the supervisor ([`SupervisorPorts`],
-//! [`BlockListener`]) and from the worker ([`WorkerPorts`]).
+//! [`BlockListener`]) and from the worker ([`WorkerPorts`], [`CmdWaker`]).
 
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
@@ -204,6 +204,37 @@ impl WorkerPorts {
         self.block_notifier
             .notify()
             .map_err(ice("notify supervisor"))?;
+        Ok(())
+    }
+}
+
+/// Wakes a worker's own command listener from another thread of the worker: the env threads
+/// of a worker whose envs run on threads, when an env is done. The worker's thread then waits
+/// on one listener for both commands and finished envs. Wake-ups coalesce: while one is
+/// pending (not yet drained by the listener), another costs no system call.
+pub struct CmdWaker {
+    notifier: Notifier<Svc>,
+}
+
+impl std::fmt::Debug for CmdWaker {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("CmdWaker")
+    }
+}
+
+impl CmdWaker {
+    /// A waker of worker `worker`'s command listener.
+    pub fn new(node: &Node<Svc>, worker: usize) -> Result<Self, IpcError> {
+        let notifier = cmd_event_service(node, worker)?
+            .notifier_builder()
+            .create()
+            .map_err(ice(format!("create command waker of worker {worker}")))?;
+        Ok(CmdWaker { notifier })
+    }
+
+    /// Wake the listener.
+    pub fn wake(&self) -> Result<(), IpcError> {
+        self.notifier.notify().map_err(ice("wake the worker"))?;
         Ok(())
     }
 }

@@ -123,7 +123,9 @@ pub fn cmd_event_service(
         ServiceName::new(&name).map_err(|e| IpcError::InvalidName(format!("{name}: {e:?}")))?;
     node.service_builder(&sn)
         .event()
-        .max_notifiers(4)
+        // The supervisor's notifier, and a waker each worker process whose envs run on
+        // threads (`CmdWaker`); a listener each worker process (a replaced one may linger).
+        .max_notifiers(5)
         .max_listeners(4)
         .max_nodes(6)
         .event_id_max_value(1)

@@ -249,10 +249,10 @@ struct Worker<'a> {
     /// ([`EnvRegistry::set_thread_scope`]).
     thread_scope: Option<crate::registry::ThreadScope>,
     books: Books,
-    /// Dropped before the node they were made from (shared with the command relay of a
-    /// worker whose envs run on threads).
-    ports: std::sync::Arc<WorkerPorts>,
-    _node: Node<Svc>,
+    /// Dropped before the node they were made from.
+    ports: WorkerPorts,
+    /// The worker's node (a worker whose envs run on threads makes its `CmdWaker` from it).
+    node: Node<Svc>,
     /// Answers published by this process (the supervisor counts those it took:
     /// `StatsBuffer::taken`), and answers to partial commands.
     answers: u64,
@@ -397,8 +397,8 @@ impl<'a> Worker<'a> {
             action_bytes: spec.action_bytes,
             layout,
             slot_layout,
-            ports: std::sync::Arc::new(ports),
-            _node: node,
+            ports,
+            node,
             answers: 0,
             answer_no: 0,
             seeds: cfg.seeds.clone(),

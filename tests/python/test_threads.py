@@ -233,3 +233,29 @@ def test_threaded_workers_run_at_batch_scheduling_and_leave_the_caller_alone() -
     finally:
         _closed(threaded)
         _closed(serial)
+
+
+def test_threaded_workers_serve_on_through_many_replacements_and_kills() -> None:
+    """Each generation of a threaded worker opens a listener and a waker on its command
+    events, which hold a few of each: ten planned replacements and three kills in a row
+    (more generations than they hold) and the pool still serves."""
+    envs = _pool(
+        [lambda: SleepEnv(0.0005)] * 4,
+        num_workers=2,
+        env_concurrency="threads",
+        recycle_after_steps=8,
+        start_timeout=30,
+    )
+    try:
+        envs.reset(seed=0)
+        for _ in range(50):
+            envs.step(np.zeros(4, np.int64))
+        assert envs.stats().recycles >= 10
+        for _ in range(3):
+            os.kill(envs.worker_pids[1], 9)
+            envs.step(np.zeros(4, np.int64))
+        assert envs.restarts == 3
+        obs = envs.step(np.zeros(4, np.int64))[0]
+        assert obs.shape == (4, 1)
+    finally:
+        _closed(envs)

@@ -2,18 +2,24 @@
 //! socket, a remote simulator, a subprocess, a sleep), so that an env that waits holds its own
 //! thread only, not its worker-mates.
 //!
-//! Three kinds of thread:
+//! Two kinds of thread:
 //!
 //! * **env threads** (`env_threads` of them) take jobs, one env's reset or step each, from one
 //!   queue; the env writes its observation, final observation and extra info straight into its
 //!   own rows (of the batch slot the command names, or of the worker's answer block), as the
-//!   serial loop does; each env is behind a lock, taken by one thread at a time;
-//! * the **relay** waits for commands on the worker's command port and hands them over;
-//! * the worker's **own thread** starts commands (in order: a command waits until every env it
-//!   names is idle), writes each finished env's record and episode books, and publishes the
-//!   answers: one per command, when all its envs are done; or, for a `partial` command (the
+//!   serial loop does; each env is behind a lock, taken by one thread at a time. A job done
+//!   goes to the done list, and its thread wakes the worker's command listener
+//!   ([`CmdWaker`]);
+//! * the worker's **own thread** waits on that one listener for both commands and finished
+//!   envs, takes commands from the port, starts them (in order: a command waits until every
+//!   env it names is idle), writes each finished env's record and episode books, and publishes
+//!   the answers: one per command, when all its envs are done; or, for a `partial` command (the
 //!   async API with rows in place), envs as they finish ([`BlockKind::Rows`]), several to an
 //!   answer when they finish together, while further commands for other envs arrive.
+//!
+//! One listener for both keeps a step's round trip to three wake-ups (the worker's thread, the
+//! env thread, the worker's thread); a relay thread between the port and the worker's thread
+//! made it four, and its CPU time came out of the envs'.
 //!
 //! Flow control: the supervisor takes answers only inside the caller's calls. The answer port
 //! holds four; a worker holds its finished envs while three answers are untaken (the count of
@@ -28,10 +34,12 @@
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Condvar, Mutex, PoisonError};
+use std::sync::{Arc, Condvar, Mutex, PoisonError, RwLock};
 use std::time::{Duration, Instant};
 
-use rogue_gym_ipc::{BlockSampleMut, WaitCall, WaitPolicy, hybrid_wait};
+use rogue_gym_ipc::BlockSampleMut;
+use rogue_gym_ipc::CmdWaker;
+use rogue_gym_ipc::iceoryx2::port::listener::ListenerWaitError;
 
 use super::block_out::EnvOut;
 use super::env_state::{EnvState, ServeCtx, apply};
@@ -164,20 +172,11 @@ impl CpuClock {
     }
 }
 
-/// A command as the relay hands it over: its sequence number, the command, its payload.
+/// A command taken from the port: its sequence number, the command, its payload.
 struct Incoming {
     seq: u64,
     command: Command,
     payload: Vec<u64>,
-}
-
-/// What the worker's own thread waits for.
-#[derive(Default)]
-struct Inbox {
-    commands: VecDeque<Incoming>,
-    done: Vec<Done>,
-    /// The relay stopped: the supervisor is gone, or the port failed.
-    ended: Option<WorkerError>,
 }
 
 /// What the threads share.
@@ -185,8 +184,11 @@ struct Shared {
     envs: Arc<[Mutex<EnvState>]>,
     jobs: Mutex<VecDeque<Job>>,
     job_ready: Condvar,
-    inbox: Mutex<Inbox>,
-    wake: Condvar,
+    /// Jobs done, for the worker's own thread.
+    done: Mutex<Vec<Done>>,
+    /// Wakes the worker's own thread; taken (dropped) when the worker stops, so that its port
+    /// is given back even while env threads are stuck in an env's wait.
+    waker: RwLock<Option<CmdWaker>>,
     stop: AtomicBool,
     /// The pool's counters and this worker's index in them (env threads count their time off
     /// the CPU themselves).
@@ -286,8 +288,11 @@ fn env_thread(shared: Arc<Shared>) {
             wall_ns,
         };
         count(clock.job(wall_ns));
-        guard(&shared.inbox).done.push(done);
-        shared.wake.notify_one();
+        guard(&shared.done).push(done);
+        // A wake-up that fails is made up for by the worker's thread's timed wait.
+        if let Some(waker) = &*shared.waker.read().unwrap_or_else(PoisonError::into_inner) {
+            let _ = waker.wake();
+        }
     }
 }
 
@@ -324,12 +329,13 @@ impl Worker<'_> {
         let WorkerEnvs::Shared(envs) = &self.envs else {
             return Err(WorkerError::Msg("envs on threads need one env each".into()));
         };
+        let waker = CmdWaker::new(&self.node, self.args.index)?;
         let shared = Arc::new(Shared {
             envs: envs.clone(),
             jobs: Mutex::new(VecDeque::new()),
             job_ready: Condvar::new(),
-            inbox: Mutex::new(Inbox::default()),
-            wake: Condvar::new(),
+            done: Mutex::new(Vec::new()),
+            waker: RwLock::new(Some(waker)),
             stop: AtomicBool::new(false),
             stats: self.stats.clone(),
             me: self.args.index,
@@ -347,78 +353,25 @@ impl Worker<'_> {
                 })
                 .map_err(|e| WorkerError::Msg(format!("cannot start an env thread: {e}")))?;
         }
-        self.spawn_relay(shared.clone())?;
         let result = self.serve_concurrently(&shared);
         // Threads stuck in an env's wait are not joined: the process exits with them.
         shared.stop.store(true, Ordering::Relaxed);
         shared.job_ready.notify_all();
+        drop(
+            (shared.waker.write())
+                .unwrap_or_else(PoisonError::into_inner)
+                .take(),
+        );
         result
-    }
-
-    /// The relay: commands from the port to the inbox, and the supervisor's liveness.
-    fn spawn_relay(&self, shared: Arc<Shared>) -> Result<(), WorkerError> {
-        let ports = self.ports.clone();
-        let stats = self.stats.clone();
-        let me = self.args.index;
-        let ppid = self.args.ppid;
-        // The relay blocks at once: the cores are the env threads' (a poll would take them
-        // from envs that compute between their waits), and a command's wake-up is small
-        // beside an env's wait.
-        let policy = WaitPolicy {
-            poll_budget: Duration::ZERO,
-            block_slice: Duration::from_millis(self.cfg.block_slice_ms.max(1)),
-            yield_cpu: false,
-            sleep_first: Duration::ZERO,
-        };
-        let relay = move || {
-            let ended = loop {
-                let mut got = None;
-                let waited =
-                    hybrid_wait::<WorkerError>(ports.cmd_listener(), &policy, None, |call| {
-                        if call == WaitCall::Idle {
-                            if shared.stop.load(Ordering::Relaxed) {
-                                return Err(WorkerError::Msg("stopped".into()));
-                            }
-                            if nix::unistd::getppid().as_raw() != ppid {
-                                return Err(WorkerError::ParentGone(ppid));
-                            }
-                        }
-                        got = ports.try_recv_cmd()?;
-                        Ok(got.is_some())
-                    });
-                if let Err(e) = waited {
-                    break e;
-                }
-                let Some(cmd) = got else { continue };
-                let h = *cmd.user_header();
-                let command = match Command::decode(h.kind) {
-                    Ok(c) => c,
-                    Err(e) => break WorkerError::Msg(format!("command {}: {e}", h.seq)),
-                };
-                let n = (h.len as usize).min(cmd.payload().len());
-                let payload = cmd.payload()[..n].to_vec();
-                drop(cmd);
-                stats.read_one(me);
-                guard(&shared.inbox).commands.push_back(Incoming {
-                    seq: h.seq,
-                    command,
-                    payload,
-                });
-                shared.wake.notify_one();
-            };
-            guard(&shared.inbox).ended = Some(ended);
-            shared.wake.notify_one();
-        };
-        std::thread::Builder::new()
-            .name("rg-relay".into())
-            .spawn(relay)
-            .map_err(|e| WorkerError::Msg(format!("cannot start the command relay: {e}")))?;
-        Ok(())
     }
 
     /// The worker's own thread (see the module docs).
     fn serve_concurrently(&mut self, shared: &Shared) -> Result<(), WorkerError> {
         let epw = self.layout.envs;
+        // The wait blocks at once: the cores are the env threads' (a poll would take them from
+        // envs that compute between their waits), and a wake-up is small beside an env's wait.
+        let block_slice = Duration::from_millis(self.cfg.block_slice_ms.max(1));
+        let mut alive_checked = Instant::now();
         let mut queue: VecDeque<Incoming> = VecDeque::new();
         let mut busy = vec![false; epw];
         // Which running command each busy env belongs to.
@@ -426,35 +379,32 @@ impl Worker<'_> {
         let mut running: Vec<Running> = Vec::new();
         let mut finished = Finished::default();
         loop {
-            let (commands, done, ended) = {
-                let mut inbox = guard(&shared.inbox);
-                let holding = !finished.rows.is_empty() || !finished.failed.is_empty();
-                if inbox.commands.is_empty() && inbox.done.is_empty() && inbox.ended.is_none() {
-                    let wait = if holding {
-                        HOLD_CHECK
-                    } else {
-                        Duration::from_millis(50)
-                    };
-                    inbox = shared
-                        .wake
-                        .wait_timeout(inbox, wait)
-                        .unwrap_or_else(PoisonError::into_inner)
-                        .0;
+            if alive_checked.elapsed() >= block_slice {
+                let ppid = self.args.ppid;
+                if nix::unistd::getppid().as_raw() != ppid {
+                    return Err(WorkerError::ParentGone(ppid));
                 }
-                (
-                    std::mem::take(&mut inbox.commands),
-                    std::mem::take(&mut inbox.done),
-                    inbox.ended.take(),
-                )
-            };
-            if let Some(e) = ended {
-                return match e {
-                    WorkerError::ParentGone(_) => Err(e),
-                    WorkerError::Msg(m) if m == "stopped" => Ok(()),
-                    e => Err(e),
-                };
+                alive_checked = Instant::now();
             }
-            queue.extend(commands);
+            let took = self.take_commands(&mut queue)?;
+            let done = std::mem::take(&mut *guard(&shared.done));
+            if !took && done.is_empty() {
+                // Nothing new: wait until a command or a finished env wakes the listener, or
+                // until it is time to look at held answers again.
+                let holding = !finished.rows.is_empty() || !finished.failed.is_empty();
+                let slice = if holding { HOLD_CHECK } else { block_slice };
+                match self.ports.cmd_listener().timed_wait(|_| {}, slice) {
+                    Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
+                    Err(e) => {
+                        return Err(WorkerError::Msg(format!(
+                            "wait on the command listener: {e:?}"
+                        )));
+                    }
+                }
+                if !holding {
+                    continue;
+                }
+            }
             for d in done {
                 let j = d.j;
                 busy[j] = false;
@@ -505,6 +455,25 @@ impl Worker<'_> {
                 }
             }
         }
+    }
+
+    /// Take every command the port holds into `queue`; whether there was one.
+    fn take_commands(&mut self, queue: &mut VecDeque<Incoming>) -> Result<bool, WorkerError> {
+        let mut took = false;
+        while let Some(cmd) = self.ports.try_recv_cmd()? {
+            let h = *cmd.user_header();
+            let command = Command::decode(h.kind)
+                .map_err(|e| WorkerError::Msg(format!("command {}: {e}", h.seq)))?;
+            let n = (h.len as usize).min(cmd.payload().len());
+            queue.push_back(Incoming {
+                seq: h.seq,
+                command,
+                payload: cmd.payload()[..n].to_vec(),
+            });
+            self.stats.read_one(self.args.index);
+            took = true;
+        }
+        Ok(took)
     }
 
     /// The envs (rows of the block) a reset or step names, its payload checked.
