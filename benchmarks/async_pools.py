@@ -356,6 +356,54 @@ def supply(name: str, seconds: float) -> float:
     return n * done / (time.perf_counter() - t0)
 
 
+def handoff_us(cores: Optional[tuple[int, int]], rounds: int = 20_000) -> float:
+    """This machine's cost of a hand-off between processes: microseconds for a byte to go to
+    a child process and back through pipes (two wake-ups), the two pinned to ``cores`` (the
+    same core twice, or two). Every round trip of an env through a pool crosses several such
+    hand-offs, so this sets a floor under the envs that wait a millisecond."""
+    down_r, down_w = os.pipe()
+    up_r, up_w = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: echo every byte back until the parent closes its end
+        try:
+            os.close(down_w)
+            os.close(up_r)
+            if cores:
+                os.sched_setaffinity(0, {cores[1]})
+            while os.read(down_r, 1):
+                os.write(up_w, b"x")
+        finally:
+            os._exit(0)
+    os.close(down_r)
+    os.close(up_w)
+    before = os.sched_getaffinity(0)
+    try:
+        if cores:
+            os.sched_setaffinity(0, {cores[0]})
+        for _ in range(1000):  # the child has pinned itself and both are warm
+            os.write(down_w, b"x")
+            os.read(up_r, 1)
+        t0 = time.perf_counter()
+        for _ in range(rounds):
+            os.write(down_w, b"x")
+            os.read(up_r, 1)
+        return (time.perf_counter() - t0) / rounds * 1e6
+    finally:
+        os.sched_setaffinity(0, before)
+        os.close(down_w)  # the child reads the end and exits
+        os.close(up_r)
+        os.waitpid(pid, 0)
+
+
+def handoffs(rounds: int) -> dict[str, float]:
+    """:func:`handoff_us` on one core and across two (where there are two), median of 3."""
+    usable = sorted(os.sched_getaffinity(0))
+    pairs = {"one core": (usable[0], usable[0])}
+    if len(usable) > 1:
+        pairs["two cores"] = (usable[0], usable[1])
+    return {k: statistics.median(handoff_us(c, rounds) for _ in range(3)) for k, c in pairs.items()}
+
+
 def run_gym_async(name: str, seconds: float, label: str = "") -> float:
     n = WORKLOADS[name][0]
     env = gym.vector.AsyncVectorEnv([maker(name)] * n)
@@ -467,6 +515,11 @@ def main(argv: Optional[list[str]] = None) -> None:
     if args.quick:
         args.seconds, args.reps, args.real = min(args.seconds, 1.0), 1, []
     cores = len(os.sched_getaffinity(0))
+    handoff = handoffs(2_000 if args.quick else 20_000)
+    print(
+        "hand-off (a byte to another process and back):",
+        ", ".join(f"{v:.1f} µs on {k}" for k, v in handoff.items()),
+    )
     runs: dict[str, dict[str, list[float]]] = {}
     supplies: dict[str, float] = {}
     tables: dict[str, dict[str, Callable[[float], float]]] = {}
@@ -493,7 +546,7 @@ def main(argv: Optional[list[str]] = None) -> None:
                     continue
                 runs[name][label].append(value)
                 print(f"{name} rep {rep + 1}/{args.reps}: {label}: {value:,.0f} transitions/s")
-    write(args, runs, cores, supplies)
+    write(args, runs, cores, supplies, handoff)
 
 
 def write(
@@ -501,12 +554,16 @@ def write(
     runs: dict[str, dict[str, list[float]]],
     cores: int,
     supplies: dict[str, float],
+    handoff: dict[str, float],
 ) -> None:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     lines = [
         f"# Async head-to-head ({platform.node()}, {cores} cores, {args.seconds:g} s x "
         f"{args.reps} runs, interleaved)",
+        "",
+        "Hand-off here (`handoff_us`: a byte to another process and back through pipes, two "
+        "wake-ups): " + ", ".join(f"{v:.1f} µs on {k}" for k, v in handoff.items()) + ".",
         "",
     ]
     for name, table in runs.items():
@@ -574,6 +631,7 @@ def write(
                 "seconds": args.seconds,
                 "reps": args.reps,
                 "supply": supplies,
+                "handoff_us": handoff,
                 "runs": runs,
                 "pss_bytes": MEMORY,
             },

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -115,6 +116,10 @@ def test_the_device_script_runs_every_part_in_its_quick_mode(tmp_path: Path) -> 
     )
     assert 0 < model["projected_at_t_w"]["rogue/16"] < 1
     pools = json.loads((tmp_path / "async_pools.json").read_text())
+    # The machine's hand-off beside the figures: on one core, and across two where it has two.
+    cores = len(os.sched_getaffinity(0))
+    assert pools["handoff_us"].keys() == ({"one core", "two cores"} if cores > 1 else {"one core"})
+    assert all(v > 0 for v in pools["handoff_us"].values())
     rows = pools["runs"]["dispatch"]
     assert any(k.startswith("rogue_gym async") and v and v[0] > 0 for k, v in rows.items())
     if __import__("importlib").util.find_spec("torchrl") is not None:
