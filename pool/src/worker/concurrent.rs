@@ -17,9 +17,10 @@
 //!   async API with rows in place), envs as they finish ([`BlockKind::Rows`]), several to an
 //!   answer when they finish together, while further commands for other envs arrive.
 //!
-//! One listener for both keeps a step's round trip to three wake-ups (the worker's thread, the
-//! env thread, the worker's thread); a relay thread between the port and the worker's thread
-//! made it four, and its CPU time came out of the envs'.
+//! One listener for both keeps a step's round trip inside the worker to three wake-ups (the
+//! worker's thread, the env thread, the worker's thread): each costs tens of microseconds
+//! where it crosses cores on a VM (`handoff_us` in `benchmarks/async_pools.py`), beside a
+//! millisecond that an env waits.
 //!
 //! Flow control: the supervisor takes answers only inside the caller's calls. The answer port
 //! holds four; a worker holds its finished envs while three answers are untaken (the count of
