@@ -4,14 +4,14 @@
 
 bg_groups=()
 bg_log=
-bg_idle_dir=
+bg_job_dir=
 _bg_kill_all() {
     local g
     for g in ${bg_groups[@]+"${bg_groups[@]}"}; do
         kill -- -"$g" 2>/dev/null || kill "$g" 2>/dev/null || true
     done
     if [[ -n $bg_log ]]; then rm -f "$bg_log"; fi
-    if [[ -n $bg_idle_dir ]]; then rm -rf "$bg_idle_dir"; fi
+    if [[ -n $bg_job_dir ]]; then rm -rf "$bg_job_dir"; fi
 }
 trap _bg_kill_all EXIT
 
@@ -45,27 +45,31 @@ bg_wait() {
     fi
 }
 
-# bg_idle DIR COMMAND [ARGS...]: run one job on the CPU time others leave idle (SCHED_IDLE:
-# a core only while nothing else wants it; nice 19 where that is refused), for whoever reads
-# DIR: its output goes to DIR/log, and DIR/rc holds its exit status once it has ended. DIR is
-# the job's: it is removed with the job.
-bg_idle() {
-    local dir=$1 idle=(chrt --idle 0)
+# bg_job DIR COMMAND [ARGS...]: run one job beside bg_start's, for whoever reads DIR: its
+# output goes to DIR/log, and DIR/rc holds its exit status once it has ended. DIR is the
+# job's: it is removed with the job (bg_job_end, or when the caller exits).
+bg_job() {
+    bg_job_dir=$1
     shift
-    bg_idle_dir=$dir
-    if ! chrt --idle 0 true 2>/dev/null; then idle=(nice -n 19); fi
-    setsid "${idle[@]}" bash -c '"${@:2}" >"$1/log" 2>&1; echo $? >"$1/rc.tmp"; mv "$1/rc.tmp" "$1/rc"' \
-        _ "$dir" "$@" &
-    bg_idle_pid=$!
-    bg_groups+=("$bg_idle_pid")
+    setsid bash -c '"${@:2}" >"$1/log" 2>&1; echo $? >"$1/rc.tmp"; mv "$1/rc.tmp" "$1/rc"' \
+        _ "$bg_job_dir" "$@" &
+    bg_job_pid=$!
+    bg_groups+=("$bg_job_pid")
 }
 
-# bg_idle_stop: end the idle job, done or not (its reader is done with it), and remove DIR.
-bg_idle_stop() {
-    if [[ -z ${bg_idle_pid:-} ]]; then return 0; fi
-    kill -- -"$bg_idle_pid" 2>/dev/null || true
-    wait "$bg_idle_pid" 2>/dev/null || true
-    _bg_forget "$bg_idle_pid"
-    rm -rf "$bg_idle_dir"
-    bg_idle_dir= bg_idle_pid=
+# bg_job_wait: wait for it; exit loudly, with its output, if it failed.
+bg_job_wait() {
+    wait "$bg_job_pid" || true
+    _bg_forget "$bg_job_pid"
+    if [[ $(cat "$bg_job_dir/rc" 2>/dev/null) != 0 ]]; then
+        cat "$bg_job_dir/log"
+        echo "error: the background job writing $bg_job_dir failed (its output is above)" >&2
+        exit 1
+    fi
+}
+
+# bg_job_end: remove its DIR (its reader is done with it).
+bg_job_end() {
+    if [[ -n ${bg_job_dir:-} ]]; then rm -rf "$bg_job_dir"; fi
+    bg_job_dir=
 }

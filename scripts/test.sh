@@ -25,21 +25,26 @@ bash scripts/setup-python.sh
 # other, and it is done before pytest starts (its output is shown then; killed if a check fails).
 source scripts/background.sh
 bg_start bash scripts/setup-ray.sh
-# The portable wheel (zig links it anew: about 2 minutes of both cores) builds from here on the
-# CPU time the checks and the tests leave idle (many tests wait on envs that sleep);
-# tests/python/test_wheel.py takes it from ROGUE_GYM_WHEEL_JOB, waiting for it if need be.
+# The portable wheel (zig links it anew: about 2 minutes of both cores) builds meanwhile too,
+# on what the type checks and Ray's pip leave of the cores, and is done before pytest starts
+# (nothing then competes with the tests' timings); tests/python/test_wheel.py takes it from
+# ROGUE_GYM_WHEEL_JOB.
 if [[ ${ROGUE_GYM_SKIP_WHEEL:-} != 1 ]]; then
     ROGUE_GYM_WHEEL_JOB=$(mktemp -d)
     export ROGUE_GYM_WHEEL_JOB
-    bg_idle "$ROGUE_GYM_WHEEL_JOB" bash scripts/build-wheel.sh "$ROGUE_GYM_WHEEL_JOB/out"
+    bg_job "$ROGUE_GYM_WHEEL_JOB" bash scripts/build-wheel.sh "$ROGUE_GYM_WHEEL_JOB/out"
 fi
 (cd python && ../.venv/bin/python -m mypy && ../.venv/bin/python -m mypy.stubtest rogue_gym._native)
 echo "== waiting for Ray's set-up ($SECONDS s into the test command)"
 bg_wait
+if [[ -n ${ROGUE_GYM_WHEEL_JOB:-} ]]; then
+    echo "== waiting for the wheel's build ($SECONDS s into the test command)"
+    bg_job_wait
+fi
 # Every test runs under a time limit (tests/python/conftest.py), so no test can hang the run.
 echo "== pytest ($SECONDS s into the test command)"
 .venv/bin/python -m pytest tests/python -q --durations=15
-bg_idle_stop # the wheel's job, if any: the tests are done with it
+bg_job_end # the wheel's, if any: the tests are done with it
 .venv/bin/ruff check python tests/python tests/ray benchmarks scripts
 .venv/bin/ruff format --check python tests/python tests/ray benchmarks scripts
 

@@ -2,9 +2,9 @@
 cargo on PATH, and used there as a user would (the pool, its workers, one game, the evaluator).
 
 Building links the extension anew with zig (a few minutes), so this module has its own time
-limit. ``scripts/test.sh`` starts the build beside the tests, on the CPU time they leave idle,
-and names its job directory in ``ROGUE_GYM_WHEEL_JOB`` (``out/`` the wheel, ``log``, and ``rc``
-once it has ended); without it the module builds the wheel itself. Set
+limit. ``scripts/test.sh`` builds it beside the type checks, before pytest, and names the
+build's directory in ``ROGUE_GYM_WHEEL_JOB`` (``out/`` the wheel, ``log``, and ``rc`` once it
+has ended); without it the module builds the wheel itself. Set
 ``ROGUE_GYM_SKIP_WHEEL=1`` to skip it in a quick local run.
 """
 
