@@ -4,8 +4,8 @@
 - ``dispatch``: 8 zero-latency envs; the figure is the consumer's cost per transition
   (recv, write the actions, send), harvesting ``--transitions`` (1,024) per round.
 - ``slow_reset``: 32 envs with 1 ms steps and a 200 ms reset every 200 steps; the env supply caps
-  it near 16k transitions/s (each env gives 200 steps per 0.4 s). This pool runs it at 1, 2, 4
-  and 8 envs per worker, with the envs on threads (``env_concurrency="threads"``) and serial.
+  it near 16k transitions/s (each env gives 200 steps per 0.4 s). This pool runs it at 1 to 32
+  envs per worker with the envs on threads (``env_concurrency="threads"``), and serial.
 - ``io``: 256 envs whose every step waits a random 2-60 ms (log-normal, median 10 ms), as envs
   that talk to a simulator or a service do; the ceiling is envs / mean latency. This pool with
   its envs on threads in 2 and 4 workers, against gymnasium's ``AsyncVectorEnv`` (a process per
@@ -425,8 +425,9 @@ def systems(name: str, cores: int, quick: bool) -> dict[str, Callable[[float], f
     if name == "io":
         return io_systems(cores, quick)
     if name == "slow_reset":
-        # Envs on threads at 1, 2, 4 and 8 envs per worker, serial at 2 and 4 beside them.
-        for per in [1, 2, 4, 8] if not quick else [4]:
+        # Envs on threads at 1 to 32 envs per worker (the four, and the fewest workers,
+        # which suit envs that wait: docs/performance.md), serial at 2 and 4 beside them.
+        for per in [1, 2, 4, 8, 16, 32] if not quick else [4]:
             w = n // per
             out[f"rogue_gym async, threads, {per} env/worker ({w} workers)"] = lambda s, w=w: (
                 run_pool(name, s, w, False, None, "threads")
