@@ -1,10 +1,11 @@
-"""Shared fixtures: envs that are always closed, leak checks for pools, SIGINT delivery, and a
-time limit on every test."""
+"""Shared fixtures: envs that are always closed, leak checks for pools, SIGINT delivery, a
+time limit on every test, and SB3's log folders kept out of the shared temporary directory."""
 
 from __future__ import annotations
 
 import os
 import signal
+import tempfile
 import time
 from collections.abc import Iterator
 from typing import Any, Callable
@@ -24,6 +25,23 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if item.get_closest_marker("timeout") is None:
             item.add_marker(pytest.mark.timeout(TEST_TIMEOUT_S))
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _sb3_log_folder() -> Iterator[None]:
+    """SB3 makes a log folder for every model set up without one, under the system's
+    temporary directory (``SB3-<date and time>``, left behind); the suite's go to a private
+    folder of its own (``SB3_LOGDIR``), removed when the suite ends."""
+    old = os.environ.get("SB3_LOGDIR")
+    with tempfile.TemporaryDirectory(prefix="rogue-gym-sb3-") as folder:
+        os.environ["SB3_LOGDIR"] = folder
+        try:
+            yield
+        finally:
+            if old is None:
+                os.environ.pop("SB3_LOGDIR", None)
+            else:
+                os.environ["SB3_LOGDIR"] = old
 
 
 @pytest.fixture
