@@ -24,27 +24,26 @@ bash scripts/setup-python.sh
 # Ray's venv is installed meanwhile: its pip runs on one core while the type checks run on the
 # other, and it is done before pytest starts (its output is shown then; killed if a check fails).
 source scripts/background.sh
-bg_start bash scripts/setup-ray.sh
+bg_start ray bash scripts/setup-ray.sh
 # The portable wheel (zig links it anew: about 2 minutes of both cores) builds meanwhile too,
 # on what the type checks and Ray's pip leave of the cores, and is done before pytest starts
 # (nothing then competes with the tests' timings); tests/python/test_wheel.py takes it from
-# ROGUE_GYM_WHEEL_JOB.
+# ROGUE_GYM_WHEEL_DIR.
 if [[ ${ROGUE_GYM_SKIP_WHEEL:-} != 1 ]]; then
-    ROGUE_GYM_WHEEL_JOB=$(mktemp -d)
-    export ROGUE_GYM_WHEEL_JOB
-    bg_job "$ROGUE_GYM_WHEEL_JOB" bash scripts/build-wheel.sh "$ROGUE_GYM_WHEEL_JOB/out"
+    bg_temp_dir ROGUE_GYM_WHEEL_DIR
+    export ROGUE_GYM_WHEEL_DIR
+    bg_start wheel bash scripts/build-wheel.sh "$ROGUE_GYM_WHEEL_DIR"
 fi
 (cd python && ../.venv/bin/python -m mypy && ../.venv/bin/python -m mypy.stubtest rogue_gym._native)
 echo "== waiting for Ray's set-up ($SECONDS s into the test command)"
-bg_wait
-if [[ -n ${ROGUE_GYM_WHEEL_JOB:-} ]]; then
+bg_wait ray
+if [[ ${ROGUE_GYM_SKIP_WHEEL:-} != 1 ]]; then
     echo "== waiting for the wheel's build ($SECONDS s into the test command)"
-    bg_job_wait
+    bg_wait wheel
 fi
 # Every test runs under a time limit (tests/python/conftest.py), so no test can hang the run.
 echo "== pytest ($SECONDS s into the test command)"
 .venv/bin/python -m pytest tests/python -q --durations=15
-bg_job_end # the wheel's, if any: the tests are done with it
 .venv/bin/ruff check python tests/python tests/ray benchmarks scripts
 .venv/bin/ruff format --check python tests/python tests/ray benchmarks scripts
 
