@@ -2,8 +2,9 @@
 //! as `python -m rogue_gym.worker`). One file per API, as the pool crate's supervisor is split:
 //! [`sync_api`] (whole-batch steps and resets into shared batch slots), [`async_api`]
 //! (EnvPool-style `send`/`recv`, env by env), [`env_calls`] (env operations off the hot path),
-//! [`results`] (every call's result in one form: columns, summary and extra info) and
-//! [`actions`]; this file holds the pool's life, statistics and introspection.
+//! [`results`] (what every call's result shares: the `recv` columns, the joined extra info) and
+//! [`actions`] (the caller's actions, owned for a call without the GIL); this file holds the
+//! pool's life, statistics and introspection.
 
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};

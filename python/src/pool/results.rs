@@ -1,16 +1,16 @@
-//! Every call's result in one form: per-env values as columns (a whole-batch call's in its
-//! batch slot, where the workers wrote them; a `recv`'s written into the `recv` column
-//! buffer), a summary (`SUMMARY_*` bits), and the extra info (hosted envs' infos), all from
-//! the same native call.
+//! What the results of every call share: per-env values are columns (a whole-batch call's in
+//! its batch slot, where the workers wrote them, read in place: `sync_api.rs`; a `recv`'s
+//! written here into the `recv` column buffer), a summary (`SUMMARY_*` bits), and the extra
+//! info (hosted envs' infos) joined here, all from the same native call.
 
 use numpy::PyUntypedArray;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
-use rogue_gym_pool::{EXTRA_HEAD, Received, SlotAnswer, SlotExtras};
+use rogue_gym_pool::{EXTRA_HEAD, Received};
 
 use super::PyPool;
-use crate::columns::{SUMMARY_FINAL, SUMMARY_RESTARTED, raw_bytes, recv_layout};
+use crate::columns::{SUMMARY_RESTARTED, raw_bytes, recv_layout};
 
 /// The joined extra info of a call: `(rows, data, size, ends)`. `rows`: the rows (env ids
 /// for whole-batch calls) of the envs that wrote some, or `None` when every row did; `data`:
@@ -24,9 +24,6 @@ pub(super) type Joined<'py> = (
     usize,
     Vec<usize>,
 );
-
-/// A whole-batch call's result: `(slot, summary, extras)`.
-pub(super) type SyncResult<'py> = (usize, usize, Option<Joined<'py>>);
 
 /// Join `(row, bytes)` extras of a call with `rows` rows (see [`Joined`]); `None` when there
 /// are none.
@@ -90,30 +87,6 @@ impl PyPool {
         } else {
             0
         })
-    }
-
-    /// The result of a whole-batch call: the slot the workers wrote every row of in place,
-    /// the `SUMMARY_*` bits, and the extra info (`None`; `(None, None, size, [])` when every
-    /// env wrote `size` bytes of one layout into its room of the slot's extra area; or the
-    /// joined extras of the envs that wrote some, when they are not of one layout).
-    pub(super) fn sync_result<'py>(
-        &self,
-        py: Python<'py>,
-        answer: SlotAnswer,
-    ) -> PyResult<SyncResult<'py>> {
-        let mut summary = 0;
-        if answer.restarted {
-            summary |= SUMMARY_RESTARTED;
-        }
-        if answer.final_obs {
-            summary |= SUMMARY_FINAL;
-        }
-        let extras = match answer.extras {
-            SlotExtras::None => None,
-            SlotExtras::Uniform(size) => Some((None, None, size, Vec::new())),
-            SlotExtras::Rows(rows) => join_extras(py, &rows, self.num_envs)?,
-        };
-        Ok((answer.slot, summary, extras))
     }
 }
 
