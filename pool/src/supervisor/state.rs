@@ -3,7 +3,7 @@
 
 use std::time::{Duration, Instant};
 
-use super::slot_answers::SlotCollect;
+use super::stepping::SentCall;
 use crate::error::{PoolError, WorkerFailure};
 
 /// The call in progress: its bound, its failures so far, and a whole-batch call sent and not
@@ -29,17 +29,6 @@ pub(super) struct CallInFlight {
     pub(super) wait_now: Option<rogue_gym_ipc::WaitPolicy>,
 }
 
-/// A whole-batch call (step, reset, partial reset) sent to every worker: its slot, when it was
-/// sent, and its answers taken so far.
-pub(super) struct SentCall {
-    /// When it was sent, and the same on the clock the workers stamp their answers with
-    /// (`CLOCK_MONOTONIC`, ns).
-    pub(super) at: Instant,
-    pub(super) at_ns: u64,
-    /// Its answers so far (the slot they are written in, among them).
-    pub(super) answers: SlotCollect,
-}
-
 impl CallInFlight {
     /// A call in flight from now on: no failure, nothing sent.
     pub(super) fn new() -> Self {
@@ -52,15 +41,6 @@ impl CallInFlight {
             expected_answer: None,
             wait_now: None,
         }
-    }
-
-    /// A whole-batch call into slot `slot` was just sent to every worker.
-    pub(super) fn sent_to_all(&mut self, slot: usize) {
-        self.sent = Some(SentCall {
-            at: Instant::now(),
-            at_ns: rogue_gym_ipc::monotonic_ns(),
-            answers: SlotCollect::new(slot),
-        });
     }
 }
 
@@ -75,6 +55,17 @@ pub(super) struct AsyncState {
     pub(super) whole_blocks: bool,
 }
 
+impl AsyncState {
+    /// Not in use yet, over `envs`.
+    pub(super) fn new(envs: super::async_envs::AsyncEnvs, whole_blocks: bool) -> Self {
+        AsyncState {
+            envs,
+            on: false,
+            whole_blocks,
+        }
+    }
+}
+
 /// Worker failures over the pool's life, and what they leave to do.
 pub(super) struct Failures {
     /// Worker restarts, and deaths and hangs (under either policy).
@@ -86,7 +77,20 @@ pub(super) struct Failures {
     pub(super) must_reset: bool,
 }
 
+impl Failures {
+    /// None yet; the envs must be reset first.
+    pub(super) fn new() -> Self {
+        Failures {
+            restarts: 0,
+            deaths: 0,
+            last_failure: None,
+            must_reset: true,
+        }
+    }
+}
+
 /// Workers replaced by plan ([`super::recycling`]).
+#[derive(Default)]
 pub(super) struct Recycling {
     /// The envs whose worker was replaced by plan during the last call
     /// ([`crate::Pool::recycled_envs`]).

@@ -5,13 +5,36 @@
 //! wait ([`Pool::wait`]); [`Pool::step`] and [`Pool::reset`] are the two at once.
 //! [`Pool::read_slot`] copies an answer's rows out, for callers that want copies.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use super::Pool;
 use super::actions::Actions;
+use super::slot_answers::SlotCollect;
 use crate::batch::{BatchOutput, SlotAnswer, SlotExtras};
 use crate::error::PoolError;
 use crate::wire::slot_layout::{SlotLayout, SlotRows};
+
+/// A whole-batch call (step, reset, partial reset) sent to every worker and not yet collected
+/// (the supervisor's `call.sent`): its slot, when it was sent, and its answers taken so far.
+pub(super) struct SentCall {
+    /// When it was sent, and the same on the clock the workers stamp their answers with
+    /// (`CLOCK_MONOTONIC`, ns).
+    at: Instant,
+    at_ns: u64,
+    /// Its answers so far (the slot they are written in, among them).
+    answers: SlotCollect,
+}
+
+impl SentCall {
+    /// A whole-batch call into slot `slot`, sent to every worker just now.
+    fn now(slot: usize) -> Self {
+        SentCall {
+            at: Instant::now(),
+            at_ns: rogue_gym_ipc::monotonic_ns(),
+            answers: SlotCollect::new(slot),
+        }
+    }
+}
 
 impl Pool {
     /// Step every env: `actions[i]` for env `i` (indices, `&[i64]`, or any [`Actions`]), and
@@ -66,7 +89,7 @@ impl Pool {
             let rows = self.sup.blocks[k].clone();
             self.send_or_fail(|c| c.send_step(k, actions.rows(rows, ab), slot as u32 + 1))?;
         }
-        self.sup.call.sent_to_all(slot);
+        self.sup.call.sent = Some(SentCall::now(slot));
         Ok(slot)
     }
 
@@ -114,7 +137,7 @@ impl Pool {
         if mask.is_none() {
             self.sup.failures.must_reset = false;
         }
-        self.sup.call.sent_to_all(slot);
+        self.sup.call.sent = Some(SentCall::now(slot));
         Ok(slot)
     }
 
@@ -136,7 +159,7 @@ impl Pool {
                 "no step or reset is pending: send_step() or send_reset() first".into(),
             ));
         };
-        let until = timeout.map(|t| std::time::Instant::now() + t);
+        let until = timeout.map(|t| Instant::now() + t);
         let workers = self.sup.workers.len();
         self.sup.call.wait_now = self.sup.expected_wait(sent.at);
         let mut polls = 0;
