@@ -219,25 +219,7 @@ impl Pool {
             num_workers: cfg.num_workers,
             max_borrowed: cfg.max_borrowed,
         };
-        let wcfg = WorkerConfig {
-            pool_name: id.name().to_string(),
-            runtime_dir,
-            num_envs: cfg.num_envs,
-            num_workers: cfg.num_workers,
-            env: cfg.env.clone(),
-            seeds: cfg.seeds.clone(),
-            autoreset: cfg.autoreset,
-            max_borrowed: cfg.max_borrowed,
-            poll_budget_us: cfg.worker_wait.poll_budget.as_micros() as u64,
-            block_slice_ms: cfg.worker_wait.block_slice.as_millis() as u64,
-            poll_yield: cfg.worker_wait.yield_cpu,
-            batch_slots: cfg.batch_slots,
-            block_unit: cfg.block_unit,
-            cpu_cores: pinned,
-            streaming_stores: cfg.streaming_stores,
-            env_threads: cfg.env_threads,
-            sabotage: cfg.sabotage.clone(),
-        };
+        let wcfg = WorkerConfig::new(&cfg, id.name(), runtime_dir, pinned);
         let config_path = id.aux_dir().join("worker.json");
         let num_workers = cfg.num_workers;
         let concurrent = cfg.env_threads > 0 && !whole_blocks;
@@ -271,20 +253,9 @@ impl Pool {
                 worker_config: None,
                 started: false,
                 call: CallInFlight::new(),
-                async_api: AsyncState {
-                    envs,
-                    on: false,
-                    whole_blocks,
-                },
-                failures: Failures {
-                    restarts: 0,
-                    deaths: 0,
-                    last_failure: None,
-                    must_reset: true,
-                },
-                recycling: Recycling {
-                    replaced_envs: Vec::new(),
-                },
+                async_api: AsyncState::new(envs, whole_blocks),
+                failures: Failures::new(),
+                recycling: Recycling::default(),
                 stats: None,
                 counts: Vec::new(),
             },
@@ -316,31 +287,7 @@ impl Pool {
             // An action per env, and for a SUBSET step one word per env more.
             let words = c.blocks[k].len() * (c.spec.action_words() + 1);
             let ports = SupervisorPorts::new(&node, k, words, &c.settings)?;
-            c.workers.push(WorkerLink {
-                ports,
-                child: None,
-                pid: 0,
-                generation: 0,
-                seq: 0,
-                state: LinkState::Idle,
-                restarted: false,
-                served: 0,
-                sent_before: 0,
-                successor: None,
-                recycled: false,
-                rss_read: None,
-                rss: 0,
-                rss_growth: 0,
-                recycle_pause: None,
-                partial: false,
-                cut: false,
-                restart_streak: 0,
-                delivered: None,
-                first_episodes: true,
-                stderr_path: PathBuf::new(),
-                target: 0,
-                action_extras: None,
-            });
+            c.workers.push(WorkerLink::new(ports));
         }
         c.node = Some(node);
         self.begin_call()?;

@@ -94,6 +94,37 @@ pub(super) struct WorkerLink {
     pub(super) partial: bool,
 }
 
+impl WorkerLink {
+    /// The link to a worker not started yet, over its `ports`.
+    pub(super) fn new(ports: SupervisorPorts) -> Self {
+        WorkerLink {
+            ports,
+            child: None,
+            pid: 0,
+            generation: 0,
+            seq: 0,
+            state: LinkState::Idle,
+            restarted: false,
+            served: 0,
+            sent_before: 0,
+            successor: None,
+            recycled: false,
+            rss_read: None,
+            rss: 0,
+            rss_growth: 0,
+            recycle_pause: None,
+            partial: false,
+            cut: false,
+            restart_streak: 0,
+            delivered: None,
+            first_episodes: true,
+            stderr_path: PathBuf::new(),
+            target: 0,
+            action_extras: None,
+        }
+    }
+}
+
 /// The longest wait before a restart.
 const MAX_BACKOFF: Duration = Duration::from_secs(2);
 

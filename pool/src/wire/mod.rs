@@ -18,7 +18,7 @@ use rogue_gym_ipc::ChannelSettings;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
-use crate::config::AutoresetMode;
+use crate::config::{AutoresetMode, PoolConfig};
 pub use crate::error::EnvFault;
 use crate::seeds::SeedSchedule;
 pub(crate) use command::{Command, Op, Pace, Serve};
@@ -200,6 +200,35 @@ fn default_true() -> bool {
 }
 
 impl WorkerConfig {
+    /// What the workers of pool `pool_name` (in `runtime_dir`) are told of `cfg`; `cpu_cores`:
+    /// the core of each worker, when the pool pins them.
+    pub fn new(
+        cfg: &PoolConfig,
+        pool_name: &str,
+        runtime_dir: PathBuf,
+        cpu_cores: Option<Vec<usize>>,
+    ) -> Self {
+        WorkerConfig {
+            pool_name: pool_name.to_string(),
+            runtime_dir,
+            num_envs: cfg.num_envs,
+            num_workers: cfg.num_workers,
+            env: cfg.env.clone(),
+            seeds: cfg.seeds.clone(),
+            autoreset: cfg.autoreset,
+            max_borrowed: cfg.max_borrowed,
+            poll_budget_us: cfg.worker_wait.poll_budget.as_micros() as u64,
+            block_slice_ms: cfg.worker_wait.block_slice.as_millis() as u64,
+            poll_yield: cfg.worker_wait.yield_cpu,
+            batch_slots: cfg.batch_slots,
+            block_unit: cfg.block_unit,
+            cpu_cores,
+            streaming_stores: cfg.streaming_stores,
+            env_threads: cfg.env_threads,
+            sabotage: cfg.sabotage.clone(),
+        }
+    }
+
     /// The envs worker `k` hosts ([`block_range_of`]).
     pub fn envs_of(&self, k: usize) -> std::ops::Range<usize> {
         block_range_of(self.num_envs, self.num_workers, k, self.block_unit)
