@@ -47,6 +47,8 @@ HEADER_BYTES = _HEADER.size
 #: groups extra infos that share them (``rogue_gym._native.EXTRA_HEAD``, written once there).
 HEAD: int = _native.EXTRA_HEAD
 assert HEAD <= HEADER_BYTES, "the head lies inside a row's header"
+#: Where a row's structure hash lies: after its magic, tag and padding, to the head's end.
+_HASH = slice(struct.calcsize("<4sB3x"), HEAD)
 TAGS = ("reset", "step")
 #: The entries that carry the values of an observation's dynamic leaves (a list, in the order
 #: of ``SpaceLayout.dynamic``): of the step's observation, and of the reset's. Always pickled.
@@ -387,12 +389,12 @@ class InfoDecoder:
 
     def _layout(self, data: bytes) -> _Decoded:
         head = data[:HEADER_BYTES]
-        layout = self._layouts.get(head[8:16])
+        layout = self._layouts.get(head[_HASH])
         if layout is None:
             _, _, _, length = _HEADER.unpack(head)
             structure = pickle.loads(data[HEADER_BYTES : HEADER_BYTES + length])
             layout = _Decoded(structure, HEADER_BYTES + length + (-length % 8))
-            self._layouts[head[8:16]] = layout
+            self._layouts[head[_HASH]] = layout
         return layout
 
     def entries(self, data: bytes) -> list[tuple[str, Any]]:
@@ -445,7 +447,7 @@ class InfoDecoder:
         for row, data in rows:
             if data[:4] != MAGIC:
                 return False
-            groups.setdefault(data[8:16], []).append((row, data))
+            groups.setdefault(data[_HASH], []).append((row, data))
         # The group holding the lowest row of a key decides its dtype, as env order does in
         # gymnasium: groups are taken by their lowest row.
         for group in sorted(groups.values(), key=lambda g: g[0][0]):
