@@ -16,7 +16,9 @@
 //! `Supervisor::poll_all`), takes each answer and checks it
 //! (`slot_answers.rs`), and returns a [`crate::SlotAnswer`]: the slot, and whether to read
 //! final observations, restarts or extra info. The Python front reads the slot's rows as
-//! numpy views (`python/src/pool/sync_api.rs`, `python/rogue_gym/front/core.py`).
+//! numpy views (`python/src/pool/sync_api.rs`, `python/rogue_gym/front/core.py`). Every file a
+//! step runs code in, with its functions, is measured by `benchmarks/walk.py`
+//! (`benchmarks/results/walk/walk-step.md`).
 //!
 //! The async API (`async_api.rs`: `send`/`recv`, env by env) sends the same commands, a
 //! subset of a block's envs at a time, and turns answers into ready envs
