@@ -256,22 +256,14 @@ impl Supervisor {
         Ok(())
     }
 
-    /// Turn the workers' answers into ready envs, in the order they became ready, and send
-    /// what is staged to the workers that are free.
+    /// Turn the workers' answers into ready envs (the ready set orders them by when they were
+    /// sent: `async_envs.rs`), and send what is staged to the workers that are free.
     pub(super) fn absorb(&mut self) -> Result<(), PoolError> {
         if !self.arrived.is_empty() {
-            let mut arrived: Vec<(u64, usize)> = self
-                .arrived
-                .drain(..)
-                .map(|k| match &self.workers[k].state {
-                    LinkState::Ready(s) => (s.user_header().ready_ns, k),
-                    _ => (u64::MAX, k),
-                })
-                .collect();
-            arrived.sort_unstable();
+            let arrived: Vec<usize> = self.arrived.drain(..).collect();
             // Keep one sample of each worker for the next answer and one for the caller's.
             let keep = self.cfg.max_borrowed.saturating_sub(2);
-            for (_, k) in arrived {
+            for k in arrived {
                 let target = self.workers[k].target;
                 if target != 0 && !self.workers[k].restarted {
                     if let Some(apart) = self.take_in_place(k)? {

@@ -1,5 +1,11 @@
-//! The async API's envs, one by one: where each env stands ([`Turn`]), the queue of ready envs
-//! in the order they became ready, and the worker blocks that hold their results.
+//! The async API's envs, one by one: where each env stands ([`Turn`]), the set of ready envs
+//! in the order they were sent, and the worker blocks that hold their results.
+//!
+//! Service is fair by rule: among the envs that are ready, the one sent first (the one that
+//! has waited longest since its send) is handed over first, whatever its worker and whenever
+//! its answer arrived. Each env sent gets the next ticket of one counter (envs of one `send`
+//! in the order given); the ready set is ordered by ticket. A worker that runs late (a busy
+//! machine) then loses no turns: its envs, once answered, go before envs sent after them.
 //!
 //! Workers still answer one command at a time; this layer turns their answers into envs. An
 //! env sent while its worker is busy is *staged* and goes with the worker's next command, with
@@ -14,7 +20,7 @@
 //! are one run of envs in one slot hands them over as a view ([`Received::view`]), any other
 //! is gathered. Resets and restarts answer by block (a restart resets envs the caller holds).
 
-use std::collections::VecDeque;
+use std::collections::{BTreeMap, VecDeque};
 
 use crate::batch::Block;
 use crate::wire::layout::EnvRecord;
@@ -101,7 +107,11 @@ pub(super) struct AsyncEnvs {
     pub(super) num_staged: usize,
     /// The envs of each worker's outstanding command.
     pub(super) sent: Vec<Vec<usize>>,
-    ready: VecDeque<usize>,
+    /// The ready envs by ticket: the first is the one sent first.
+    ready: BTreeMap<u64, usize>,
+    /// Each env's ticket (from its last send), and the next ticket to give.
+    ticket: Vec<u64>,
+    next_ticket: u64,
     rows: Vec<Option<Row>>,
     /// Its result answers a replacement by plan of its worker (`worker_recycled`).
     recycled: Vec<bool>,
@@ -146,7 +156,9 @@ impl AsyncEnvs {
             aw,
             num_staged: 0,
             sent: vec![Vec::new(); num_workers],
-            ready: VecDeque::new(),
+            ready: BTreeMap::new(),
+            ticket: vec![0; num_envs],
+            next_ticket: 0,
             rows: (0..num_envs).map(|_| None).collect(),
             restarted: (0..num_envs).map(|_| None).collect(),
             recycled: vec![false; num_envs],
@@ -172,6 +184,18 @@ impl AsyncEnvs {
         self.staged_of.fill(0);
         self.caller_slot.fill(None);
         self.partial.fill(None);
+    }
+
+    /// Env `e` was sent just now: it takes the next ticket.
+    fn take_ticket(&mut self, e: usize) {
+        self.ticket[e] = self.next_ticket;
+        self.next_ticket += 1;
+    }
+
+    /// Env `e`'s result is ready: in the ready set at its ticket.
+    fn push_ready(&mut self, e: usize) {
+        self.turn[e] = Turn::Ready;
+        self.ready.insert(self.ticket[e], e);
     }
 
     /// Envs whose result is ready.
@@ -239,8 +263,7 @@ impl AsyncEnvs {
                 .map(|i| apart.swap_remove(i).1);
             self.recycled[e] = false;
             self.rows[e] = Some(Row::InSlot { slot, apart: mine });
-            self.turn[e] = Turn::Ready;
-            self.ready.push_back(e);
+            self.push_ready(e);
         }
         Ok(())
     }
@@ -258,6 +281,7 @@ impl AsyncEnvs {
     pub(super) fn all_in_flight(&mut self, k: usize, envs: std::ops::Range<usize>) {
         for e in envs.clone() {
             self.turn[e] = Turn::InFlight;
+            self.take_ticket(e);
         }
         self.sent[k] = envs.collect();
     }
@@ -266,10 +290,10 @@ impl AsyncEnvs {
     /// make its restart's first observation ready at once (the action is dropped, as a
     /// restarted env drops it in a sync step). Returns whether it was staged.
     pub(super) fn stage(&mut self, e: usize, words: &[u64]) -> bool {
+        self.take_ticket(e);
         if let Some(c) = self.restarted[e].take() {
             self.rows[e] = Some(Row::Copied(c));
-            self.turn[e] = Turn::Ready;
-            self.ready.push_back(e);
+            self.push_ready(e);
             return false;
         }
         self.staged[e * self.aw..(e + 1) * self.aw].copy_from_slice(words);
@@ -400,12 +424,11 @@ impl AsyncEnvs {
             self.recycled[e] = false;
             let mine = apart.next_if(|(a, _)| *a == e).map(|(_, b)| b);
             self.rows[e] = Some(Row::InSlot { slot, apart: mine });
-            self.turn[e] = Turn::Ready;
-            self.ready.push_back(e);
+            self.push_ready(e);
         }
     }
 
-    /// Hand over up to `n` ready envs, first ready first. `slots`: each batch slot's rows, to
+    /// Hand over up to `n` ready envs, the one sent first first. `slots`: each batch slot's rows, to
     /// read the rows written in place; rows that are one run of envs in one slot are handed
     /// over as a view of it (see [`Received::view`]).
     pub(super) fn take(&mut self, n: usize, obs_bytes: usize, slots: &[SlotRows]) -> Received {
@@ -422,7 +445,7 @@ impl AsyncEnvs {
             view: None,
         };
         for r in 0..n {
-            let Some(e) = self.ready.pop_front() else {
+            let Some((_, e)) = self.ready.pop_first() else {
                 break;
             };
             self.turn[e] = Turn::Caller;
@@ -475,12 +498,12 @@ impl AsyncEnvs {
     /// order, written in place in one slot, with no extra info apart (else `None`, nothing
     /// taken). Extra info in the rows' rooms is copied out (`extras`).
     fn take_view(&mut self, n: usize, slots: &[SlotRows]) -> Option<Received> {
-        let first = *self.ready.front()?;
+        let (_, &first) = self.ready.first_key_value()?;
         let slot = match self.rows[first] {
             Some(Row::InSlot { slot, apart: None }) => slot,
             _ => return None,
         };
-        let run = self.ready.iter().take(n).enumerate().all(|(i, &e)| {
+        let run = self.ready.values().take(n).enumerate().all(|(i, &e)| {
             e == first + i
                 && !self.recycled[e]
                 && matches!(self.rows[e], Some(Row::InSlot { slot: s, apart: None }) if s == slot)
@@ -489,7 +512,10 @@ impl AsyncEnvs {
             return None;
         }
         let w = slots.get(slot)?;
-        let env_ids: Vec<usize> = self.ready.drain(..n).collect();
+        let env_ids: Vec<usize> = (0..n)
+            .filter_map(|_| self.ready.pop_first())
+            .map(|(_, e)| e)
+            .collect();
         let mut extras = Vec::new();
         let mut records = Vec::with_capacity(n);
         for (r, &e) in env_ids.iter().enumerate() {
@@ -538,8 +564,7 @@ impl AsyncEnvs {
     fn make_ready(&mut self, e: usize, b: usize, j: usize) {
         self.rows[e] = Some(Row::Held { b, j });
         self.use_block(b);
-        self.turn[e] = Turn::Ready;
-        self.ready.push_back(e);
+        self.push_ready(e);
     }
 
     /// A row is no longer needed: its block goes once no ready env needs it.
