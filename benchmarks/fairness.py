@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from common import write_results
 
 RESULTS = Path(__file__).resolve().parent / "results" / "fairness"
@@ -74,7 +75,9 @@ def main() -> int:
         for r in range(args.runs):
             got = one_run(kind, args.recvs)
             runs.append(got)
-            print(f"{kind} run {r + 1}: worst {got['worst']:.1%} counts {got['per_env']}", flush=True)
+            print(
+                f"{kind} run {r + 1}: worst {got['worst']:.1%} counts {got['per_env']}", flush=True
+            )
         worst = max(g["worst"] for g in runs)
         ok = sum(g["worst"] <= 0.10 for g in runs)
         rows.append(

@@ -43,6 +43,13 @@ mod symbol;
 mod tests;
 
 pub use action::{ACTION_KEYS, Action, Command, NUM_ACTIONS};
+
+/// The version of the games this engine plays, as benchmark results record it: raised by one
+/// whenever any seed's dungeon or any rule changes (whatever changes what an episode plays),
+/// so that scores of different versions are never mixed. `tests/determinism.rs` holds a digest
+/// of games played under each version: a change that alters them fails there until this is
+/// raised and the digest recorded beside it. The CHANGELOG says what each version changed.
+pub const ENGINE_VERSION: u32 = 1;
 pub use config::{ConfigError, GameConfig};
 pub use dump::{FloorRecord, floor_records};
 pub use game::{EpisodeConfig, EpisodeInfo, Game, StepResult};

@@ -1,7 +1,8 @@
 //! Same config + seed + actions => identical game; different seeds differ.
 
 use rogue_gym_engine::{
-    Action, EpisodeConfig, Game, GameConfig, ObsBufMut, ObsSpec, StatusFlags, splitmix64,
+    Action, ENGINE_VERSION, EpisodeConfig, Game, GameConfig, ObsBufMut, ObsSpec, StatusFlags,
+    splitmix64,
 };
 
 /// FNV-1a over every observation (one-hot + status + history) and reward of a long random
@@ -55,6 +56,26 @@ fn digest(cfg: &GameConfig, seed: u64, steps: u32) -> u64 {
         }
     }
     h
+}
+
+/// The digest of the games [`ENGINE_VERSION`] plays: the paper's config and the default one,
+/// a few seeds, every observation and reward of 2,000 random steps each.
+const GAMES_OF_VERSION: (u32, u64) = (1, 896_879_069_792_266_738);
+
+#[test]
+fn the_engine_version_names_the_games_it_plays() {
+    let mut h = 0u64;
+    for cfg in [GameConfig::paper(), GameConfig::default()] {
+        for seed in [0, 1, 12345] {
+            h = splitmix64(h ^ digest(&cfg, seed, 2000));
+        }
+    }
+    assert_eq!(
+        (ENGINE_VERSION, h),
+        GAMES_OF_VERSION,
+        "the games changed (a dungeon or a rule): raise ENGINE_VERSION (engine/src/lib.rs), \
+         record the new digest here and say in the CHANGELOG what changed"
+    );
 }
 
 #[test]

@@ -13,6 +13,7 @@ _SyncResult: TypeAlias = tuple[int, int, Optional[_Joined]]
 __all__ = [
     "ACTION_KEYS",
     "BOOL_INFO_NAMES",
+    "ENGINE_VERSION",
     "EXTRA_HEAD",
     "NUM_ACTIONS",
     "PAPER_CONFIG_JSON",
@@ -37,6 +38,8 @@ __all__ = [
 __version__: str
 ACTION_KEYS: str
 NUM_ACTIONS: int
+#: The version of the games the engine plays (raised when a dungeon or a rule changes).
+ENGINE_VERSION: int
 PAPER_CONFIG_JSON: str
 SUMMARY_RESTARTED: int
 SUMMARY_FINAL: int

@@ -54,16 +54,22 @@ import time
 from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence
 
+import numpy as np
+
+from .agents import ReferenceAgent
 from .scoring.episodes import InProcessVec, run_episodes
 from .scoring.policies import NUM_ACTIONS, Policy, RandomPolicy, load_policy
 from .scoring.reports import (
     describe_manifest,
     per_seed_rows,
     seed_manifest,
+    strata_rows,
     write_manifest,
     write_results,
 )
-from .scoring.stats import AgentResult, bootstrap_ci
+from .scoring.runs import iqm
+from .scoring.stats import AgentResult, bootstrap_ci, gap_ci, normalized
+from .scoring.versions import result_versions
 from .suites import Suite, get_suite, suite_names
 
 __all__ = [
@@ -83,6 +89,15 @@ __all__ = [
 ]
 
 
+#: The splits of a suite an evaluation scores: the unseen test seeds and the training seeds.
+SPLITS = ("test", "train")
+
+
+def _split_seeds(suite: Suite, split: str, limit: Optional[int]) -> List[int]:
+    seeds = suite.test_seed_list() if split == "test" else suite.train_seed_list()
+    return seeds if limit is None else seeds[: int(limit)]
+
+
 def evaluate(
     suite: Suite,
     policy_spec: str = "random",
@@ -99,58 +114,77 @@ def evaluate(
     with_manifest: bool = True,
     progress: bool = True,
     backend: str = "pool",
+    with_reference: bool = True,
+    with_train: bool = True,
 ) -> Dict[str, Any]:
     """Evaluate a policy on ``suite``; returns the summary dict written to ``summary.json``.
 
     ``policy`` (a callable) takes precedence over ``policy_spec``. ``seeds_limit`` keeps the
-    first K test seeds (quick runs; say so when quoting numbers).
+    first K seeds of each split (quick runs; say so when quoting numbers). The policy plays
+    the test seeds and (``with_train``) the training seeds; the random agent and the reference
+    agent (:class:`rogue_gym.agents.ReferenceAgent`: deterministic, so one episode per seed
+    stands for all) play the same seeds, and scores are normalized between them.
     """
     if policy is None:
         policy = load_policy(policy_spec)
     # A policy that reads one observation only (a trained network: symbol indices) says so.
     obs = getattr(policy, "required_obs", obs)
     is_random = policy_spec == "random" and isinstance(policy, RandomPolicy)
-    seeds = suite.test_seed_list()
-    if seeds_limit is not None:
-        seeds = seeds[: int(seeds_limit)]
+    is_reference = isinstance(policy, ReferenceAgent)
+    name = "random" if is_random else policy_spec
     e_per = int(episodes_per_seed or suite.episodes_per_seed)
     common: Dict[str, Any] = dict(
         suite=suite,
-        seeds=seeds,
-        episodes_per_seed=e_per,
         num_envs=num_envs,
         num_workers=num_workers,
-        obs=obs,
         policy_seed=policy_seed,
         progress=progress,
         backend=backend,
     )
     t0 = time.perf_counter()
-    agents = [
-        AgentResult.from_returns(
-            "random" if is_random else policy_spec,
-            run_episodes(policy=policy, desc=f"{suite.name} policy", **common),
-            confidence,
-            bootstrap_seed,
-        )
-    ]
-    if with_random and not is_random:
-        rnd = run_episodes(policy=RandomPolicy(), desc=f"{suite.name} random", **common)
-        agents.append(AgentResult.from_returns("random", rnd, confidence, bootstrap_seed))
+    splits = [s for s in SPLITS if with_train or s == "test"]
+    agents: Dict[str, List[AgentResult]] = {}
+    seeds_of: Dict[str, List[int]] = {}
+    for split in splits:
+        seeds = seeds_of[split] = _split_seeds(suite, split, seeds_limit)
+        runs = [(name, policy, e_per, obs)]
+        if with_random and not is_random:
+            runs.append(("random", RandomPolicy(), e_per, obs))
+        if with_reference and not is_reference:
+            ref = ReferenceAgent()
+            runs.append(("reference", ref, 1, ref.required_obs))
+        agents[split] = []
+        for who, p, e, o in runs:
+            floors = np.zeros((len(seeds), e), np.int64) if backend == "pool" else None
+            returns = run_episodes(
+                policy=p,
+                seeds=seeds,
+                episodes_per_seed=e,
+                obs=o,
+                desc=f"{suite.name} {split} {who}",
+                max_floor=floors,
+                **common,
+            )
+            scored = AgentResult.from_returns(who, returns, confidence, bootstrap_seed)
+            scored.max_floor = floors
+            agents[split].append(scored)
     elapsed = time.perf_counter() - t0
     manifest: List[Dict[str, Any]] = []
     if with_manifest:
         try:
-            manifest = seed_manifest(suite, seeds)
+            manifest = seed_manifest(suite, seeds_of["test"])
         except (ImportError, AttributeError) as exc:
             print(f"note: no seed manifest ({exc})", file=sys.stderr)
-    return {
+    result: Dict[str, Any] = {
+        "format": 2,
+        "versions": result_versions(suite),
         "suite": suite.canonical() | {"digest": suite.digest(), "description": suite.description},
         "settings": {
             "policy": policy_spec,
             "policy_seed": policy_seed,
             "episodes_per_seed": e_per,
-            "seeds": seeds,
+            "seeds": seeds_of["test"],
+            "train_seeds": seeds_of.get("train", []),
             "seeds_limit": seeds_limit,
             "num_envs": num_envs,
             "num_workers": num_workers,
@@ -163,10 +197,49 @@ def evaluate(
             "python": platform.python_version(),
             "host": platform.node(),
         },
-        "agents": [a.to_json() for a in agents],
+        "agents": [a.to_json() for a in agents["test"]],
+        "train_agents": [a.to_json() for a in agents.get("train", [])],
         "manifest": manifest,
-        "_agents": agents,
+        "_agents": agents["test"],
+        "_train_agents": agents.get("train", []),
     }
+    result.update(_headline(agents, confidence, bootstrap_seed))
+    if manifest:
+        per_seed = {a.name: a.returns.mean(axis=1) for a in agents["test"]}
+        result["strata"] = strata_rows(manifest, per_seed)
+    return result
+
+
+def _headline(
+    agents: Dict[str, List[AgentResult]], confidence: float, bootstrap_seed: int
+) -> Dict[str, Any]:
+    """The normalized scores of the policy (per split: per seed, their mean with its interval
+    and their IQM) and the generalization gap, raw and normalized; empty without the random
+    and the reference agent (or when the policy is one of them)."""
+    out: Dict[str, Any] = {"normalized": {}, "gap": {}}
+    norm: Dict[str, np.ndarray] = {}
+    for split, results in agents.items():
+        by = {a.name: a.returns.mean(axis=1) for a in results}
+        if "random" not in by or "reference" not in by:
+            continue
+        scores = normalized(results[0].returns.mean(axis=1), by["random"], by["reference"])
+        norm[split] = scores
+        mean, lo, hi = bootstrap_ci(scores, confidence=confidence, seed=bootstrap_seed)
+        out["normalized"][split] = {
+            "mean": mean,
+            "ci_low": lo,
+            "ci_high": hi,
+            "iqm": iqm(scores),
+            "per_seed": scores.tolist(),
+        }
+    if "train" in agents:
+        train, test = (agents[s][0].returns.mean(axis=1) for s in ("train", "test"))
+        gap, lo, hi = gap_ci(train, test, confidence, seed=bootstrap_seed)
+        out["gap"]["raw"] = {"value": gap, "low": lo, "high": hi}
+        if "train" in norm and "test" in norm:
+            gap, lo, hi = gap_ci(norm["train"], norm["test"], confidence, seed=bootstrap_seed)
+            out["gap"]["normalized"] = {"value": gap, "low": lo, "high": hi}
+    return out
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -178,7 +251,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--policy",
         default="random",
-        help="'random', 'module:attr' or 'checkpoint:RUN/models/frames-N.pt' (see docs)",
+        help="'random', 'reference', 'module:attr' or 'checkpoint:RUN/models/frames-N.pt'",
     )
     p.add_argument("--policy-seed", type=int, default=0)
     p.add_argument("--episodes-per-seed", type=int, default=None, help="default: the suite's")
@@ -194,6 +267,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--confidence", type=float, default=0.95)
     p.add_argument("--bootstrap-seed", type=int, default=0)
     p.add_argument("--no-random", action="store_true", help="skip the random-agent baseline")
+    p.add_argument(
+        "--no-reference", action="store_true", help="skip the reference agent (no normalized score)"
+    )
+    p.add_argument("--no-train", action="store_true", help="score the test seeds only (no gap)")
     p.add_argument("--manifest-only", action="store_true", help="write the seed manifest only")
     p.add_argument("--out", type=Path, default=None, help="output folder")
     p.add_argument("--no-progress", action="store_true")
@@ -208,6 +285,11 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Command-line entry point; returns the exit status."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv and argv[0] in ("aggregate", "compare"):
+        from .scoring.aggregate import main as runs_main
+
+        return runs_main(argv)
     args = _parser().parse_args(argv)
     suite = get_suite(args.suite)
     seeds = suite.test_seed_list()
@@ -234,6 +316,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         confidence=args.confidence,
         bootstrap_seed=args.bootstrap_seed,
         with_random=not args.no_random,
+        with_reference=not args.no_reference,
+        with_train=not args.no_train,
         progress=not args.no_progress,
         backend=args.backend,
     )
@@ -241,8 +325,19 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     out = args.out or Path(f"rogue_gym_eval/{suite.name}-{tag}")
     paths = write_results(result, out)
     print(f"suite {suite.name} (digest {suite.digest()[:12]}): {suite.description}")
-    for agent in result["_agents"]:
-        print(agent.line(args.confidence))
+    for split, key in (("test", "_agents"), ("train", "_train_agents")):
+        for agent in result[key]:
+            print(f"{split} {agent.line(args.confidence)}")
+        norm = result["normalized"].get(split)
+        if norm:
+            print(
+                f"{split} normalized (0 random, 1 reference): {norm['mean']:.3f} "
+                f"[{norm['ci_low']:.3f}, {norm['ci_high']:.3f}], IQM {norm['iqm']:.3f}"
+            )
+    for kind, gap in result["gap"].items():
+        print(
+            f"gap train - test ({kind}): {gap['value']:.3f} [{gap['low']:.3f}, {gap['high']:.3f}]"
+        )
     print(f"elapsed {result['settings']['elapsed_s']:.1f} s; wrote " + ", ".join(map(str, paths)))
     return 0
 

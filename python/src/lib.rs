@@ -89,6 +89,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     )?;
     m.add_function(wrap_pyfunction!(spec::normalize_obs_spec, m)?)?;
     m.add("NUM_ACTIONS", rogue_gym_engine::NUM_ACTIONS)?;
+    m.add("ENGINE_VERSION", rogue_gym_engine::ENGINE_VERSION)?;
     m.add("SUMMARY_RESTARTED", columns::SUMMARY_RESTARTED)?;
     m.add("SUMMARY_FINAL", columns::SUMMARY_FINAL)?;
     m.add("EXTRA_HEAD", rogue_gym_pool::EXTRA_HEAD)?;

@@ -308,13 +308,16 @@ def test_cli_policy_with_random_baseline(tmp_path: Path, capsys) -> None:
     out = capsys.readouterr().out
     assert "random:" in out and "bootstrap CI across 3 seeds" in out
     doc = json.loads((tmp_path / "o" / "summary.json").read_text())
-    assert [a["name"] for a in doc["agents"]] == [f"{pol}:act", "random"]
+    # The policy, then the random and the reference agent on the same seeds.
+    assert [a["name"] for a in doc["agents"]] == [f"{pol}:act", "random", "reference"]
     assert doc["suite"]["digest"] == SUITE.digest()
     assert np.asarray(doc["agents"][0]["returns"]).shape == (3, 2)
     # A deterministic policy on one seed: every episode of that seed is the same.
     assert all(len(set(r)) == 1 for r in doc["agents"][0]["returns"])
     rows = list(csv.DictReader((tmp_path / "o" / "per_seed.csv").open()))
-    assert {"policy_mean", "random_mean", "rooms", "stairs_distance"} <= set(rows[0])
+    assert {"policy_mean", "random_mean", "reference_mean", "rooms", "stairs_distance"} <= set(
+        rows[0]
+    )
     assert len(rows) == 3
 
 

@@ -102,12 +102,15 @@ def run_episodes(
     progress: bool = True,
     desc: str = "",
     backend: str = "pool",
+    max_floor: Optional[np.ndarray] = None,
 ) -> np.ndarray:
     """Play ``episodes_per_seed`` episodes on each of ``seeds`` and return the returns.
 
     Returns a float64 array of shape ``(len(seeds), episodes_per_seed)``: row ``k`` holds the
     returns of the episodes played on ``seeds[k]``, in schedule order. ``backend`` is
     ``"pool"`` (worker processes, the default) or ``"inprocess"`` (:class:`InProcessVec`).
+    ``max_floor``: an array of the same shape to fill with each episode's deepest floor (the
+    pool's ``max_floor`` info; the pool backend only).
     """
     seeds = [int(s) for s in seeds]
     k, e_per = len(seeds), int(episodes_per_seed)
@@ -120,7 +123,10 @@ def run_episodes(
         w = int(num_workers)
         num_envs = max(w, num_envs // w * w)
     seed_policy(policy, policy_seed)
+    # A policy that keeps a memory per env hears where episodes end (see evaluate's docs).
+    ended_hook = getattr(policy, "episodes_ended", None)
     returns = np.full(total, np.nan, dtype=np.float64)
+    deepest = np.zeros(total, dtype=np.int64)
     if backend == "pool":
         env = make_eval_pool(suite, seeds, num_envs, num_workers, obs)
     elif backend == "inprocess":
@@ -140,8 +146,12 @@ def run_episodes(
             actions = np.asarray(policy(obs_batch), dtype=np.int64).reshape(num_envs)
             obs_batch, reward, terminated, truncated, info = env.step(actions)
             ep_return += np.asarray(reward, dtype=np.float64)
-            finished = np.flatnonzero(np.logical_or(terminated, truncated))
+            ended = np.logical_or(terminated, truncated)
+            if ended_hook is not None and ended.any():
+                ended_hook(ended)
+            finished = np.flatnonzero(ended)
             played = final_seeds(info)
+            floors = _final(info, "max_floor") if max_floor is not None else None
             for i in finished:
                 j = int(ep_index[i])
                 if played is not None and int(played[i]) != seeds[j % k]:
@@ -150,6 +160,8 @@ def run_episodes(
                     )
                 if j < total:
                     returns[j] = ep_return[i]
+                    if floors is not None:
+                        deepest[j] = floors[i]
                     done_count += 1
                     bar.update(1)
                     if health is not None and time.monotonic() >= shown + 1.0:
@@ -161,15 +173,22 @@ def run_episodes(
         bar.close()
         env.close()
     # schedule index j = r * k + s  ->  (seed s, repetition r)
+    if max_floor is not None:
+        max_floor[...] = deepest.reshape(e_per, k).T
     return returns.reshape(e_per, k).T.copy()
+
+
+def _final(info: Any, key: str) -> Optional[np.ndarray]:
+    """Info ``key`` of the episodes that just ended, when the vector env reports it."""
+    final = info.get("final_info") if isinstance(info, dict) else None
+    if isinstance(final, dict) and key in final:
+        return np.asarray(final[key])
+    return None
 
 
 def final_seeds(info: Any) -> Optional[np.ndarray]:
     """The seeds of the episodes that just ended, when the vector env reports them."""
-    final = info.get("final_info") if isinstance(info, dict) else None
-    if isinstance(final, dict) and "seed" in final:
-        return np.asarray(final["seed"])
-    return None
+    return _final(info, "seed")
 
 
 class _NoBar:

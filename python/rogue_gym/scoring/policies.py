@@ -52,18 +52,23 @@ CHECKPOINT_LOADER = ("rogue_gym.train.posthoc", "checkpoint_policy")
 
 
 def load_policy(spec: str) -> Policy:
-    """Resolve ``random``, ``module:attr`` or ``path/to/file.py:attr`` into a policy callable.
+    """Resolve ``random``, ``reference`` (:class:`rogue_gym.agents.ReferenceAgent`),
+    ``module:attr`` or ``path/to/file.py:attr`` into a policy callable.
 
     Classes are instantiated with no arguments. See the module docstring for the interface.
     """
     if spec == "random":
         return RandomPolicy()
+    if spec == "reference":
+        from ..agents import ReferenceAgent
+
+        return ReferenceAgent()
     if spec.startswith("checkpoint:"):
         loader_module, loader_name = CHECKPOINT_LOADER
         loader = getattr(importlib.import_module(loader_module), loader_name)
         return loader(Path(spec.split(":", 1)[1]))
     if ":" not in spec:
-        raise ValueError(f"--policy must be 'random' or 'module:attr', got {spec!r}")
+        raise ValueError(f"--policy must be 'random', 'reference' or 'module:attr', got {spec!r}")
     mod_name, attr = spec.rsplit(":", 1)
     if mod_name.endswith(".py"):
         path = Path(mod_name)

@@ -6,17 +6,19 @@ from __future__ import annotations
 import csv
 import json
 from pathlib import Path
-from typing import Any, Dict, List, Sequence
+from typing import Any, Callable, Dict, List, Sequence, Tuple
 
 import numpy as np
 
 from ..suites import Suite
 
 __all__ = [
+    "STRATA",
     "compact_json",
     "describe_manifest",
     "per_seed_rows",
     "seed_manifest",
+    "strata_rows",
     "write_csv",
     "write_manifest",
     "write_results",
@@ -68,20 +70,25 @@ def compact_json(doc: Dict[str, Any]) -> str:
     return "{\n" + body + "\n}\n"
 
 
-def per_seed_rows(result: Dict[str, Any]) -> List[Dict[str, Any]]:
-    """One row per seed: each agent's mean/std/min/max, then the manifest columns."""
-    seeds = result["settings"]["seeds"]
-    manifest = {m["seed"]: m for m in result.get("manifest", [])}
+def per_seed_rows(result: Dict[str, Any], split: str = "test") -> List[Dict[str, Any]]:
+    """One row per seed of ``split`` (``"test"`` or ``"train"``): each agent's mean, std, min
+    and max, the policy's normalized score, then (test seeds) the manifest columns."""
+    seeds = result["settings"]["seeds" if split == "test" else "train_seeds"]
+    agents = result["agents"] if split == "test" else result.get("train_agents", [])
+    manifest = {m["seed"]: m for m in result.get("manifest", [])} if split == "test" else {}
+    norm = result.get("normalized", {}).get(split, {}).get("per_seed")
     rows = []
     for k, s in enumerate(seeds):
         row: Dict[str, Any] = {"seed": s}
-        for a_i, agent in enumerate(result["agents"]):
+        for a_i, agent in enumerate(agents):
             r = np.asarray(agent["returns"][k], dtype=np.float64)
             prefix = "policy" if a_i == 0 else agent["name"]
             row[f"{prefix}_mean"] = round(float(r.mean()), 4)
             row[f"{prefix}_std"] = round(float(r.std()), 4)
             row[f"{prefix}_min"] = float(r.min())
             row[f"{prefix}_max"] = float(r.max())
+        if norm is not None:
+            row["policy_normalized"] = round(float(norm[k]), 4)
         for key, val in manifest.get(s, {}).items():
             if key != "seed":
                 row[key] = val
@@ -90,14 +97,18 @@ def per_seed_rows(result: Dict[str, Any]) -> List[Dict[str, Any]]:
 
 
 def write_results(result: Dict[str, Any], out: Path) -> List[Path]:
-    """Write ``per_seed.csv`` and ``summary.json`` under ``out``; returns the paths."""
+    """Write ``per_seed.csv`` (test seeds), ``per_seed_train.csv`` (training seeds, when
+    scored) and ``summary.json`` under ``out``; returns the paths."""
     out.mkdir(parents=True, exist_ok=True)
-    per_seed = out / "per_seed.csv"
-    write_csv(per_seed, per_seed_rows(result))
+    paths = [out / "per_seed.csv"]
+    write_csv(paths[0], per_seed_rows(result))
+    if result.get("train_agents"):
+        paths.append(out / "per_seed_train.csv")
+        write_csv(paths[-1], per_seed_rows(result, "train"))
     summary = out / "summary.json"
     clean = {k: v for k, v in result.items() if not k.startswith("_")}
     summary.write_text(compact_json(clean))
-    return [per_seed, summary]
+    return [*paths, summary]
 
 
 def write_manifest(rows: List[Dict[str, Any]], out: Path) -> List[Path]:
@@ -124,3 +135,58 @@ def describe_manifest(rows: List[Dict[str, Any]]) -> str:
                 + note
             )
     return "\n".join(lines)
+
+
+#: The difficulty strata of a suite's seeds, from the manifest (level 1 of each seed): a name
+#: and a test of a manifest row.
+STRATA: List[Tuple[str, Callable[[Dict[str, Any]], bool]]] = [
+    ("all seeds", lambda m: True),
+    ("a dark room", lambda m: m["dark_rooms"] > 0),
+    ("no dark room", lambda m: m["dark_rooms"] == 0),
+    ("a maze", lambda m: m["maze_rooms"] > 0),
+    ("a secret door or hidden passage", lambda m: m["hidden_doors"] + m["hidden_passages"] > 0),
+    ("stairs behind a search", lambda m: m["stairs_distance"] is None),
+]
+
+
+def _walk(lo: float, hi: float) -> Callable[[Dict[str, Any]], bool]:
+    """The test of a manifest row whose walk to the stairs is in ``(lo, hi]`` moves."""
+
+    def test(m: Dict[str, Any]) -> bool:
+        walk = m["stairs_distance_unhidden"]
+        return walk is not None and lo < walk <= hi
+
+    return test
+
+
+def strata_rows(
+    manifest: Sequence[Dict[str, Any]], per_seed: Dict[str, np.ndarray]
+) -> List[Dict[str, Any]]:
+    """Each agent's mean by difficulty stratum (:data:`STRATA`, then the quartiles of the walk
+    from the start to the stairs): ``per_seed`` maps an agent's name to its per-seed means,
+    in the manifest's seed order. Strata with no seed are left out."""
+    walks = np.array(
+        [
+            m["stairs_distance_unhidden"]
+            for m in manifest
+            if m["stairs_distance_unhidden"] is not None
+        ],
+        np.float64,
+    )
+    tests = list(STRATA)
+    if walks.size:
+        q = np.quantile(walks, [0.25, 0.5, 0.75])
+        edges = [(-np.inf, q[0]), (q[0], q[1]), (q[1], q[2]), (q[2], np.inf)]
+        for i, (lo, hi) in enumerate(edges):
+            span = f"{max(lo, walks.min()):.0f}-{min(hi, walks.max()):.0f}"
+            tests.append((f"walk to the stairs, quartile {i + 1} ({span} moves)", _walk(lo, hi)))
+    rows = []
+    for name, test in tests:
+        pick = np.array([bool(test(m)) for m in manifest])
+        if not pick.any():
+            continue
+        row: Dict[str, Any] = {"stratum": name, "seeds": int(pick.sum())}
+        for agent, means in per_seed.items():
+            row[agent] = round(float(np.asarray(means)[pick].mean()), 3)
+        rows.append(row)
+    return rows
