@@ -42,39 +42,41 @@ impl RecvWant {
         }
     }
 
-    /// A `recv` of a pool of `num_envs` envs and batch size `batch_size`, as a caller states
-    /// it, with the defaults filled in: `max_batch` defaults to `batch_size` (or `min_batch`
-    /// where that asks for more), `min_batch` to `max_batch` (at most `batch_size`). Each must
-    /// be 1 to `num_envs`, `min_batch` at most `max_batch`; the error names the argument.
+    /// A `recv` of a pool of batch size `batch_size`, as a caller states it, with the
+    /// defaults filled in: `max_batch` defaults to `batch_size` (or `min_batch` where that asks
+    /// for more), `min_batch` to `max_batch` (at most `batch_size`). [`Pool::recv_want`]
+    /// checks the result (its one check, which names the argument that is wrong).
     pub fn resolve(
         min_batch: Option<usize>,
         max_batch: Option<usize>,
         timeout: Option<Duration>,
         batch_size: usize,
-        num_envs: usize,
-    ) -> Result<RecvWant, PoolError> {
-        for (name, v) in [("min_batch", min_batch), ("max_batch", max_batch)] {
-            if let Some(v) = v
-                && !(1..=num_envs).contains(&v)
-            {
+    ) -> RecvWant {
+        let max = max_batch.unwrap_or_else(|| batch_size.max(min_batch.unwrap_or(1)));
+        RecvWant {
+            min_batch: min_batch.unwrap_or(max.min(batch_size)),
+            max_batch: max,
+            timeout,
+        }
+    }
+
+    /// The check of a `recv` of a pool of `num_envs` envs: each bound 1 to `num_envs`,
+    /// `min_batch` at most `max_batch`; the error names the argument.
+    fn check(&self, num_envs: usize) -> Result<(), PoolError> {
+        for (name, v) in [("min_batch", self.min_batch), ("max_batch", self.max_batch)] {
+            if !(1..=num_envs).contains(&v) {
                 return Err(PoolError::Config(format!(
                     "recv(): {name} must be between 1 and num_envs ({num_envs}), got {v}"
                 )));
             }
         }
-        if let (Some(lo), Some(hi)) = (min_batch, max_batch)
-            && lo > hi
-        {
+        if self.min_batch > self.max_batch {
             return Err(PoolError::Config(format!(
-                "recv(): min_batch ({lo}) must not exceed max_batch ({hi})"
+                "recv(): min_batch ({}) must not exceed max_batch ({})",
+                self.min_batch, self.max_batch
             )));
         }
-        let max = max_batch.unwrap_or_else(|| batch_size.max(min_batch.unwrap_or(1)));
-        Ok(RecvWant {
-            min_batch: min_batch.unwrap_or(max.min(batch_size)),
-            max_batch: max,
-            timeout,
-        })
+        Ok(())
     }
 }
 
@@ -150,12 +152,7 @@ impl Pool {
     /// Async: hand over the first envs ready, as many and within the time `want` says.
     pub fn recv_want(&mut self, want: RecvWant) -> Result<Received, PoolError> {
         self.begin_call()?;
-        if want.min_batch == 0 || want.max_batch < want.min_batch {
-            return Err(PoolError::Config(format!(
-                "recv() needs 1 <= min_batch <= max_batch, got min_batch={} and max_batch={}",
-                want.min_batch, want.max_batch
-            )));
-        }
+        want.check(self.sup.cfg.num_envs)?;
         self.sup.check_started("recv")?;
         let outstanding = self.sup.async_api.envs.outstanding();
         if outstanding < want.min_batch {
@@ -171,13 +168,29 @@ impl Pool {
             want.min_batch
         };
         let until = want.timeout.map(|t| Instant::now() + t);
-        let done = self.wait_for(
-            |c| {
-                c.absorb()?;
-                Ok(c.async_api.envs.num_ready() >= enough)
-            },
-            until,
-        )?;
+        let mut done;
+        loop {
+            // Enough ready, and the env sent first ready too, unless it is late beyond the
+            // usual (fair service: `async_envs.rs`); a wait for it ends at its patience.
+            let patience = self.sup.async_api.envs.patience(Instant::now());
+            let stop = match (until, patience) {
+                (Some(u), Some(p)) => Some(u.min(p)),
+                (u, p) => u.or(p),
+            };
+            done = self.wait_for(
+                |c| {
+                    c.absorb()?;
+                    let envs = &c.async_api.envs;
+                    Ok(envs.num_ready() >= enough && envs.patience(Instant::now()).is_none())
+                },
+                stop,
+            )?;
+            let past = until.is_some_and(|u| Instant::now() >= u);
+            if done || past || self.sup.async_api.envs.num_ready() >= enough {
+                done |= self.sup.async_api.envs.num_ready() >= enough;
+                break;
+            }
+        }
         let ready = self.sup.async_api.envs.num_ready();
         if !done && ready < want.min_batch {
             return Err(PoolError::RecvTimeout {

@@ -1,11 +1,9 @@
 //! The async API's envs, one by one: where each env stands ([`Turn`]), the set of ready envs
 //! in the order they were sent, and the worker blocks that hold their results.
 //!
-//! Service is fair by rule: among the envs that are ready, the one sent first (the one that
-//! has waited longest since its send) is handed over first, whatever its worker and whenever
-//! its answer arrived. Each env sent gets the next ticket of one counter (envs of one `send`
-//! in the order given); the ready set is ordered by ticket. A worker that runs late (a busy
-//! machine) then loses no turns: its envs, once answered, go before envs sent after them.
+//! Service is fair by rule: the ready envs are handed over in the order they were sent, and
+//! a `recv` waits a little for the env sent first when it is only a little late
+//! ([`super::ready_set`]).
 //!
 //! Workers still answer one command at a time; this layer turns their answers into envs. An
 //! env sent while its worker is busy is *staged* and goes with the worker's next command, with
@@ -20,7 +18,9 @@
 //! are one run of envs in one slot hands them over as a view ([`Received::view`]), any other
 //! is gathered. Resets and restarts answer by block (a restart resets envs the caller holds).
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::VecDeque;
+
+use super::ready_set::ReadySet;
 
 use crate::batch::Block;
 use crate::wire::layout::EnvRecord;
@@ -107,11 +107,8 @@ pub(super) struct AsyncEnvs {
     pub(super) num_staged: usize,
     /// The envs of each worker's outstanding command.
     pub(super) sent: Vec<Vec<usize>>,
-    /// The ready envs by ticket: the first is the one sent first.
-    ready: BTreeMap<u64, usize>,
-    /// Each env's ticket (from its last send), and the next ticket to give.
-    ticket: Vec<u64>,
-    next_ticket: u64,
+    /// The envs sent and not yet handed over, in the order they were sent.
+    ready: ReadySet,
     rows: Vec<Option<Row>>,
     /// Its result answers a replacement by plan of its worker (`worker_recycled`).
     recycled: Vec<bool>,
@@ -156,9 +153,7 @@ impl AsyncEnvs {
             aw,
             num_staged: 0,
             sent: vec![Vec::new(); num_workers],
-            ready: BTreeMap::new(),
-            ticket: vec![0; num_envs],
-            next_ticket: 0,
+            ready: ReadySet::new(num_envs),
             rows: (0..num_envs).map(|_| None).collect(),
             restarted: (0..num_envs).map(|_| None).collect(),
             recycled: vec![false; num_envs],
@@ -186,16 +181,20 @@ impl AsyncEnvs {
         self.partial.fill(None);
     }
 
-    /// Env `e` was sent just now: it takes the next ticket.
+    /// Env `e` was sent just now: it takes the next ticket ([`ReadySet::sent`]).
     fn take_ticket(&mut self, e: usize) {
-        self.ticket[e] = self.next_ticket;
-        self.next_ticket += 1;
+        self.ready.sent(e);
     }
 
-    /// Env `e`'s result is ready: in the ready set at its ticket.
+    /// Env `e`'s result is ready.
     fn push_ready(&mut self, e: usize) {
         self.turn[e] = Turn::Ready;
-        self.ready.insert(self.ticket[e], e);
+        self.ready.ready(e);
+    }
+
+    /// See [`ReadySet::patience`].
+    pub(super) fn patience(&self, now: std::time::Instant) -> Option<std::time::Instant> {
+        self.ready.patience(now)
     }
 
     /// Envs whose result is ready.
@@ -274,6 +273,7 @@ impl AsyncEnvs {
         if self.partial[e].take().is_some() {
             self.sent[k].retain(|&x| x != e);
             self.turn[e] = Turn::Caller;
+            self.ready.dropped(e);
         }
     }
 
@@ -445,7 +445,7 @@ impl AsyncEnvs {
             view: None,
         };
         for r in 0..n {
-            let Some((_, e)) = self.ready.pop_first() else {
+            let Some(e) = self.ready.pop() else {
                 break;
             };
             self.turn[e] = Turn::Caller;
@@ -498,12 +498,12 @@ impl AsyncEnvs {
     /// order, written in place in one slot, with no extra info apart (else `None`, nothing
     /// taken). Extra info in the rows' rooms is copied out (`extras`).
     fn take_view(&mut self, n: usize, slots: &[SlotRows]) -> Option<Received> {
-        let (_, &first) = self.ready.first_key_value()?;
+        let first = self.ready.first()?;
         let slot = match self.rows[first] {
             Some(Row::InSlot { slot, apart: None }) => slot,
             _ => return None,
         };
-        let run = self.ready.values().take(n).enumerate().all(|(i, &e)| {
+        let run = self.ready.peek(n).enumerate().all(|(i, e)| {
             e == first + i
                 && !self.recycled[e]
                 && matches!(self.rows[e], Some(Row::InSlot { slot: s, apart: None }) if s == slot)
@@ -512,10 +512,7 @@ impl AsyncEnvs {
             return None;
         }
         let w = slots.get(slot)?;
-        let env_ids: Vec<usize> = (0..n)
-            .filter_map(|_| self.ready.pop_first())
-            .map(|(_, e)| e)
-            .collect();
+        let env_ids: Vec<usize> = (0..n).filter_map(|_| self.ready.pop()).collect();
         let mut extras = Vec::new();
         let mut records = Vec::with_capacity(n);
         for (r, &e) in env_ids.iter().enumerate() {

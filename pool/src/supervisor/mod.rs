@@ -22,13 +22,13 @@
 //!
 //! The async API (`async_api.rs`: `send`/`recv`, env by env) sends the same commands, a
 //! subset of a block's envs at a time, and turns answers into ready envs
-//! (`async_envs.rs`); env calls go through files (`calls.rs`); planned replacements of
+//! (`async_envs.rs`), handed over in the order they were sent (`ready_set.rs`); env calls go through files (`calls.rs`); planned replacements of
 //! workers are `recycling.rs`; the supervisor's state is grouped by concern in `state.rs`;
 //! how its sides wait beside other pools (the machine's cores and the user's live pools) is
 //! `machine.rs`. A worker whose envs run on threads (`env_concurrency`) takes the same
 //! commands and answers each env as it finishes (`worker/concurrent.rs`).
 //!
-//! Modules: `actions`, `async_api`, `async_envs`, `calls`, `machine`, `recycling`,
+//! Modules: `actions`, `async_api`, `async_envs`, `calls`, `machine`, `ready_set`, `recycling`,
 //! `slot_answers`, `state`, `stepping`, `waiting`, `workers`.
 
 mod actions;
@@ -36,6 +36,7 @@ mod async_api;
 mod async_envs;
 mod calls;
 mod machine;
+mod ready_set;
 mod recycling;
 mod slot_answers;
 mod state;
@@ -469,9 +470,18 @@ impl Pool {
         Ok(())
     }
 
+    /// Every worker idle, for a sync call: the usual case is read off the link states, and
+    /// only a worker still coming back (raise policy, or a call that outlived its bound) is
+    /// waited for; an outstanding async request is an error.
     fn all_idle(&mut self) -> Result<(), PoolError> {
-        // Respawned workers (raise policy, or a call that outlived its bound) may still be
-        // coming back.
+        if self
+            .sup
+            .workers
+            .iter()
+            .all(|s| matches!(s.state, LinkState::Idle))
+        {
+            return Ok(());
+        }
         self.wait_until(|c| !c.workers.iter().any(|s| s.state.coming_back()))?;
         if self
             .sup

@@ -18,7 +18,7 @@ use std::process::Child;
 use std::time::{Duration, Instant};
 
 use super::Supervisor;
-use super::workers::{LinkState, Successor};
+use super::workers::LinkState;
 use crate::error::PoolError;
 use crate::wire::{Command, Op, successor_go, successor_marker};
 
@@ -30,6 +30,14 @@ const RSS_EVERY: Duration = Duration::from_millis(5);
 const START_AT: f64 = 0.75;
 /// How long a closed worker gets to exit before it is killed.
 const CLOSE_WITHIN: Duration = Duration::from_secs(2);
+
+/// A worker's successor while it builds its envs.
+pub(super) struct Successor {
+    pub(super) child: Child,
+    pub(super) generation: u64,
+    pub(super) since: Instant,
+    pub(super) stderr_path: std::path::PathBuf,
+}
 
 /// Resident memory of process `pid`, in bytes.
 fn rss_bytes(pid: u32) -> Option<u64> {

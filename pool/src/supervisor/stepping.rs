@@ -301,6 +301,22 @@ impl Pool {
     }
 }
 
+impl super::Supervisor {
+    /// The rows of slot `slot`.
+    pub(super) fn rows_of(&self, slot: usize) -> Result<SlotRows, PoolError> {
+        match &self.batch {
+            // SAFETY: the slot lies inside the mapping, which `self.batch` keeps alive; it is
+            // 64-byte aligned (page-aligned mapping, 64-byte slots).
+            Some(b) if slot < self.cfg.batch_slots => unsafe {
+                Ok(self
+                    .slot_layout
+                    .rows(b.as_ptr().add(slot * self.slot_layout.bytes())))
+            },
+            _ => Err(PoolError::Closed),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

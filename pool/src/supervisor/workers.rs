@@ -17,7 +17,8 @@ use crate::batch::Block;
 use crate::config::FailurePolicy;
 use crate::error::{FailureCause, PoolError, WorkerFailure};
 use crate::wire::answer::{ANSWER_WORDS, Answer, BlockKind, rows_of};
-use crate::wire::books::{next_episode, next_seq};
+use crate::wire::books::next_episode;
+use crate::wire::command::next_seq;
 use crate::wire::{Command, EnvFault, KEEP_EPISODE, Op, calls, env_fault_path, env_fault_path_of};
 
 pub(super) enum LinkState {
@@ -38,14 +39,6 @@ impl LinkState {
     pub(super) fn coming_back(&self) -> bool {
         matches!(self, LinkState::Down { .. } | LinkState::Starting { .. })
     }
-}
-
-/// A worker's successor while it builds its envs (a planned replacement: `recycling`).
-pub(super) struct Successor {
-    pub(super) child: std::process::Child,
-    pub(super) generation: u64,
-    pub(super) since: std::time::Instant,
-    pub(super) stderr_path: PathBuf,
 }
 
 pub(super) struct WorkerLink {
@@ -79,7 +72,7 @@ pub(super) struct WorkerLink {
     /// are counted from then: `StatsBuffer::read`).
     pub(super) sent_before: u64,
     /// Its successor while it builds its envs (see `recycling`).
-    pub(super) successor: Option<Successor>,
+    pub(super) successor: Option<super::recycling::Successor>,
     /// It was replaced by plan: the envs of its next block report `worker_recycled`.
     pub(super) recycled: bool,
     /// When its resident memory was last read, and what it was (bytes).

@@ -5,7 +5,7 @@
 //! Two copies by command parity: a worker writes the books of its whole block into copy
 //! `seq % 2` before it answers command `seq`, and the supervisor reads the copy of the last
 //! answer it received from that worker. The supervisor never sends a worker a command of the
-//! same parity as that answer (see [`next_seq`]), so a worker killed half-way through its
+//! same parity as that answer (see [`super::command::next_seq`]), so a worker killed half-way through its
 //! books leaves the copy the supervisor reads whole. Entries are atomic words: a torn write is
 //! impossible on any platform.
 
@@ -37,16 +37,6 @@ pub(crate) fn next_episode(e: u64) -> Option<u64> {
 
 // A next episode is never the partial reset's "keep this env's episode".
 const _: () = assert!(MAX_EPISODE < super::KEEP_EPISODE);
-
-/// The sequence number of the next command to a worker whose last received answer was
-/// `delivered`: `seq + 1`, or `seq + 2` where that would write the books copy the supervisor
-/// reads.
-pub(crate) fn next_seq(seq: u64, delivered: Option<u64>) -> u64 {
-    match delivered {
-        Some(d) if (seq + 1) % 2 == d % 2 => seq + 2,
-        _ => seq + 1,
-    }
-}
 
 /// The books of a pool, mapped.
 #[derive(Debug)]
@@ -101,7 +91,8 @@ impl Books {
 
 #[cfg(test)]
 mod tests {
-    use super::{MAX_EPISODE, next_episode, next_seq};
+    use super::{MAX_EPISODE, next_episode};
+    use crate::wire::command::next_seq;
 
     #[test]
     fn no_value_in_the_books_makes_a_next_episode_that_wraps_or_keeps() {

@@ -156,6 +156,17 @@ impl Command {
     }
 }
 
+/// The sequence number of the next command to a worker whose last received answer was
+/// `delivered`: `seq + 1`, or `seq + 2` where that would write the copy of the episode books
+/// the supervisor reads (the worker writes the copy of its command's parity:
+/// [`super::books`]).
+pub(crate) fn next_seq(seq: u64, delivered: Option<u64>) -> u64 {
+    match delivered {
+        Some(d) if (seq + 1) % 2 == d % 2 => seq + 2,
+        _ => seq + 1,
+    }
+}
+
 fn flag(on: bool, bit: u32) -> u32 {
     if on { bit } else { 0 }
 }

@@ -19,7 +19,7 @@ from __future__ import annotations
 import errno
 import json
 import weakref
-from typing import TYPE_CHECKING, Any, Callable, Optional
+from typing import TYPE_CHECKING, Any, Optional
 
 import numpy as np
 
@@ -160,16 +160,12 @@ class Core:
         if self.closed:
             raise PoolClosedError(CLOSED_MESSAGE)
 
-    def native(self, fn: Callable[..., Any], *args: Any) -> Any:
-        """Run a call of the native pool; an env's own exception is re-raised as itself."""
-        return native_call(fn, *args)
-
     def _steer(self) -> None:
         """Make the next slot-writing call write a slot no lent array still uses."""
         if self.lender is not None:
             free = self.lender.steer()
             if free is not None:
-                self.native(self.pool.select_slot, free)
+                native_call(self.pool.select_slot, free)
 
     def _took(self, r: tuple[int, int, Extras]) -> Result:
         """The result of a whole-batch call, from the native ``(slot, summary, extras)``
@@ -186,28 +182,28 @@ class Core:
     def step(self, actions: np.ndarray) -> Result:
         """A whole sync step."""
         self._steer()
-        return self._took(self.native(self.pool.step, actions))
+        return self._took(native_call(self.pool.step, actions))
 
     def send_step(self, actions: np.ndarray) -> None:
         """The first half of :meth:`step`: the workers step while the caller goes on."""
         self._steer()
-        self.native(self.pool.send_step, actions)
+        native_call(self.pool.send_step, actions)
 
     def send_reset(self, mask: Optional[np.ndarray] = None) -> None:
         """The first half of a reset: of every env, or with ``mask`` of the masked envs (the
         others' observations written again)."""
         self._steer()
-        self.native(self.pool.send_reset, mask)
+        native_call(self.pool.send_reset, mask)
 
     def wait(self, timeout: Optional[float]) -> Optional[Result]:
         """The second half of :meth:`send_step` or :meth:`send_reset`, or ``None`` when
         ``timeout`` seconds passed first (the call stays pending)."""
-        r = self.native(self.pool.wait, timeout)
+        r = native_call(self.pool.wait, timeout)
         return None if r is None else self._took(r)
 
     def set_seeds(self, schedule: dict[str, Any]) -> None:
         """Replace the episode-seed schedule (applies from the next reset)."""
-        self.native(self.pool.set_seeds, json.dumps(schedule))
+        native_call(self.pool.set_seeds, json.dumps(schedule))
 
     def observations(self, slot: int) -> Any:
         """The observations of ``slot`` as the facade returns them: lent, copied
@@ -229,12 +225,12 @@ class Core:
 
     def async_reset(self) -> None:
         """Start resetting every env; collect with :meth:`recv`."""
-        self.native(self.pool.async_reset)
+        native_call(self.pool.async_reset)
 
     def send(self, actions: np.ndarray, env_ids: Any) -> None:
         """Send actions to any envs (``env_ids``: an int64 array or a sequence of ints, each
         env at most once until received)."""
-        self.native(self.pool.send, actions, env_ids)
+        native_call(self.pool.send, actions, env_ids)
 
     def recv(
         self,
@@ -247,7 +243,7 @@ class Core:
         observations copied with ``copy``), valid until the next call; other rows are
         gathered: columns in the ``recv`` buffer (valid until the next ``recv``), observations
         a fresh copy."""
-        got = self.native(self.pool.recv, min_batch, max_batch, timeout)
+        got = native_call(self.pool.recv, min_batch, max_batch, timeout)
         rows, summary, extras, ids, raw, view = got
         if view is not None:
             # Written in place as one run of envs: views of the slot (a copy with ``copy``).

@@ -79,14 +79,7 @@ impl PyPool {
         let timeout = timeout
             .map(|t| settings::duration("timeout", t))
             .transpose()?;
-        let want = RecvWant::resolve(
-            min_batch,
-            max_batch,
-            timeout,
-            self.batch_size,
-            self.num_envs,
-        )
-        .map_err(|e| crate::errors::pool_error(py, e))?;
+        let want = RecvWant::resolve(min_batch, max_batch, timeout, self.batch_size);
         let got: Received = self.with_pool(py, move |p| p.recv_want(want))?;
         let rows = got.env_ids.len();
         // A view's rows are in its slot, columns included: nothing to write (and no row of a
