@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Runs every test of Rogue-Gym: the Rust workspace (unit, integration, doc tests), the Python
-# package (set-up, type checks, stub check, pytest, ruff), then the Ray tests in their own
-# environment (.venv-ray: Ray pins an older gymnasium).
+# package (set-up, type checks, stub check, pytest, ruff), the Ray tests in their own
+# environment (.venv-ray: Ray pins an older gymnasium), then the wheel and a selection of the
+# tests on Debian's own CPython 3.14 and 3.15 (scripts/debian-pythons.sh: needs root, as CI
+# is; elsewhere it says it skips them).
 # Usage: bash scripts/test.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -34,12 +36,23 @@ if [[ ${ROGUE_GYM_SKIP_WHEEL:-} != 1 ]]; then
     export ROGUE_GYM_WHEEL_DIR
     bg_start wheel bash scripts/build-wheel.sh "$ROGUE_GYM_WHEEL_DIR"
 fi
+# Debian's CPython 3.14 and 3.15 (a forky root, made once per machine, reused after) get
+# ready meanwhile too: mostly downloads and unpacking, done before pytest starts.
+DEBIAN=0
+if [[ ${ROGUE_GYM_SKIP_WHEEL:-} != 1 && ${ROGUE_GYM_SKIP_DEBIAN:-} != 1 && $(id -u) == 0 ]]; then
+    DEBIAN=1
+    bg_start debian bash scripts/debian-pythons.sh root
+fi
 (cd python && ../.venv/bin/python -m mypy && ../.venv/bin/python -m mypy.stubtest rogue_gym._native)
 echo "== waiting for Ray's set-up ($SECONDS s into the test command)"
 bg_wait ray
 if [[ ${ROGUE_GYM_SKIP_WHEEL:-} != 1 ]]; then
     echo "== waiting for the wheel's build ($SECONDS s into the test command)"
     bg_wait wheel
+fi
+if [[ $DEBIAN == 1 ]]; then
+    echo "== waiting for Debian's CPython 3.14 and 3.15 ($SECONDS s into the test command)"
+    bg_wait debian
 fi
 # Every test runs under a time limit (tests/python/conftest.py), so no test can hang the run.
 echo "== pytest ($SECONDS s into the test command)"
@@ -50,3 +63,10 @@ echo "== pytest ($SECONDS s into the test command)"
 echo "== Ray (RLlib through pools, actor-backed vector env) on a local 2-CPU cluster ($SECONDS s into the test command)"
 # Each test has a time limit (pytest-timeout); the whole run has one too.
 timeout 1200 .venv-ray/bin/python -m pytest tests/ray -q -p no:cacheprovider
+
+if [[ $DEBIAN == 1 ]]; then
+    echo "== the wheel on Debian's CPython 3.14 and 3.15 ($SECONDS s into the test command)"
+    timeout 1800 bash scripts/debian-pythons.sh test "$ROGUE_GYM_WHEEL_DIR"
+else
+    echo "== skipped: the wheel on Debian's CPython 3.14 and 3.15 (needs root for its chroot, and the wheel; CI runs it)"
+fi

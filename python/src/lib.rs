@@ -67,7 +67,18 @@ pub(crate) fn registry() -> rogue_gym_pool::EnvRegistry {
 }
 
 /// The `rogue_gym._native` module.
-#[pymodule]
+///
+/// Free-threading stance (`gil_used = false`, PyO3 0.30's default, said here on purpose): the
+/// module relies on no GIL for its own safety, so a free-threaded CPython (3.14t, 3.15t: a
+/// source build, `docs/platforms.md`) keeps the GIL off when it imports it. Reviewed against
+/// PyO3's thread-safety guide, class by class: `Pool` keeps the native pool behind a mutex (one
+/// call at a time; every call runs through `Pool::guarded`, so no panic poisons it) and its
+/// other state in mutexes and atomics; `Game` is mutated only through `&mut self`, which
+/// PyO3's borrow flag (atomic on free-threaded builds) gives one thread at a time, a second
+/// thread getting `RuntimeError: Already borrowed`; `SharedBatchHolder` is frozen (an `Arc` of
+/// the mapping). Module-level state (the XLA targets) is behind mutexes. Calls into Python
+/// from Rust threads (a worker's env threads) attach a thread state of their own.
+#[pymodule(gil_used = false)]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<game::PyGame>()?;
     m.add_class::<pool::PyPool>()?;
