@@ -187,9 +187,12 @@ fn invalid_values_say_what_and_why() {
 }
 
 #[test]
-fn zero_extra_edges_means_none() {
+fn zero_extra_edges_is_a_valid_config() {
+    // That it means no extra edge (a spanning tree of the rooms, nothing more) is asserted
+    // where the edges are chosen (`dungeon/passages.rs`).
     let cfg =
         GameConfig::from_json(r#"{"dungeon": {"style": "rogue", "max_extra_edges": 0}}"#).unwrap();
+    assert_eq!(cfg.dungeon.max_extra_edges, 0);
     let mut g = Game::new(&cfg, EpisodeConfig::default()).unwrap();
     for s in 0..50 {
         g.reset(s);

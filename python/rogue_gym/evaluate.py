@@ -33,7 +33,7 @@ default ``symbol_onehot`` in uint8, ``symbol_onehot:float32`` for the paper's in
 policy must be deterministic given that seed, and then the whole evaluation is: the pool's
 episodes are a pure function of the seed schedule, independent of the number of workers.
 A policy with a ``required_obs`` attribute is given that encoding whatever ``--obs`` says.
-``--policy checkpoint:RUN/models/frames-N.pt`` scores a network saved by ``rogue_gym.train``
+``--policy checkpoint:RUN/models/frames-N.pt`` (or ``checkpoint:RUN``, its last) scores a network saved by ``rogue_gym.train``
 (:mod:`rogue_gym.train.posthoc`; it reads symbol indices).
 
 **Episode schedule.** With ``K`` test seeds and ``E`` episodes per seed, the evaluator hands
@@ -83,6 +83,7 @@ __all__ = [
     "main",
     "per_seed_rows",
     "run_episodes",
+    "score",
     "seed_manifest",
     "write_manifest",
     "write_results",
@@ -91,6 +92,47 @@ __all__ = [
 
 #: The splits of a suite an evaluation scores: the unseen test seeds and the training seeds.
 SPLITS = ("test", "train")
+
+
+def score(
+    suite: Suite,
+    policy: Policy,
+    seeds: Sequence[int],
+    episodes_per_seed: int,
+    *,
+    name: str = "policy",
+    obs: str = "symbol_onehot",
+    num_envs: int = 16,
+    num_workers: Optional[int] = None,
+    policy_seed: int = 0,
+    confidence: float = 0.95,
+    bootstrap_seed: int = 0,
+    progress: bool = False,
+    backend: str = "pool",
+    desc: str = "",
+) -> AgentResult:
+    """One agent's score on ``seeds`` of ``suite``: its episodes played through the pool, the
+    mean over seeds with its bootstrap interval, each episode's deepest floor. Every score of
+    the benchmark is made here: the evaluator's, per agent and split, and the trainer's
+    generalization score."""
+    floors = np.zeros((len(seeds), episodes_per_seed), np.int64) if backend == "pool" else None
+    returns = run_episodes(
+        suite,
+        policy,
+        seeds,
+        episodes_per_seed,
+        num_envs=num_envs,
+        num_workers=num_workers,
+        obs=obs,
+        policy_seed=policy_seed,
+        progress=progress,
+        desc=desc,
+        backend=backend,
+        max_floor=floors,
+    )
+    result = AgentResult.from_returns(name, returns, confidence, bootstrap_seed)
+    result.max_floor = floors
+    return result
 
 
 def _split_seeds(suite: Suite, split: str, limit: Optional[int]) -> List[int]:
@@ -134,7 +176,6 @@ def evaluate(
     name = "random" if is_random else policy_spec
     e_per = int(episodes_per_seed or suite.episodes_per_seed)
     common: Dict[str, Any] = dict(
-        suite=suite,
         num_envs=num_envs,
         num_workers=num_workers,
         policy_seed=policy_seed,
@@ -153,21 +194,21 @@ def evaluate(
         if with_reference and not is_reference:
             ref = ReferenceAgent()
             runs.append(("reference", ref, 1, ref.required_obs))
-        agents[split] = []
-        for who, p, e, o in runs:
-            floors = np.zeros((len(seeds), e), np.int64) if backend == "pool" else None
-            returns = run_episodes(
-                policy=p,
-                seeds=seeds,
-                episodes_per_seed=e,
+        agents[split] = [
+            score(
+                suite,
+                p,
+                seeds,
+                e,
+                name=who,
                 obs=o,
+                confidence=confidence,
+                bootstrap_seed=bootstrap_seed,
                 desc=f"{suite.name} {split} {who}",
-                max_floor=floors,
                 **common,
             )
-            scored = AgentResult.from_returns(who, returns, confidence, bootstrap_seed)
-            scored.max_floor = floors
-            agents[split].append(scored)
+            for who, p, e, o in runs
+        ]
     elapsed = time.perf_counter() - t0
     manifest: List[Dict[str, Any]] = []
     if with_manifest:

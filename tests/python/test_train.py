@@ -606,10 +606,20 @@ def test_the_paper_matrix_prints_runs_and_resumably_trains_and_scores(tmp_path: 
         assert [int(r["frames"]) for r in csv.DictReader(f)] == [256, 512]
     meta = json.loads((out / "matrix.json").read_text())
     assert meta["runs"] == ["small-10"] and meta["protocol"]["eval_seeds"] == 2
-    # Done: only the (resumable, here empty) scoring is left.
+    # Done: only the (resumable, here empty) scoring and the evaluation are left.
     args = matrix.parser().parse_args(argv)
     due = matrix.commands(matrix.runs(["small-10"])[0], args)
-    assert len(due) == 1 and "rogue_gym.train.posthoc" in due[0]
+    assert len(due) == 2 and "rogue_gym.train.posthoc" in due[0]
+    assert "rogue_gym.evaluate" in due[1] and f"checkpoint:{run}" in due[1]
+    # The paper's table: train and test scores and the gap, from the run's evaluation.
+    (row,) = matrix.report([out])
+    assert (row["variant"], row["suite"], row["runs"]) == ("small", "paper-10-original", 1)
+    doc = json.loads((run / "eval" / "summary.json").read_text())
+    assert row["test"][0] == doc["agents"][0]["mean"]
+    assert row["train"][0] == doc["train_agents"][0]["mean"]
+    assert row["gap"][0] == pytest.approx(row["train"][0] - row["test"][0])
+    assert row["normalized_test"] is not None
+    assert matrix.main(["--report", str(out)]) == 0
     # The paper's analyses on the same run, and the figures the plot command draws of them.
     from rogue_gym.train.plot import plot_runs
     from rogue_gym.train.posthoc import entropy_runs, one_seed_runs

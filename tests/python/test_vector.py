@@ -216,9 +216,19 @@ def test_bad_actions(make_vec, actions, exc, match) -> None:
 
 
 def test_key_string_actions(make_vec) -> None:
-    env = make_vec(4)
-    env.reset(seed=0)
-    env.step("hjkl")
+    """A key string is one action per env, each key the action of that index (". h j k l n b
+    u y > s"): a twin stepped with the indices plays the same."""
+    order = ".hjklnbuy>s"
+    keys, twin, idle = make_vec(4), make_vec(4), make_vec(4)
+    for env in (keys, twin, idle):
+        env.reset(seed=0)
+    moved = False
+    for string in ("hjkl", "lkjh", "nbuy", "ss>."):
+        got = keys.step(string)
+        want = twin.step(np.array([order.index(c) for c in string], np.int64))
+        assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+        moved |= not np.array_equal(got[0], idle.step("....")[0])
+    assert moved, "the keys were applied: the players moved where no-ops leave them"
 
 
 def test_bad_config_names_the_key() -> None:

@@ -242,3 +242,31 @@ fn register(
         floor.surface[i] = Surface::Passage;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::Stream;
+
+    /// The edges `choose_edges` picks for `seeds` floors of a 3x3 grid with `max_extra_edges`.
+    fn edge_counts(max_extra_edges: u32, seeds: u64) -> Vec<usize> {
+        let mut cfg = GameConfig::default();
+        cfg.dungeon.max_extra_edges = max_extra_edges;
+        let (mut edges, mut order) = (Vec::new(), Vec::new());
+        (0..seeds)
+            .map(|s| {
+                let mut rng = GameRng::new(s, Stream::Dungeon, 1);
+                choose_edges(&mut rng, &cfg, &mut edges, &mut order);
+                order.len()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn zero_extra_edges_means_a_spanning_tree_and_nothing_more() {
+        // 9 rooms: a spanning tree has 8 edges.
+        assert!(edge_counts(0, 200).iter().all(|&n| n == 8));
+        // The default (5) adds some on some floors, so the count above is not a tautology.
+        assert!(edge_counts(5, 200).iter().any(|&n| n > 8));
+    }
+}

@@ -1,9 +1,9 @@
 """The generalization score: the policy on the suite's unseen test seeds, via the evaluator.
 
 Each evaluation plays ``eval_episodes`` episodes on each of the first ``eval_seeds`` test seeds
-through :func:`rogue_gym.evaluate.run_episodes` (the paper: 1000 seeds x 10 episodes) with the
-stochastic policy, as the paper's evaluation does, and reports the mean with a 95% bootstrap
-interval across seeds (:class:`rogue_gym.evaluate.AgentResult`).
+through :func:`rogue_gym.evaluate.score`, the evaluator's own (the paper: 1000 seeds x 10
+episodes) with the stochastic policy, as the paper's evaluation does, and reports the mean with
+a 95% bootstrap interval across seeds (:class:`rogue_gym.evaluate.AgentResult`).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from ..evaluate import AgentResult, RandomPolicy, run_episodes
+from ..evaluate import AgentResult, RandomPolicy, run_episodes, score
 from ..suites import Suite
 from .networks import PolicyNet
 
@@ -99,12 +99,23 @@ def generalization(
         if original:
             w = workers if episodes % workers == 0 else 1
             flat = _run(suite, policy, same_seed_schedule(test, episodes), 1, episodes, w, seed)
-            returns = flat.reshape(len(test), episodes)
-        else:
-            returns = _run(suite, policy, test, episodes, num_envs, workers, seed)
+            return AgentResult.from_returns(
+                "policy", flat.reshape(len(test), episodes), CONFIDENCE, 0
+            )
+        # The evaluator's own scoring, so that the two report one statistic.
+        return score(
+            suite,
+            policy,
+            test,
+            episodes,
+            obs="symbol_index",
+            num_envs=num_envs,
+            num_workers=workers,
+            policy_seed=seed,
+            confidence=CONFIDENCE,
+        )
     finally:
         net.train(was_training)
-    return AgentResult.from_returns("policy", returns, CONFIDENCE, 0)
 
 
 def random_baseline(

@@ -7,9 +7,15 @@ weights saved every 2M, and each checkpoint scored on the 1000 test seeds x 10 e
 
 ``python -m rogue_gym.train.matrix`` prints the commands of every run (or of ``--only``
 some), ``--run`` runs them one after another: each run trains (resuming a run folder that
-stopped), then :mod:`.posthoc` scores all its checkpoints (resuming too). A run's folder is
-``OUT/VARIANT-N`` and holds its ``config.json`` (variant, suite, frames, compat mode, seed),
-so it describes itself; ``python -m rogue_gym.train.plot`` draws the figures from the folders.
+stopped), then :mod:`.posthoc` scores all its checkpoints (resuming too), then the evaluator
+scores its last checkpoint on the suite's training and test seeds (``RUN/eval/summary.json``).
+A run's folder is ``OUT/VARIANT-N`` and holds its ``config.json`` (variant, suite, frames,
+compat mode, seed), so it describes itself; ``python -m rogue_gym.train.plot`` draws the
+figures from the folders, and ``--report`` prints the paper's table from the evaluations: per
+variant and suite, the train score, the test score and the gap, each with its 95% interval,
+and the normalized test score (``docs/benchmark.md``); runs of one variant and suite made
+with several ``--seed``s (``--out`` folders of their own, all given to ``--report``) are
+aggregated across runs.
 """
 
 from __future__ import annotations
@@ -25,7 +31,7 @@ from typing import List, Optional, Sequence
 
 from .config import TrainConfig
 
-__all__ = ["PAPER_RUNS", "PROTOCOL", "Run", "commands", "runs"]
+__all__ = ["PAPER_RUNS", "PROTOCOL", "Run", "commands", "report", "runs"]
 
 #: The paper's protocol, :class:`TrainConfig`'s defaults (the authors' ``agents/env.py``:
 #: ``max_steps = int(2e7) * 2``, ``save_freq = int(2e6)``; ``agents/eval_cog.py``: 1000 test
@@ -119,6 +125,28 @@ def _posthoc_args(run: Run, args: argparse.Namespace) -> List[str]:
     ]
 
 
+def _eval_args(run: Run, args: argparse.Namespace) -> List[str]:
+    """The evaluator on the run's last checkpoint (``checkpoint:RUN``), training and test
+    seeds, into ``RUN/eval``."""
+    return [
+        "-m",
+        "rogue_gym.evaluate",
+        "--suite",
+        run.suite,
+        "--policy",
+        f"checkpoint:{args.out / run.name}",
+        "--episodes-per-seed",
+        str(args.eval_episodes),
+        "--seeds-limit",
+        str(args.eval_seeds),
+        "--num-workers",
+        str(args.num_workers),
+        "--out",
+        str(args.out / run.name / "eval"),
+        "--no-progress",
+    ]
+
+
 def _trained_frames(folder: Path) -> int:
     """Frames of the last ``progress.csv`` row (0 without one)."""
     path = folder / "progress.csv"
@@ -136,7 +164,46 @@ def commands(run: Run, args: argparse.Namespace) -> List[List[str]]:
     if _trained_frames(folder) < args.frames:
         due.append(_train_args(run, args, resume=(folder / "checkpoint.pt").exists()))
     due.append(_posthoc_args(run, args))
+    due.append(_eval_args(run, args))
     return [[sys.executable, *c] for c in due]
+
+
+def report(folders: Sequence[Path]) -> List[dict]:
+    """The paper's table from the evaluations of the runs under ``folders`` (each a matrix's
+    ``--out``): one row per variant and suite, train and test scores and the gap with 95%
+    intervals (across seeds for one run, across runs where several ``--out`` folders hold
+    it), and the normalized test score."""
+    from ..scoring.aggregate import aggregate, load_runs
+
+    groups: dict = {}
+    for folder in folders:
+        for summary in sorted(Path(folder).glob("*/eval/summary.json")):
+            cfg = json.loads((summary.parent.parent / "config.json").read_text())
+            groups.setdefault((cfg["variant"], cfg["suite"]), []).append(summary.parent)
+    rows = []
+    for (variant, suite), dirs in sorted(groups.items()):
+        docs = load_runs(dirs)
+        raw = aggregate(docs, raw=True)
+        row = {"variant": variant, "suite": suite, "runs": len(docs)}
+        if len(docs) == 1:
+            d = docs[0]
+            train, test = d["train_agents"][0], d["agents"][0]
+            row["train"] = [train["mean"], train["ci_low"], train["ci_high"]]
+            row["test"] = [test["mean"], test["ci_low"], test["ci_high"]]
+            gap = d["gap"]["raw"]
+            row["gap"] = [gap["value"], gap["low"], gap["high"]]
+            row["normalized_test"] = d.get("normalized", {}).get("test", {}).get("mean")
+        else:
+            row["train"] = [raw["train"]["mean"][k] for k in ("value", "low", "high")]
+            row["test"] = [raw["test"]["mean"][k] for k in ("value", "low", "high")]
+            row["gap"] = [raw["gap"][k] for k in ("value", "low", "high")]
+            row["normalized_test"] = aggregate(docs)["test"]["iqm"]["value"]
+        rows.append(row)
+    return rows
+
+
+def _iv(v: Sequence[float]) -> str:
+    return f"{v[0]:.1f} [{v[1]:.1f}, {v[2]:.1f}]"
 
 
 def parser() -> argparse.ArgumentParser:
@@ -147,6 +214,13 @@ def parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--only", nargs="*", default=None, help="runs to keep, e.g. small-10 l2-40")
     p.add_argument("--run", action="store_true", help="run the commands (resumable)")
+    p.add_argument(
+        "--report",
+        nargs="*",
+        type=Path,
+        default=None,
+        help="print the paper's table from the runs' evaluations (this --out, or the folders given)",
+    )
     p.add_argument("--out", type=Path, default=Path("runs/paper"), help="folder of the runs")
     p.add_argument("--device", default="cuda")
     p.add_argument("--seed", type=int, default=0)
@@ -163,6 +237,17 @@ def parser() -> argparse.ArgumentParser:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Print or run the matrix; returns the exit status."""
     args = parser().parse_args(argv)
+    if args.report is not None:
+        rows = report(args.report or [args.out])
+        print("| variant | suite | runs | train | test | gap (train - test) | normalized test |")
+        print("|---|---|---:|---|---|---|---:|")
+        for r in rows:
+            norm = "" if r["normalized_test"] is None else f"{r['normalized_test']:.3f}"
+            print(
+                f"| {r['variant']} | {r['suite']} | {r['runs']} | {_iv(r['train'])} | "
+                f"{_iv(r['test'])} | {_iv(r['gap'])} | {norm} |"
+            )
+        return 0
     chosen = runs(args.only)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "matrix.json").write_text(

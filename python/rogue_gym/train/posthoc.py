@@ -114,7 +114,13 @@ class CheckpointPolicy(TorchPolicy):
 
 
 def checkpoint_policy(path: Path, device: str = "cpu") -> CheckpointPolicy:
-    """The policy of checkpoint ``path`` (``RUN/models/frames-N.pt``)."""
+    """The policy of checkpoint ``path`` (``RUN/models/frames-N.pt``), or of a run folder's
+    last checkpoint."""
+    if Path(path).is_dir():
+        saved = checkpoints(Path(path))
+        if not saved:
+            raise ValueError(f"{path}: a run folder with no checkpoint in models/")
+        path = saved[-1][1]
     net, cfg = load_network(path, device)
     return CheckpointPolicy(net, torch.device(device), cfg)
 
