@@ -7,6 +7,10 @@ policy plugs into the evaluator and gives a second reference point besides the r
 
     python -m rogue_gym.evaluate --suite paper-40 --obs symbol_index \\
         --policy benchmarks/example_policies.py:StairsSeeker
+
+``NoisyReference`` and ``NoisierReference`` are the reference agent with 30% and 60% of its
+actions random (from the policy seed): two "methods" whose runs differ, for the worked example
+of reporting in ``docs/benchmark.md``.
 """
 
 from __future__ import annotations
@@ -81,3 +85,39 @@ class StairsSeeker:
             dy, dx = int(np.sign(target[0] - y)), int(np.sign(target[1] - x))
             actions[i] = MOVE[(dx, dy)]
         return actions
+
+
+class NoisyReference:
+    """The reference agent (``rogue_gym.agents.ReferenceAgent``) with a share ``EPS`` of its
+    actions replaced by random ones, drawn from the policy seed: a stand-in for a trained
+    method whose runs (policy seeds) differ, for the worked example of ``docs/benchmark.md``."""
+
+    EPS = 0.3
+    required_obs = "symbol_index"
+
+    def __init__(self) -> None:
+        from rogue_gym.agents import ReferenceAgent
+
+        self.ref = ReferenceAgent()
+        self.rng = np.random.default_rng(0)
+
+    def seed(self, seed: int) -> None:
+        """Restart the random share from ``seed``."""
+        self.rng = np.random.default_rng(seed)
+
+    def episodes_ended(self, mask: np.ndarray) -> None:
+        """The reference agent's memory of those rows starts afresh."""
+        self.ref.episodes_ended(mask)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """The reference agent's actions, a share of them random."""
+        actions = self.ref(obs)
+        flip = self.rng.random(len(actions)) < self.EPS
+        actions[flip] = self.rng.integers(0, 11, int(flip.sum()))
+        return actions
+
+
+class NoisierReference(NoisyReference):
+    """:class:`NoisyReference` with twice the random share: the weaker "method"."""
+
+    EPS = 0.6

@@ -218,13 +218,13 @@ mod loom_model {
 
     #[test]
     fn loom_the_handshake_holds_in_every_interleaving() {
-        run(super::next_seq, Ordering::Release);
+        run(crate::wire::command::next_seq, Ordering::Release);
     }
 
     #[test]
     #[should_panic(expected = "Causality violation")]
     fn loom_a_relaxed_publish_is_caught() {
-        run(super::next_seq, Ordering::Relaxed);
+        run(crate::wire::command::next_seq, Ordering::Relaxed);
     }
 
     #[test]
