@@ -6,6 +6,7 @@ every method."""
 from __future__ import annotations
 
 import multiprocessing as mp
+import subprocess
 import sys
 
 import numpy as np
@@ -59,9 +60,16 @@ def test_pools_made_under_each_start_method_play_the_same(method: str) -> None:
 
 
 def test_the_default_start_method_is_the_interpreters() -> None:
-    # 3.14 made forkserver the default on Linux; either way the pool above does not care.
-    want = "forkserver" if sys.version_info >= (3, 14) else "fork"
-    assert mp.get_start_method(allow_none=False) == want
+    # 3.14 made forkserver the default on Linux; either way the pool above does not care. Read
+    # in a fresh interpreter: a library another test imported (torch's) may have set its own.
+    out = subprocess.run(
+        [sys.executable, "-c", "import multiprocessing as mp; print(mp.get_start_method())"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    ).stdout.strip()
+    assert out == ("forkserver" if sys.version_info >= (3, 14) else "fork")
 
 
 def test_poolvecenv_takes_every_start_method_name() -> None:
