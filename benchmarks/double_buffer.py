@@ -4,9 +4,8 @@
 ``sync``: ``step(policy(obs))`` on all ``N`` envs; the workers wait while the policy runs and
 the policy waits while the workers step. ``halves``: ``batch_size = N / 2``; the policy runs on
 one half (``recv``, ``policy``, ``send``) while the workers step the other, so on two cores the
-ideal is 2x. ``halves, rows copied`` is the same loop with the workers' rows copied out of their
-answers rather than written in place (``async_in_place(False)``: the path before rows in
-place). The policy is a busy loop as long as the workers' own env time for its rows
+ideal is 2x. ``halves, rows copied`` is the same loop with each ``recv``'s rows copied out of
+their slot rather than handed over as views (``async_views(False)``). The policy is a busy loop as long as the workers' own env time for its rows
 (measured from ``stats()`` in a calibration run), so "as slow as the envs". Workloads: the
 native game at 1,024 envs and hosted CartPole at 16 envs, with 1 and 2 workers. Cells run in
 turn, ``--reps`` times; the table shows the median steps/s and the ratio of halves to sync.
@@ -117,9 +116,8 @@ def main() -> None:
             sync = make(env, n, w, n)
             halves = make(env, n, w, n // 2)
             copied = make(env, n, w, n // 2)
-            # The same halves with the rows copied out of the workers' answers (the path before
-            # rows in place): the recv's copy on the caller's side.
-            copied._core.pool.async_in_place(False)
+            # The same halves with each recv's rows copied out of their slot, not viewed.
+            copied._core.pool.async_views(False)
             opened += [sync, halves, copied]
             for mode, vec, run in zip(
                 modes, (sync, halves, copied), (run_sync, run_halves, run_halves)

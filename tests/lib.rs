@@ -229,7 +229,7 @@ pub fn run_async(pool: &mut Pool, steps: u64) -> Result<Digests, PoolError> {
         let got_now = pool.recv()?;
         let out = received_output(&got_now, n_info);
         let obs = match got_now.view {
-            // Rows in place (`set_async_in_place`): envs `first..` of the slot.
+            // A view (`set_async_views`): envs `first..` of the slot.
             Some((slot, first)) => {
                 let rows = got_now.env_ids.len();
                 pool.shared_obs(slot)[first * ob..(first + rows) * ob].to_vec()

@@ -36,27 +36,27 @@ fn trajectories_identical_for_any_worker_count_even_or_not_and_sync_async() {
         );
     }
     for (workers, batch) in [(4, 4), (2, 4), (4, 8), (8, 1), (8, 4), (3, 8), (5, 8)] {
-        for in_place in [false, true] {
+        for views in [false, true] {
             let mut c = config(EXE, test_env(), 8, workers);
             c.batch_size = Some(batch);
             let mut p = pool(c);
-            p.set_async_in_place(in_place);
+            p.set_async_views(views);
             let d = run_async(&mut p, steps).unwrap();
             assert_eq!(
                 d, reference,
-                "async with {workers} workers, batch {batch} (rows in place: {in_place}) differs"
+                "async with {workers} workers, batch {batch} (views: {views}) differs"
             );
         }
     }
 }
 
 #[test]
-fn async_rows_in_place_are_views_that_stay_put_until_the_next_recv() {
+fn async_views_stay_put_while_their_envs_step_again() {
     // Two halves of 8 envs on 2 workers: each recv is one worker's block, written in place.
     let mut c = config(EXE, test_env(), 8, 2);
     c.batch_size = Some(4);
     let mut p = pool(c);
-    p.set_async_in_place(true);
+    p.set_async_views(true);
     let ob = p.obs_bytes();
     p.async_reset().unwrap();
     let mut views = 0;
@@ -555,4 +555,55 @@ fn env_calls_reach_the_chosen_envs_in_order_and_errors_name_the_env() {
     assert!(e.to_string().contains("env 9 does not exist"), "{e}");
     p.reset_read(&mut out).unwrap();
     p.step_read(&[0; 5], &mut out).unwrap();
+}
+
+#[test]
+fn async_answers_of_a_recycled_worker_are_its_envs_next_episodes_first_rows() {
+    // A sync reset and steps, then send/recv (TorchRL's loop starts so). Workers replaced by
+    // plan (the first time at the first send) reset their envs into the slots the async API
+    // chose; every restarted row must be exactly the first observation of the episode its
+    // record names, whether handed over as a view or copied.
+    use rogue_gym_pool::{Env, TestEnv};
+    for views in [false, true] {
+        let mut c = config(EXE, test_env(), 8, 2);
+        c.batch_size = Some(4);
+        c.recycle_after_steps = Some(12);
+        let mut p = pool(c);
+        p.set_async_views(views);
+        let ob = p.obs_bytes();
+        p.reset(None).unwrap();
+        for _ in 0..3 {
+            p.step(&[2i64; 8]).unwrap();
+        }
+        let all: Vec<usize> = (0..8).collect();
+        p.send(&[1i64; 8], &all).unwrap();
+        let mut fresh = TestEnv::from_json(&test_env()).unwrap();
+        let mut want = vec![0u8; ob];
+        let mut restarts = 0;
+        for t in 0..80 {
+            let got = p.recv().unwrap();
+            for (r, (&e, rec)) in got.env_ids.iter().zip(&got.records).enumerate() {
+                let row = match got.view {
+                    Some((slot, first)) => {
+                        let at = (first + r) * ob;
+                        p.shared_obs(slot)[at..at + ob].to_vec()
+                    }
+                    None => got.obs[r * ob..(r + 1) * ob].to_vec(),
+                };
+                assert_eq!(e, got.env_ids[r]);
+                if rec.restarted() {
+                    restarts += 1;
+                    fresh.reset(rec.seed, &mut want).unwrap();
+                    assert_eq!(row, want, "env {e}'s restart (views: {views})");
+                }
+            }
+            let ids = got.env_ids.clone();
+            p.send(&vec![(t % 5) as i64; ids.len()], &ids).unwrap();
+        }
+        assert!(
+            restarts >= 8,
+            "every env was recycled at least once ({restarts})"
+        );
+        assert!(!p.recycled_envs().is_empty() || restarts > 0);
+    }
 }

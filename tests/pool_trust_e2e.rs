@@ -195,12 +195,12 @@ fn no_process_can_resize_the_pools_buffer() {
 }
 
 #[test]
-fn the_async_api_checks_rows_written_in_place_as_the_sync_calls_do() {
+fn the_async_api_checks_the_rows_it_hands_over_as_the_sync_calls_do() {
     for policy in [FailurePolicy::Raise, FailurePolicy::Restart] {
         let mut c = sabotaged(Misdeed::FlagByte { byte: 9 }, 2, policy);
         c.batch_size = Some(4);
         let mut p = pool(c);
-        p.set_async_in_place(true);
+        p.set_async_views(true);
         p.async_reset().unwrap();
         let got = p.recv().unwrap();
         p.send(&[0; 4], &got.env_ids).unwrap();

@@ -69,8 +69,8 @@ pub use ports::{
 pub use private::{RUNTIME_DIR_ENV, default_runtime_dir, resolve_runtime_dir};
 pub use room::{ShmRoom, check_room, shm_room};
 pub use services::{
-    BlockHeader, ChannelSettings, CmdHeader, block_event_service, block_service, cmd_event_service,
-    cmd_service, monotonic_ns,
+    BlockHeader, ChannelSettings, CmdHeader, block_event_service, block_service, channels_bytes,
+    cmd_event_service, cmd_service, monotonic_ns,
 };
 pub use wait::{WaitCall, WaitOutcome, WaitPolicy, hybrid_wait};
 

@@ -33,13 +33,8 @@ impl std::fmt::Debug for SupervisorPorts {
 
 impl SupervisorPorts {
     /// Open the ports of worker `worker`; `max_cmd_words` is the largest command payload.
-    pub fn new(
-        node: &Node<Svc>,
-        worker: usize,
-        max_cmd_words: usize,
-        s: &ChannelSettings,
-    ) -> Result<Self, IpcError> {
-        let block_sub = block_service(node, worker, s)?
+    pub fn new(node: &Node<Svc>, worker: usize, max_cmd_words: usize) -> Result<Self, IpcError> {
+        let block_sub = block_service(node, worker)?
             .subscriber_builder()
             .create()
             .map_err(ice(format!("create block subscriber of worker {worker}")))?;
@@ -154,7 +149,7 @@ impl WorkerPorts {
             .listener_builder()
             .create()
             .map_err(ice(format!("create command listener of worker {worker}")))?;
-        let block_pub = block_service(node, worker, s)?
+        let block_pub = block_service(node, worker)?
             .publisher_builder()
             .initial_max_slice_len(block_words.max(1))
             .max_loaned_samples(1)

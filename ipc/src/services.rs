@@ -49,9 +49,49 @@ pub fn monotonic_ns() -> u64 {
 pub struct ChannelSettings {
     /// Number of workers of the pool (event ids `0..num_workers`).
     pub num_workers: usize,
-    /// Samples of one worker the supervisor side may hold at once (e.g. zero-copy numpy views
-    /// kept alive by a trainer). Receiving more fails with a "borrow" error.
-    pub max_borrowed: usize,
+}
+
+/// Samples of one worker the supervisor holds at once: the answer it has taken and not yet
+/// read, and the next. A sample carries answer words only (the rows are in the pool's batch
+/// slots), so nothing a caller keeps pins one.
+pub const SAMPLES_HELD: usize = 2;
+/// Commands a worker may have unread (a worker whose envs run on threads takes several).
+const CMD_BUFFER: usize = 8;
+/// Answers a worker may have untaken.
+const ANSWER_BUFFER: usize = 4;
+
+/// The page tmpfs charges a file by.
+const PAGE: u64 = 4096;
+/// What iceoryx2 adds to a data segment per sample (its header and the user header) and once
+/// per segment: measured on iceoryx2's files (`tests/python/test_shm.py` compares the whole
+/// with a running pool's files).
+const SAMPLE_OVERHEAD: u64 = 32;
+const SEGMENT_OVERHEAD: u64 = 520;
+/// Pages of a worker's other files (two connections, three service records, one event
+/// record), and of the pool's own (the node's records).
+const WORKER_PAGES: u64 = 6;
+const POOL_PAGES: u64 = 2;
+
+/// Bytes of `/dev/shm` a pool's channels map, each file in whole pages (what tmpfs charges
+/// once it is touched): `workers` holds each worker's largest command and largest answer, in
+/// words. A publisher's segment holds every sample that can be in flight at once: the
+/// subscriber's buffer, those it holds, and the one being loaned.
+pub fn channels_bytes(workers: &[(usize, usize)]) -> u64 {
+    let pages = |bytes: u64| bytes.div_ceil(PAGE) * PAGE;
+    let segment = |samples: usize, words: usize| {
+        pages(samples as u64 * (8 * words.max(1) as u64 + SAMPLE_OVERHEAD) + SEGMENT_OVERHEAD)
+    };
+    let per_worker: u64 = workers
+        .iter()
+        .map(|&(cmd, answer)| {
+            segment(CMD_BUFFER + 2, cmd)
+                + segment(ANSWER_BUFFER + SAMPLES_HELD + 1, answer)
+                + WORKER_PAGES * PAGE
+        })
+        .sum();
+    // The answers' event service, shared: its record grows with the workers it serves.
+    let events = pages(320 * workers.len() as u64 + 1287);
+    per_worker + events + POOL_PAGES * PAGE
 }
 
 impl ChannelSettings {
@@ -80,18 +120,18 @@ pub fn cmd_service(
         .max_nodes(4)
         .history_size(0)
         // Commands of a worker whose envs run on threads may queue (several in flight).
-        .subscriber_max_buffer_size(8)
+        .subscriber_max_buffer_size(CMD_BUFFER)
         .subscriber_max_borrowed_samples(1)
         .enable_safe_overflow(true)
         .open_or_create()
         .map_err(ice(format!("open command service {name}")))
 }
 
-/// Publish-subscribe service of a worker's blocks (observations and per-env records).
+/// Publish-subscribe service of a worker's answers (their words; the rows are in the batch
+/// slots).
 pub fn block_service(
     node: &Node<Svc>,
     worker: usize,
-    s: &ChannelSettings,
 ) -> Result<
     iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u64], BlockHeader>,
     IpcError,
@@ -106,8 +146,8 @@ pub fn block_service(
         .max_subscribers(1)
         .max_nodes(4)
         .history_size(0)
-        .subscriber_max_buffer_size(4)
-        .subscriber_max_borrowed_samples(s.max_borrowed.max(1))
+        .subscriber_max_buffer_size(ANSWER_BUFFER)
+        .subscriber_max_borrowed_samples(SAMPLES_HELD)
         .enable_safe_overflow(true)
         .open_or_create()
         .map_err(ice(format!("open block service {name}")))

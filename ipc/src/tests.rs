@@ -37,13 +37,10 @@ fn pubsub_round_trip_and_cleanup() {
     let base = private_base("rgp-ipc-test");
     let id = PoolId::new_unique(&base).unwrap();
     id.create_dirs().unwrap();
-    let s = ChannelSettings {
-        num_workers: 1,
-        max_borrowed: 2,
-    };
+    let s = ChannelSettings { num_workers: 1 };
     {
         let sup_node = id.node("sup").unwrap();
-        let sup = SupervisorPorts::new(&sup_node, 0, 4, &s).unwrap();
+        let sup = SupervisorPorts::new(&sup_node, 0, 4).unwrap();
         let bl = BlockListener::new(&sup_node, &s).unwrap();
         let w_node = id.node("w0").unwrap();
         let w = WorkerPorts::new(&w_node, 0, 8, &s).unwrap();
@@ -109,10 +106,7 @@ fn idle_wait_blocks_instead_of_spinning() {
     let base = private_base("rgp-ipc-idle-test");
     let id = PoolId::new_unique(&base).unwrap();
     id.create_dirs().unwrap();
-    let s = ChannelSettings {
-        num_workers: 1,
-        max_borrowed: 2,
-    };
+    let s = ChannelSettings { num_workers: 1 };
     {
         let node = id.node("sup").unwrap();
         let bl = BlockListener::new(&node, &s).unwrap();
@@ -190,15 +184,12 @@ fn every_path_of_a_live_pool_is_private() {
     let base = private_base("rgp-ipc-private-test");
     let id = PoolId::new_unique(&base).unwrap();
     id.create_dirs().unwrap();
-    let s = ChannelSettings {
-        num_workers: 1,
-        max_borrowed: 2,
-    };
+    let s = ChannelSettings { num_workers: 1 };
     {
         let _buf = SharedBuffer::create("batch", 4096).unwrap();
         create_node_counter(&id).unwrap();
         let node = id.node("sup").unwrap();
-        let _sup = SupervisorPorts::new(&node, 0, 4, &s).unwrap();
+        let _sup = SupervisorPorts::new(&node, 0, 4).unwrap();
         let _bl = BlockListener::new(&node, &s).unwrap();
         let w_node = id.node("w0").unwrap();
         let _w = WorkerPorts::new(&w_node, 0, 8, &s).unwrap();

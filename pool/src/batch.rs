@@ -1,11 +1,7 @@
-//! What a call hands back: the answer of a whole-batch call ([`SlotAnswer`]), its rows copied
-//! out ([`BatchOutput`]), and a worker's block of the async API ([`Block`]).
+//! What a call hands back: the answer of a whole-batch call ([`SlotAnswer`]) and its rows
+//! copied out ([`BatchOutput`]).
 
-use std::ops::Range;
-
-use rogue_gym_ipc::BlockSample;
-
-use crate::wire::layout::{BlockLayout, EnvRecord, FLAG_RESTARTED, FLAG_TRUNCATED};
+use crate::wire::record::EnvRecord;
 
 /// Per-env arrays of one batch, copied out of a slot ([`crate::Pool::read_slot`]). Row `r`
 /// describes env `env_ids[r]`.
@@ -110,78 +106,4 @@ pub enum SlotExtras {
     /// Some envs wrote some, not all of one layout: `(env, bytes)` in env order (collected
     /// env by env: the irregular case, e.g. infos that are pickled).
     Rows(Vec<(usize, Vec<u8>)>),
-}
-
-/// One worker's block as received: an owned handle on the shared-memory sample (`Send`).
-///
-/// Lifetime: the observation bytes stay valid and unchanged for as long as the `Block` lives,
-/// even after the pool is closed. Each held block pins one of its worker's
-/// `max_borrowed` sample slots: holding `max_borrowed` blocks of one worker makes the next
-/// receive from that worker fail, so keep at most `max_borrowed - 1` per worker.
-pub struct Block {
-    pub(crate) worker: usize,
-    pub(crate) env_start: usize,
-    pub(crate) layout: BlockLayout,
-    pub(crate) restarted: bool,
-    pub(crate) sample: BlockSample,
-    /// Extra info of the rows flagged `FLAG_EXTRA_APART`, from the block's side file.
-    pub(crate) apart: Vec<(u32, Vec<u8>)>,
-}
-
-impl std::fmt::Debug for Block {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Block")
-            .field("worker", &self.worker)
-            .field("env_ids", &self.env_ids())
-            .finish()
-    }
-}
-
-impl Block {
-    /// The worker that produced it.
-    pub fn worker(&self) -> usize {
-        self.worker
-    }
-    /// Env ids of its rows.
-    pub fn env_ids(&self) -> Range<usize> {
-        self.env_start..self.env_start + self.layout.envs
-    }
-    /// Its observations: `envs x obs_bytes` C-contiguous bytes in shared memory (read-only),
-    /// 8-byte aligned.
-    pub fn obs(&self) -> &[u8] {
-        self.layout.obs(self.sample.payload())
-    }
-    /// (SAME_STEP) its final observations, same layout as [`Block::obs`].
-    pub fn final_obs(&self) -> Option<&[u8]> {
-        self.layout.final_obs(self.sample.payload())
-    }
-    /// Extra info of row `j` (empty if the env wrote none).
-    pub fn extra(&self, j: usize) -> &[u8] {
-        let r = self.layout.record(self.sample.payload(), j);
-        if r.extra_apart() {
-            return self
-                .apart
-                .iter()
-                .find(|(row, _)| *row as usize == j)
-                .map_or(&[], |(_, b)| b.as_slice());
-        }
-        self.layout.extra(self.sample.payload(), j, r.extra_len)
-    }
-    /// Record of row `j` (with the restart flags applied).
-    pub fn record(&self, j: usize) -> EnvRecord {
-        let mut r = self.layout.record(self.sample.payload(), j);
-        if self.restarted {
-            r.flags = FLAG_TRUNCATED | FLAG_RESTARTED;
-            r.reward = 0.0;
-        }
-        r
-    }
-    /// Whether this block answers a worker restart.
-    pub fn restarted(&self) -> bool {
-        self.restarted
-    }
-    /// The underlying iceoryx2 sample (records, then observations; see `layout`).
-    pub fn sample(&self) -> &BlockSample {
-        &self.sample
-    }
 }

@@ -103,8 +103,6 @@ pub struct PoolConfig {
     /// Worker restarts allowed over the pool's life; one more fails with
     /// [`PoolError::RestartBudgetExceeded`].
     pub max_restarts: u32,
-    /// Blocks of one worker the caller may hold at once, plus one (see [`crate::Block`]).
-    pub max_borrowed: usize,
     /// Replace a worker in a planned way once it has served this many env steps (leaky envs;
     /// see [`crate::Pool`]'s recycling); `None`: never.
     pub recycle_after_steps: Option<u64>,
@@ -166,7 +164,6 @@ impl PoolConfig {
             step_timeout: None,
             start_timeout: Duration::from_secs(30),
             max_restarts: 100,
-            max_borrowed: 4,
             recycle_after_steps: None,
             recycle_above_rss: None,
             batch_slots: crate::BATCH_SLOTS,
@@ -193,7 +190,7 @@ impl PoolConfig {
     }
 
     /// Check the config before anything is started: counts, the layout of envs on workers
-    /// (`block_unit`), `batch_size`, `max_borrowed`, `batch_slots` and the seed schedule
+    /// (`block_unit`), `batch_size`, `batch_slots` and the seed schedule
     /// ([`PoolError::Config`] saying what is wrong and the range it must be in).
     pub fn validate(&self) -> Result<(), PoolError> {
         if self.num_workers == 0 || self.num_envs == 0 {
@@ -225,11 +222,6 @@ impl PoolConfig {
                 "batch_size ({b}) must be between 1 and num_envs ({})",
                 self.num_envs
             )));
-        }
-        if self.max_borrowed < 2 {
-            return Err(PoolError::Config(
-                "max_borrowed must be at least 2 (one sample being received, one held)".into(),
-            ));
         }
         if !(2..=crate::MAX_BATCH_SLOTS).contains(&self.batch_slots) {
             return Err(PoolError::Config(format!(

@@ -9,9 +9,10 @@
 //! partial reset) is written by its worker in place, at the env's row of a shared batch slot
 //! the call names (`batch_slots` of them, 2 by default; [`wire::slot_layout`]), where the
 //! caller reads it ([`Pool::step`]; [`Pool::read_slot`] copies it out). The async API
-//! ([`Pool::send`], [`Pool::recv`]) answers steps in place too where the caller asks for it
-//! ([`Pool::set_async_in_place`]: a batch of one run of envs is then a view of its slot), and
-//! otherwise through per-worker shared-memory blocks ([`Block`]), copied out for the caller.
+//! ([`Pool::send`], [`Pool::recv`]) has every answer written in the slots too, each env's
+//! answers taking turns over them; a batch of one run of envs in one slot can be handed over
+//! as a view of it ([`Pool::set_async_views`]). A worker's iceoryx2 samples carry its answers'
+//! words only.
 //!
 //! Modules, one job each:
 //!
@@ -46,7 +47,7 @@ pub mod supervisor;
 pub mod wire;
 pub mod worker;
 
-pub use batch::{BatchOutput, Block, SlotAnswer, SlotExtras};
+pub use batch::{BatchOutput, SlotAnswer, SlotExtras};
 pub use config::{AutoresetMode, CpuAffinity, FailurePolicy, PoolConfig, WorkerCommand};
 pub use env::{
     Dtype, Env, EnvBlock, EnvError, EnvSpec, MAX_INFO, StepOutcome, action_out_of_range,
@@ -61,7 +62,7 @@ pub use supervisor::{
     Actions, InterruptCheck, MachineView, Pool, Received, RecvWant, validate_actions,
 };
 pub use wire::answer::EXTRA_HEAD;
-pub use wire::layout::{
+pub use wire::record::{
     EnvRecord, FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED,
 };
 pub use wire::slot_layout::{COLUMNS, Column, ColumnView, SlotLayout, SlotRows};

@@ -1,5 +1,6 @@
-//! The worker process: steps a block of envs and publishes their observations and records
-//! through shared memory.
+//! The worker process: steps a block of envs, each env writing its rows (observation, record,
+//! infos) in the pool's batch slot its command names, and publishes one answer word per
+//! command through iceoryx2.
 //!
 //! Entry point: [`worker_main`], called by `rogue-gym worker ...`, by the e2e test binary and by
 //! the Python extension (`python -m rogue_gym.worker ...`). Arguments (after the program and its
@@ -7,10 +8,11 @@
 //! --shared-fds <batch>,<books>,<stats>` (the descriptors of the pool's buffers, which the
 //! supervisor keeps open across the worker's `exec`).
 //!
-//! The worker is set-up ([`worker_main`]) and then one function per command op. Its envs are
+//! The worker is set up ([`worker_main`]; its command line and config in `setup.rs`) and
+//! then one function per command op. Its envs are
 //! stepped one after another (`envs.rs`, each env's state machine in `env_state.rs`), as one
 //! [`crate::EnvBlock`] (`block.rs`), or each on a thread of its own (`concurrent.rs`, the
-//! pool's `env_concurrency`); the rows and the answer are built in `block_out.rs`, written
+//! pool's `env_concurrency`); the rows and the answer are written in `block_out.rs`, written
 //! with streaming stores for large batches (`streaming.rs`); `sabotage.rs` is the trust tests'
 //! hook that makes a worker write bad values.
 
@@ -28,27 +30,29 @@ use crate::config::AutoresetMode;
 use crate::env::MAX_INFO;
 use crate::registry::{Built, EnvRegistry};
 use crate::stats::{Counter, StatsBuffer, ns_since, stamp};
-use crate::wire::answer::{ANSWER_WORDS, BlockKind};
+use crate::wire::answer::{ANSWER_WORDS, AnswerBuilder, BlockKind, sample_words};
 use crate::wire::books::Books;
-use crate::wire::layout::BlockLayout;
 use crate::wire::slot_layout::SlotLayout;
 use crate::wire::{
-    BATCH_BUFFER, Command, EnvFault, Op, Pace, SHARED_FDS, Serve, WorkerConfig, calls,
-    env_fault_path, extra_apart_path, successor_go, successor_marker,
+    BATCH_BUFFER, Command, EnvFault, Op, Pace, Serve, WorkerConfig, calls, env_fault_path,
+    extra_apart_path, successor_marker,
 };
 
 mod block;
 mod block_out;
 mod concurrent;
 mod env_state;
+mod env_threads;
 mod envs;
 mod sabotage;
+mod setup;
 mod streaming;
 
 use block::BlockHost;
 use block_out::{BlockOut, Scratch};
 use env_state::{EnvState, ServeCtx};
 use envs::{WorkerEnvs, answer_calls, take_action_extras};
+use setup::{Args, parse_args, pin_to_core, read_config, wait_for_go};
 
 #[derive(Debug, thiserror::Error)]
 enum WorkerError {
@@ -58,69 +62,6 @@ enum WorkerError {
     Msg(String),
     #[error("the supervisor (pid {0}) is gone")]
     ParentGone(i32),
-}
-
-struct Args {
-    config: PathBuf,
-    index: usize,
-    generation: u64,
-    ppid: i32,
-    /// A planned replacement ([`crate::wire::successor_marker`]): build the envs while the
-    /// worker it replaces still serves, say so, then take over its ports once they are free.
-    successor: bool,
-    /// The descriptors of the pool's buffers ([`crate::wire::SHARED_FDS`] order).
-    shared_fds: Vec<i32>,
-}
-
-fn parse_args(args: &[String]) -> Result<Args, String> {
-    let mut config = None;
-    let mut index = None;
-    let mut generation = 0u64;
-    let mut ppid = None;
-    let mut successor = false;
-    let mut shared_fds = Vec::new();
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        let mut val = |name: &str| {
-            it.next()
-                .cloned()
-                .ok_or_else(|| format!("{name} needs a value"))
-        };
-        match a.as_str() {
-            "--config" => config = Some(PathBuf::from(val("--config")?)),
-            "--index" => {
-                index = Some(
-                    val("--index")?
-                        .parse()
-                        .map_err(|e| format!("--index: {e}"))?,
-                )
-            }
-            "--generation" => {
-                generation = val("--generation")?
-                    .parse()
-                    .map_err(|e| format!("--generation: {e}"))?
-            }
-            "--ppid" => ppid = Some(val("--ppid")?.parse().map_err(|e| format!("--ppid: {e}"))?),
-            "--successor" => successor = true,
-            "--shared-fds" => {
-                shared_fds = val("--shared-fds")?
-                    .split(',')
-                    .map(|f| f.parse::<i32>().map_err(|e| format!("--shared-fds: {e}")))
-                    .collect::<Result<_, _>>()?;
-            }
-            other => return Err(format!("unexpected argument {other:?}")),
-        }
-    }
-    Ok(Args {
-        config: config.ok_or("missing --config <file>")?,
-        index: index.ok_or("missing --index <worker index>")?,
-        generation,
-        ppid: ppid.ok_or("missing --ppid <supervisor pid>")?,
-        successor,
-        shared_fds: (shared_fds.len() == SHARED_FDS.len())
-            .then_some(shared_fds)
-            .ok_or("missing --shared-fds <batch>,<books>,<stats>")?,
-    })
 }
 
 /// Run a worker; returns the process exit code (0: closed by the supervisor or supervisor gone,
@@ -178,29 +119,6 @@ pub fn worker_main(args: &[String], registry: &EnvRegistry) -> i32 {
     }
 }
 
-/// Wait for the supervisor's word that the worker this successor replaces is gone
-/// ([`successor_go`]), while the supervisor lives: a successor that is not needed is killed.
-fn wait_for_go(id: &PoolId, a: &Args) -> Result<(), WorkerError> {
-    let go = successor_go(id, a.index, a.generation);
-    while !go.exists() {
-        if nix::unistd::getppid().as_raw() != a.ppid {
-            return Err(WorkerError::ParentGone(a.ppid));
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    let _ = std::fs::remove_file(&go);
-    Ok(())
-}
-
-/// Pin this process to core `core` (the supervisor chose it: `WorkerConfig::cpu_cores`).
-fn pin_to_core(core: usize) -> Result<usize, nix::Error> {
-    use nix::sched::{CpuSet, sched_setaffinity};
-    let mut one = CpuSet::new();
-    one.set(core)?;
-    sched_setaffinity(nix::unistd::Pid::from_raw(0), &one)?;
-    Ok(core)
-}
-
 /// The longest a worker polls for a command it expects soon ([`expected_poll`]).
 const MAX_EXPECTED_POLL: Duration = Duration::from_millis(2);
 
@@ -215,19 +133,6 @@ fn expected_poll(budget: Duration, last_gap: Duration) -> Duration {
     }
 }
 
-/// Read the worker's config: a private file of this user in a private directory of this user
-/// (the pool's, inside its verified runtime directory), so that no one else can have written
-/// what the worker builds its envs from (hosted envs unpickle it).
-fn read_config(path: &std::path::Path) -> Result<WorkerConfig, String> {
-    let dir = path.parent().unwrap_or(std::path::Path::new("/"));
-    let meta = std::fs::symlink_metadata(dir)
-        .map_err(|e| format!("cannot inspect {}: {e}", dir.display()))?;
-    rogue_gym_ipc::private::check_private(dir, &meta, true).map_err(|e| e.to_string())?;
-    let data = rogue_gym_ipc::private::read_private_file(path)
-        .map_err(|e| format!("cannot read worker config: {e}"))?;
-    serde_json::from_slice(&data).map_err(|e| format!("bad worker config: {e}"))
-}
-
 /// A running worker: its envs, its ports, and the pool's shared memory it writes.
 struct Worker<'a> {
     args: &'a Args,
@@ -240,8 +145,8 @@ struct Worker<'a> {
     n_info: usize,
     action_words: usize,
     action_bytes: usize,
-    /// The layout of the worker's block, and of a batch slot.
-    layout: BlockLayout,
+    /// Envs of the worker's block, and the layout of a batch slot.
+    block_envs: usize,
     slot_layout: SlotLayout,
     batch: SharedBuffer,
     stats: std::sync::Arc<StatsBuffer>,
@@ -343,19 +248,13 @@ impl<'a> Worker<'a> {
                 (WorkerEnvs::Block(host), spec)
             }
         };
-        let layout = BlockLayout {
-            envs: envs.len(),
-            obs_bytes: spec.obs_bytes(),
-            final_obs: cfg.autoreset == AutoresetMode::SameStep,
-            extra_bytes: spec.extra_bytes,
-        };
         let n_info = spec.info_names.len().min(MAX_INFO);
         let slot_layout = SlotLayout {
             num_envs: cfg.num_envs,
-            obs_bytes: layout.obs_bytes,
+            obs_bytes: spec.obs_bytes(),
             n_info,
-            final_obs: layout.final_obs,
-            extra_bytes: layout.extra_bytes,
+            final_obs: cfg.autoreset == AutoresetMode::SameStep,
+            extra_bytes: spec.extra_bytes,
         };
         let node = id.node(&format!("w{}g{}", a.index, a.generation))?;
         if a.successor {
@@ -367,16 +266,21 @@ impl<'a> Worker<'a> {
             ))?;
             wait_for_go(&id, a)?;
         }
-        let ports = WorkerPorts::new(&node, a.index, layout.words(), &cfg.channel_settings())?;
+        let ports = WorkerPorts::new(
+            &node,
+            a.index,
+            sample_words(envs.len()),
+            &cfg.channel_settings(),
+        )?;
         let slots_bytes = cfg.batch_slots * slot_layout.bytes();
         // Envs write their observation to a stage first when the rows are streamed.
         let streamed = streaming::wanted(
             cfg.streaming_stores,
-            cfg.batch_slots * cfg.num_envs * layout.obs_bytes,
+            cfg.batch_slots * cfg.num_envs * slot_layout.obs_bytes,
         );
         let scratch = Scratch {
             stage: if streamed {
-                vec![0; layout.obs_bytes]
+                vec![0; slot_layout.obs_bytes]
             } else {
                 Vec::new()
             },
@@ -395,7 +299,7 @@ impl<'a> Worker<'a> {
             n_info,
             action_words,
             action_bytes: spec.action_bytes,
-            layout,
+            block_envs: envs.len(),
             slot_layout,
             ports,
             node,
@@ -464,7 +368,7 @@ impl<'a> Worker<'a> {
             let Some(dst) = self.payload.get_mut(..n) else {
                 return Err(WorkerError::Msg(format!(
                     "command {} carries {n} words, more than a command to {} envs can",
-                    h.seq, self.layout.envs
+                    h.seq, self.block_envs
                 )));
             };
             dst.copy_from_slice(&cmd.payload()[..n]);
@@ -475,7 +379,7 @@ impl<'a> Worker<'a> {
     /// Send an answer without data (`kind`) to command `seq` (its first word 0: it names no
     /// rows, see [`crate::wire::answer::rows_of`]).
     fn send(&mut self, seq: u64, kind: BlockKind) -> Result<(), WorkerError> {
-        let mut block = self.ports.loan_block(self.layout.words())?;
+        let mut block = self.ports.loan_block(sample_words(self.block_envs))?;
         *block.user_header_mut() = self.header(seq, kind);
         block.payload_mut()[0] = 0;
         self.publish(block)
@@ -517,8 +421,9 @@ impl<'a> Worker<'a> {
         }
     }
 
-    /// A reset or a step ([`Serve`]): every env it names answers into the block, or in place
-    /// into the batch slot the command targets; one answer for them all.
+    /// A reset or a step ([`Serve`]): every env it names writes its rows in the batch slot
+    /// the command targets (a subset command: the slot its word names); one answer for them
+    /// all.
     fn serve(
         &mut self,
         seq: u64,
@@ -527,23 +432,32 @@ impl<'a> Worker<'a> {
         n: usize,
     ) -> Result<(), WorkerError> {
         // Words per env: one episode index per env for a reset, one action for a step; a
-        // subset step adds one word per env (whether it steps).
-        let epw = self.layout.envs;
+        // subset command adds one word per env (its slot).
+        let epw = self.block_envs;
         let per_env = if kind == Serve::Step {
             self.action_words
         } else {
             1
         };
-        let subset = kind == Serve::Step && command.subset;
+        let subset = command.subset;
         if n != epw * per_env + if subset { epw } else { 0 } {
             return Err(WorkerError::Msg(format!(
                 "command {seq} carries {n} words for {epw} envs of {per_env} words (subset: \
                  {subset})"
             )));
         }
-        let target = command.target as usize;
-        if target > self.cfg.batch_slots {
-            return Err(WorkerError::Msg(format!("bad observation target {target}")));
+        let slots = self.cfg.batch_slots as u64;
+        let target = u64::from(command.target);
+        let (acts, only) = self.payload[..n].split_at(epw * per_env);
+        let bad = if subset {
+            only.iter().copied().find(|&w| w > slots)
+        } else {
+            (!(1..=slots).contains(&target)).then_some(target)
+        };
+        if let Some(t) = bad {
+            return Err(WorkerError::Msg(format!(
+                "command {seq}: observation target {t}, but the pool has {slots} slots"
+            )));
         }
         if command.reload_seeds {
             self.seeds = read_config(&self.args.config)
@@ -553,37 +467,15 @@ impl<'a> Worker<'a> {
         let me = self.args.index;
         self.served += 1;
         let misdeed = self.misdeed(self.served);
-        let mut block = self.ports.loan_block(self.layout.words())?;
+        let mut block = self.ports.loan_block(sample_words(epw))?;
         *block.user_header_mut() = self.header(seq, BlockKind::Data);
         let serving = stamp();
-        let (acts, only) = self.payload[..n].split_at(epw * per_env);
-        let only = subset.then_some(only);
         let ctx = ServeCtx {
             seeds: &self.seeds,
             num_envs: self.cfg.num_envs as u64,
             autoreset: self.cfg.autoreset,
             action_bytes: self.action_bytes,
             n_info: self.n_info,
-        };
-        let mut out = match target {
-            0 => BlockOut::in_block(
-                self.layout.split_mut(block.payload_mut()),
-                &self.layout,
-                &mut self.scratch,
-            ),
-            // SAFETY: slot `target - 1` lies in the batch buffer (`target <= batch_slots`,
-            // checked above), 64-byte aligned. This worker's envs own their rows of every area
-            // of it during the command: the supervisor neither reads nor lends them out until
-            // the command is answered, and no other worker writes them.
-            t => unsafe {
-                let base = self.batch.as_ptr().add((t - 1) * self.slot_layout.bytes());
-                BlockOut::in_slot(
-                    self.slot_layout.rows(base),
-                    self.first_env,
-                    &self.layout,
-                    &mut self.scratch,
-                )
-            },
         };
         let first = self.first_env as u64;
         let extras = if kind == Serve::Step && command.action_extras {
@@ -592,18 +484,53 @@ impl<'a> Worker<'a> {
         } else {
             Ok(())
         };
-        let served =
-            extras.and_then(|()| self.envs.serve(kind, acts, per_env, only, &mut out, &ctx));
+        // One pass per slot the command writes (a whole command writes one).
+        let mut built = AnswerBuilder::default();
+        let mut apart: Vec<(u32, Vec<u8>)> = Vec::new();
+        let mut served = extras.map(|()| 0);
+        for slot in 1..=slots {
+            let only = match subset {
+                true if only.contains(&slot) => Some((only, slot)),
+                false if slot == target => None,
+                _ => continue,
+            };
+            // SAFETY: slot `slot - 1` lies in the batch buffer (`slot <= batch_slots`, checked
+            // above), 64-byte aligned. This worker's envs own their rows of every area of it
+            // during the command: the supervisor neither reads nor lends them out until the
+            // command is answered, and no other worker writes them.
+            let mut out = unsafe {
+                let base = self
+                    .batch
+                    .as_ptr()
+                    .add((slot as usize - 1) * self.slot_layout.bytes());
+                BlockOut::in_slot(
+                    self.slot_layout.rows(base),
+                    self.first_env,
+                    epw,
+                    &mut self.scratch,
+                )
+            };
+            out.answer = built;
+            served = served.and_then(|c| {
+                let more = self.envs.serve(kind, acts, per_env, only, &mut out, &ctx)?;
+                Ok(c + more)
+            });
+            built = out.answer;
+            apart.extend(out.take_apart());
+            if served.is_err() {
+                break;
+            }
+        }
         if self.streamed {
             // Streamed rows land before the answer that publishes them (an env that failed
             // midway included: its rows are written again before anyone reads them).
             streaming::fence();
         }
-        let mut answer = out.answer.finish(epw);
+        let mut answer = built.finish(epw);
         // Info too long for its room goes beside the answer, in a private file named by it;
         // the supervisor takes it with the answer.
-        let apart = match (&served, out.apart()) {
-            (Ok(_), apart) if !apart.is_empty() => {
+        let apart = match &served {
+            Ok(_) if !apart.is_empty() => {
                 let entries: Vec<(u32, &[u8])> =
                     apart.iter().map(|(j, b)| (*j, b.as_slice())).collect();
                 let path = extra_apart_path(&self.id, me, self.args.generation, seq);
@@ -617,7 +544,6 @@ impl<'a> Worker<'a> {
             }
             _ => Ok(()),
         };
-        drop(out);
         let served = served.and_then(|served| apart.map(|()| served));
         self.stats.add(me, Counter::EnvNs, ns_since(serving));
         self.stats.add(me, Counter::Commands, 1);
@@ -630,11 +556,16 @@ impl<'a> Worker<'a> {
         };
         self.envs.write_books(&self.books, seq, self.first_env);
         if let Some(m) = &misdeed {
-            self.commit(m, seq, target, &mut answer);
+            // At the first env the command served, in its slot.
+            let j = if subset {
+                only.iter().position(|&w| w != 0).unwrap_or(0)
+            } else {
+                0
+            };
+            let slot = if subset { only[j] } else { target };
+            self.commit(m, seq, (slot as usize, j), &mut answer);
         }
-        if target != 0 {
-            block.payload_mut()[..ANSWER_WORDS].copy_from_slice(&answer.encode());
-        }
+        block.payload_mut()[..ANSWER_WORDS].copy_from_slice(&answer.encode());
         self.stats.add(me, Counter::EnvSteps, served as u64);
         self.publish(block)
     }

@@ -36,8 +36,6 @@ pub(crate) struct PyPoolSettings {
     start_timeout: Option<f64>,
     #[serde(default)]
     max_restarts: Option<u32>,
-    #[serde(default)]
-    max_borrowed: Option<usize>,
     /// Planned replacement of a worker after this many env steps.
     #[serde(default)]
     recycle_after_steps: Option<u64>,
@@ -119,9 +117,6 @@ pub(crate) fn pool_config(
     }
     if let Some(m) = s.max_restarts {
         cfg.max_restarts = m;
-    }
-    if let Some(m) = s.max_borrowed {
-        cfg.max_borrowed = m;
     }
     cfg.recycle_after_steps = s.recycle_after_steps;
     cfg.recycle_above_rss = s.recycle_above_rss;

@@ -38,6 +38,18 @@ class Frames(gym.Env):
         return np.full((210, 160, 3), int(action), np.uint8), 0.0, False, False, {}
 
 
+class WideActions(gym.Env):
+    # 256 KiB of actions per env: they travel in the workers' command channels.
+    observation_space = gym.spaces.Box(0, 255, (4,), np.uint8)
+    action_space = gym.spaces.Box(0, 1, (1 << 16,), np.float32)
+
+    def reset(self, seed=None, options=None):
+        return np.zeros(4, np.uint8), {}
+
+    def step(self, action):
+        return np.zeros(4, np.uint8), 0.0, False, False, {}
+
+
 def used_mib():
     st = os.statvfs("/dev/shm")
     return (st.f_blocks - st.f_bavail) * st.f_frsize / 2**20
@@ -112,15 +124,16 @@ def test_pools_that_fit_step_and_say_what_they_need() -> None:
 
 
 def test_a_pool_that_does_not_fit_fails_within_a_second_with_the_fixes() -> None:
-    """64 hosted envs with 1 MiB of info room each need about 128 MiB of channels (two
-    blocks per worker): an OSError(ENOSPC) at construction, not a SIGBUS restart loop, naming
-    the place, its size and free space, the need and the fixes; nothing is left behind."""
+    """64 hosted envs whose actions are 256 KiB each need about 160 MiB of channels (a
+    worker's command channel holds ten commands of its 32 envs' actions): an OSError(ENOSPC)
+    at construction, not a SIGBUS restart loop, naming the place, its size and free space, the
+    need and the fixes; nothing is left behind."""
     out = _ok(
         _in_small_shm(
             """
             t = time.monotonic()
             try:
-                rogue_gym.PoolVectorEnv([Frames] * 64, num_workers=2, info_bytes=1 << 20)
+                rogue_gym.PoolVectorEnv([WideActions] * 64, num_workers=2)
                 raise SystemExit("the pool was built")
             except OSError as err:
                 took = time.monotonic() - t
@@ -173,40 +186,53 @@ def test_a_pool_asked_for_more_slots_than_memory_allows_falls_back_to_two(
 
 
 def test_a_worker_killed_by_sigbus_is_reported_once_and_the_pool_recovers() -> None:
-    """The async API writes observations into blocks whose pages are not reserved; with
-    /dev/shm filled up by someone else, the worker dies of SIGBUS. The call fails at once with
-    the numbers (not after a restart loop), and once there is room again a reset recovers."""
+    """A worker killed by SIGBUS (a page of /dev/shm the filesystem could not give: every
+    answer's rows are in the pool's own buffers, so only a channel's page, or an env's own
+    shared memory, can be refused) fails the call at once with the numbers and the fixes, not
+    after a restart loop; once the cause is gone a reset recovers. The envs here raise the
+    signal in their worker while a marker file exists."""
     out = _ok(
         _in_small_shm(
             """
-            envs = rogue_gym.make_vec(1024, config="paper", num_workers=2, batch_size=512)
+            import signal
+
+            MARK = "/dev/shm/rg-test-sigbus"
+
+            class Bus(gym.Env):
+                observation_space = gym.spaces.Box(0, 255, (4,), np.uint8)
+                action_space = gym.spaces.Discrete(2)
+
+                def reset(self, seed=None, options=None):
+                    return np.zeros(4, np.uint8), {}
+
+                def step(self, action):
+                    if os.path.exists(MARK):
+                        os.kill(os.getpid(), signal.SIGBUS)
+                    return np.zeros(4, np.uint8), 0.0, False, False, {}
+
+            envs = rogue_gym.PoolVectorEnv([Bus] * 8, num_workers=2, batch_size=4)
             envs.reset(seed=0)
-            with open("/dev/shm/filler", "wb") as f:
-                try:
-                    while True:
-                        f.write(bytes(1 << 20))
-                except OSError:
-                    pass
+            open(MARK, "w").close()
             t = time.monotonic()
             try:
                 envs.async_reset()
                 for _ in range(20):
                     out = envs.recv()
-                    envs.send(np.zeros(512, np.int64), out[4]["env_id"])
+                    envs.send(np.zeros(4, np.int64), out[4]["env_id"])
                 raise SystemExit("no error")
             except rogue_gym.WorkerCrashedError as err:
                 took = time.monotonic() - t
                 assert err.signal == 7, err
                 assert "out of shared memory" in str(err) and "--shm-size" in str(err), err
-            os.unlink("/dev/shm/filler")
+            os.unlink(MARK)
             for _ in range(3):  # a second worker's SIGBUS may surface at the next call
                 try:
                     envs.reset(seed=0)
                     break
                 except rogue_gym.WorkerCrashedError:
                     pass
-            obs = envs.step(np.zeros(1024, np.int64))[0]
-            assert obs.shape[0] == 1024
+            obs = envs.step(np.zeros(8, np.int64))[0]
+            assert obs.shape[0] == 8
             print(f"took {took:.3f} restarts {envs.stats().restarts}")
             envs.close()
             """
@@ -215,3 +241,46 @@ def test_a_worker_killed_by_sigbus_is_reported_once_and_the_pool_recovers() -> N
     took = float(out.split("took")[1].split()[0])
     restarts = int(out.split("restarts")[1])
     assert took < 1.0 and restarts <= 2
+
+
+def test_a_running_async_pool_maps_what_it_said_it_needs() -> None:
+    """What a pool maps in /dev/shm (its iceoryx2 files, each in whole pages, as tmpfs charges
+    them) is exactly ``stats().shm_bytes``, the need checked before the pool was made: for
+    sync and async pools, small and wide actions, even and uneven blocks, envs on threads."""
+    import glob
+    import os
+
+    import gymnasium as gym
+    import numpy as np
+    import rogue_gym
+
+    class Wide(gym.Env):
+        def __init__(self, n: int) -> None:
+            self.observation_space = gym.spaces.Box(0, 255, (4,), np.uint8)
+            self.action_space = gym.spaces.Box(0, 1, (n,), np.float32)
+
+        def reset(self, seed=None, options=None):  # type: ignore[no-untyped-def]
+            return np.zeros(4, np.uint8), {}
+
+        def step(self, action):  # type: ignore[no-untyped-def]
+            return np.zeros(4, np.uint8), 0.0, False, False, {}
+
+    for width, n, workers, extra in (
+        (1, 8, 2, {}),
+        (4096, 33, 5, {}),
+        (100, 16, 4, {"env_concurrency": 2}),
+    ):
+        envs = rogue_gym.PoolVectorEnv(
+            [lambda w=width: Wide(w)] * n, num_workers=workers, batch_size=n // 2, **extra
+        )
+        try:
+            envs.async_reset()
+            for _ in range(6):
+                got = envs.recv()
+                ids = got[4]["env_id"]
+                envs.send(np.zeros((len(ids), width), np.float32), ids)
+            files = glob.glob(f"/dev/shm/{envs._core.name}*")
+            mapped = sum(-(-os.stat(f).st_size // 4096) * 4096 for f in files)
+            assert mapped == envs.stats().shm_bytes, (width, n, workers, mapped)
+        finally:
+            envs.close()

@@ -6,11 +6,9 @@ use std::time::{Duration, Instant};
 
 use super::actions::Actions;
 use super::async_envs::{Received, Turn};
-use super::slot_answers::{Apart, answer_words};
-use super::workers::LinkState;
+use super::link::Target;
 use super::{Pool, Supervisor};
 use crate::error::PoolError;
-use crate::wire::answer::Answer;
 
 /// Commands a worker whose envs run on threads may have unread (its command port holds 8:
 /// room is left).
@@ -88,9 +86,9 @@ impl Pool {
         self.drain()?;
         self.sup.async_api.on = true;
         for k in 0..self.sup.workers.len() {
-            self.sup.send_reset(k, 0, None)?;
             let envs = self.sup.blocks[k].clone();
-            self.sup.async_api.envs.all_in_flight(k, envs);
+            let targets = self.sup.async_api.envs.all_in_flight(k, envs);
+            self.sup.send_reset(k, Target::Each(&targets), None)?;
         }
         self.sup.failures.must_reset = false;
         Ok(())
@@ -131,17 +129,27 @@ impl Pool {
         self.sup.dispatch_staged()
     }
 
-    /// Async: have step answers written in place in the batch slots (`true`), where
-    /// [`Pool::recv`] hands rows that are one run of envs in one slot over as a view
-    /// ([`Received::view`]) rather than copied. The caller then reads a view until its next
-    /// call, and must not hold on to other views of the slots: a binding that lends slots out
-    /// keeps this off. Off by default.
-    pub fn set_async_in_place(&mut self, on: bool) {
-        self.sup.async_api.envs.in_place = if on && self.sup.batch.is_some() {
-            self.sup.cfg.batch_slots
-        } else {
-            0
-        };
+    /// Async: have [`Pool::recv`] hand rows that are one run of envs in one slot over as a
+    /// view ([`Received::view`]) rather than copied (`true`). A view's rows stay put until
+    /// those envs' next answer but one (each env's answers take turns over the slots). Off by
+    /// default.
+    pub fn set_async_views(&mut self, on: bool) {
+        self.sup.async_api.envs.views = on;
+    }
+
+    /// The batch slots the caller has lent out (bit `s` for slot `s`: it keeps views of them,
+    /// as a binding that hands out a whole-batch call's rows without a copy does): until the
+    /// next call of this, no async answer is written there. At least one slot must stay free.
+    pub fn lend_slots(&mut self, mask: u64) -> Result<(), PoolError> {
+        let slots = self.sup.cfg.batch_slots;
+        let all = (1u64 << slots) - 1;
+        if mask & all == all || mask & !all != 0 {
+            return Err(PoolError::Config(format!(
+                "lend_slots({mask:#b}): the pool has {slots} slots, of which at least one must stay free"
+            )));
+        }
+        self.sup.async_api.envs.lent = mask;
+        Ok(())
     }
 
     /// Async: wait for the next `batch_size` envs and hand them over, first ready first.
@@ -199,8 +207,7 @@ impl Pool {
                 timeout: want.timeout.unwrap_or_default(),
             });
         }
-        // The slots' rows, for rows written in place (none without rows in place).
-        let slots = (0..self.sup.async_api.envs.in_place)
+        let slots = (0..self.sup.cfg.batch_slots)
             .map(|slot| self.sup.rows_of(slot))
             .collect::<Result<Vec<_>, _>>()?;
         let got = self
@@ -272,56 +279,46 @@ impl Supervisor {
     /// Turn the workers' answers into ready envs (the ready set orders them by when they were
     /// sent: `async_envs.rs`), and send what is staged to the workers that are free.
     pub(super) fn absorb(&mut self) -> Result<(), PoolError> {
-        if !self.arrived.is_empty() {
-            let arrived: Vec<usize> = self.arrived.drain(..).collect();
-            // Keep one sample of each worker for the next answer and one for the caller's.
-            let keep = self.cfg.max_borrowed.saturating_sub(2);
-            for k in arrived {
-                let target = self.workers[k].target;
-                if target != 0 && !self.workers[k].restarted {
-                    if let Some(apart) = self.take_in_place(k)? {
-                        self.async_api
-                            .envs
-                            .arrive_in_slot(k, target as usize - 1, apart);
-                    }
-                    continue;
-                }
-                let recycled = self.workers[k].recycled && self.workers[k].restarted;
-                if let Some(block) = self.take_block(k)? {
-                    self.async_api.envs.arrive(k, block, keep, recycled);
-                }
-            }
+        while let Some(k) = self.arrived.pop_front() {
+            self.take_async_answer(k)?;
         }
         self.dispatch_staged()
     }
 
-    /// Take worker `k`'s answer written in place, checked as a whole-batch call's is (its
-    /// words, the flag bytes of the rows it wrote, its side file), with the extra info that
-    /// travelled beside it as `(env, bytes)`; `None` when it failed a check and the worker
-    /// was handled as failed.
-    fn take_in_place(&mut self, k: usize) -> Result<Option<Apart>, PoolError> {
-        let sample = self.take_answer(k)?;
-        self.workers[k].recycled = false;
-        let (words, seq) = answer_words(&sample);
-        drop(sample);
-        let target = self.workers[k].target as usize;
-        let rows = self.rows_of(target - 1)?;
-        let sent = self.async_api.envs.sent_to(k);
-        let checked = Answer::decode(&words, self.slot_layout.extra_bytes).and_then(|a| {
-            sent.iter()
-                .try_for_each(|&e| self.check_flags(&rows, e..e + 1))
-                .map(|()| a)
-        });
-        let what = match checked {
-            Ok(a) if !a.apart => return Ok(Some(Vec::new())),
-            Ok(_) => match self.take_apart(k, seq) {
-                Ok(apart) => return Ok(Some(apart)),
-                Err(what) => what,
-            },
-            Err(what) => format!("its answer to command {seq}: {what}"),
+    /// Take worker `k`'s answer to its outstanding command, checked as a whole-batch call's
+    /// is (its words, the flag bytes of the rows it wrote, its side file): its envs are
+    /// ready. A bad answer is the worker's failure.
+    fn take_async_answer(&mut self, k: usize) -> Result<(), PoolError> {
+        let arrived = self.take_answer(k)?;
+        let restart = std::mem::take(&mut self.workers[k].restarted);
+        let recycled = std::mem::take(&mut self.workers[k].recycled) && restart;
+        let block = self.blocks[k].clone();
+        let envs = &self.async_api.envs;
+        let served: Vec<(std::ops::Range<usize>, usize)> = if restart {
+            block
+                .clone()
+                .map(|e| (e..e + 1, envs.last_slot(e)))
+                .collect()
+        } else {
+            (envs.sent_to(k).iter())
+                .map(|&e| (e..e + 1, envs.last_slot(e)))
+                .collect()
         };
-        self.lose_corrupt(k, what)?;
-        Ok(None)
+        let Some((_, apart)) = self.checked(k, &arrived, &served)? else {
+            return Ok(());
+        };
+        if restart {
+            // Its envs report the restart (their episodes were cut): the supervisor's to
+            // write, as in a whole-batch call.
+            for e in block.clone() {
+                self.rows_of(self.async_api.envs.last_slot(e))?
+                    .mark_restarted(e);
+            }
+        }
+        self.async_api
+            .envs
+            .arrive(k, block, apart, restart.then_some(recycled));
+        Ok(())
     }
 
     /// Send each free worker the envs staged for it.
@@ -341,9 +338,8 @@ impl Supervisor {
             // A worker whose envs run on threads takes more partial commands while some of
             // its envs are in flight, as long as its command port has room (it holds 8: at
             // most `UNREAD` commands unread); any other, one command at a time.
-            let busy_partial = self.workers[k].partial
-                && matches!(self.workers[k].state, LinkState::Pending { .. });
-            let idle = matches!(self.workers[k].state, LinkState::Idle);
+            let busy_partial = self.workers[k].partial && self.workers[k].state.is_pending();
+            let idle = self.workers[k].state.is_idle();
             let w = &self.workers[k];
             let read = self.stats.as_ref().map_or(0, |s| s.read(k));
             let unread = (w.ports.sent() - w.sent_before).saturating_sub(read);
@@ -352,22 +348,14 @@ impl Supervisor {
                 continue;
             }
             let envs = self.blocks[k].clone();
-            let staged = self.async_api.envs.staged_rows(envs.clone());
-            let slot = self.async_api.envs.target_for(envs.clone(), &staged);
-            let partial = self.concurrent && slot.is_some();
-            if busy_partial && !partial {
-                continue; // no slot to answer in place: wait until the worker is idle
-            }
-            let Some((words, only)) = self.async_api.envs.dispatch(k, envs) else {
+            let Some((words, targets)) = self.async_api.envs.dispatch(k, envs) else {
                 continue;
             };
-            let whole = only.iter().all(|&w| w != 0);
-            let target = slot.map_or(0, |t| t as u32 + 1);
-            self.send_words(k, &words, (!whole).then_some(&only[..]), target, partial)?;
-            if let Some(slot) = slot.filter(|_| partial) {
-                let count = only.iter().filter(|&&w| w != 0).count();
+            let partial = self.concurrent;
+            let count = targets.iter().filter(|&&t| t != 0).count();
+            if self.send_words(k, &words, &targets, partial)? && partial {
                 let seq = self.workers[k].seq;
-                self.async_api.envs.sent_partial(k, count, slot, seq);
+                self.async_api.envs.sent_partial(k, count, seq);
             }
         }
         Ok(())

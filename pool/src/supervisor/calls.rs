@@ -1,7 +1,6 @@
 //! Env calls: requests to chosen envs answered by their workers off the hot path (attribute
 //! reads and writes, method calls, renders), through files in the pool's directory.
 
-use super::workers::LinkState;
 use super::{Pool, Supervisor};
 use crate::error::PoolError;
 use crate::wire::{Command, Op, calls};
@@ -59,7 +58,7 @@ impl Pool {
         requests: &[(usize, Vec<u8>)],
     ) -> Result<Vec<(usize, Vec<u8>)>, PoolError> {
         self.begin_call()?;
-        self.all_idle()?;
+        self.all_idle(false)?;
         let per_worker = self.sup.per_worker(requests)?;
         let c = &mut self.sup;
         let mut asked = Vec::new();
@@ -76,26 +75,21 @@ impl Pool {
             s.seq += 1;
             s.ports
                 .send_cmd(s.seq, Command::new(Op::Call, 0).encode(), 0, |_| {})?;
-            s.state = LinkState::Pending {
-                since: std::time::Instant::now(),
-            };
+            s.pending_now();
             asked.push((k, s.generation));
         }
         self.wait_until(|c| {
             asked.iter().all(|&(k, _)| {
-                !(c.workers[k].state.coming_back()
-                    || matches!(c.workers[k].state, LinkState::Pending { .. }))
+                !(c.workers[k].state.coming_back() || c.workers[k].state.is_pending())
             })
         })?;
         let c = &mut self.sup;
         let mut replies = Vec::with_capacity(requests.len());
         for &(k, generation) in &asked {
-            if c.workers[k].generation != generation
-                || !matches!(c.workers[k].state, LinkState::Idle)
-            {
+            if c.workers[k].generation != generation || !c.workers[k].state.is_idle() {
                 // Restarted meanwhile: its envs were rebuilt and reset; that reset's block is
                 // dropped, so the caller must reset.
-                c.workers[k].state = LinkState::Idle;
+                c.workers[k].idle();
                 c.arrived.retain(|&w| w != k);
                 c.failures.must_reset = true;
                 return Err(PoolError::State(format!(

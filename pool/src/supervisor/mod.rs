@@ -4,45 +4,53 @@
 //!
 //! A sync [`Pool::step`] (`stepping.rs`) checks the actions once ([`Actions::check`],
 //! `actions.rs`) and sends each worker its block of them with the slot to write
-//! (`Supervisor::send_step`, `workers.rs`: a `Command` word, `wire/command.rs`, and the
+//! (`Supervisor::send_step`, `commands.rs`: a `Command` word, `wire/command.rs`, and the
 //! action words, over the worker's command port, `ipc/src/ports.rs`). The worker
 //! (`worker.rs`, [`crate::worker_main`]) wakes from its wait (`ipc/src/wait.rs`), steps each
 //! env of its block (`worker/envs.rs`, `worker/env_state.rs`: the env's state machine) and
 //! each env writes its row of the slot in place: observation, reward, flags, episode books
 //! (`worker/block_out.rs`, `wire/slot_layout.rs`). The worker then writes its envs' episode
-//! books (`wire/books.rs`) and publishes one answer whose first words say what else there is
-//! to read (`Answer`, `wire/answer.rs`). The caller's wait ([`Pool::wait`], through the
-//! pool's one wait loop in `waiting.rs`) polls the workers' answer ports (`workers.rs`:
-//! `Supervisor::poll_all`), takes each answer and checks it
-//! (`slot_answers.rs`), and returns a [`crate::SlotAnswer`]: the slot, and whether to read
-//! final observations, restarts or extra info. The Python front reads the slot's rows as
-//! numpy views (`python/src/pool/sync_api.rs`, `python/rogue_gym/front/core.py`). Every file a
-//! step runs code in, with its functions, is measured by `benchmarks/walk.py`
-//! (`benchmarks/results/walk/walk-step.md`).
+//! books (`wire/books.rs`) and publishes one answer whose words say what else there is to
+//! read (`Answer`, `wire/answer.rs`). The caller's wait ([`Pool::wait`], through the pool's
+//! one wait loop in `waiting.rs`) polls the workers' answer ports (`intake.rs`:
+//! `Supervisor::poll_all`, which decodes and checks every answer of every kind in one place),
+//! folds each answer into the call's (`slot_answers.rs`), and returns a [`crate::SlotAnswer`]:
+//! the slot, and whether to read final observations, restarts or extra info. The Python front
+//! reads the slot's rows as numpy views (`python/src/pool/sync_api.rs`,
+//! `python/rogue_gym/front/core.py`). Every file a step runs code in, with its functions, is
+//! measured by `benchmarks/walk.py` (`benchmarks/results/walk/walk-step.md`).
 //!
 //! The async API (`async_api.rs`: `send`/`recv`, env by env) sends the same commands, a
-//! subset of a block's envs at a time, and turns answers into ready envs
-//! (`async_envs.rs`), handed over in the order they were sent (`ready_set.rs`); env calls go through files (`calls.rs`); planned replacements of
-//! workers are `recycling.rs`; the supervisor's state is grouped by concern in `state.rs`;
-//! how its sides wait beside other pools (the machine's cores and the user's live pools) is
-//! `machine.rs`. A worker whose envs run on threads (`env_concurrency`) takes the same
-//! commands and answers each env as it finishes (`worker/concurrent.rs`).
+//! subset of a block's envs at a time, each env's rows into a slot of its own, and turns
+//! answers into ready envs (`async_envs.rs`), handed over in the order they were sent
+//! (`ready_set.rs`); every answer's rows are in the slots. Each worker's link and its states
+//! are `link.rs`, its processes `processes.rs`, its failures `failures.rs`; env calls go
+//! through files (`calls.rs`); planned replacements of workers are `recycling.rs`; the
+//! supervisor's state is grouped by concern in `state.rs`; how its sides wait beside other
+//! pools (the machine's cores and the user's live pools) is `machine.rs`. A worker whose envs
+//! run on threads (`env_concurrency`) takes the same commands and answers each env as it
+//! finishes (`worker/concurrent.rs`).
 //!
-//! Modules: `actions`, `async_api`, `async_envs`, `calls`, `machine`, `ready_set`, `recycling`,
-//! `slot_answers`, `state`, `stepping`, `waiting`, `workers`.
+//! Modules: `actions`, `async_api`, `async_envs`, `calls`, `commands`, `failures`, `intake`,
+//! `link`, `machine`, `processes`, `ready_set`, `recycling`, `slot_answers`, `state`,
+//! `stepping`, `waiting`.
 
 mod actions;
 mod async_api;
 mod async_envs;
 mod calls;
+mod commands;
+mod failures;
+mod intake;
+mod link;
 mod machine;
+mod processes;
 mod ready_set;
 mod recycling;
 mod slot_answers;
 mod state;
 mod stepping;
 mod waiting;
-mod workers;
 
 use std::collections::VecDeque;
 use std::ops::Range;
@@ -58,18 +66,17 @@ use crate::registry::EnvRegistry;
 use crate::seeds::SeedSchedule;
 use crate::stats::{StatsBuffer, SupervisorCounts, WorkerStats};
 use crate::wire::books::Books;
-use crate::wire::layout::BlockLayout;
 use crate::wire::slot_layout::{Flag, SlotLayout};
 use crate::wire::{
-    BATCH_BUFFER, Command, Op, WorkerConfig, block_range_of, buffers_bytes, shm_need,
+    BATCH_BUFFER, Command, Op, WorkerConfig, block_range_of, buffers_bytes, command_words, shm_need,
 };
 
 pub use actions::{Actions, validate_actions};
 pub use async_api::RecvWant;
 pub use async_envs::Received;
+use link::WorkerLink;
 pub use machine::MachineView;
 use state::{AsyncState, CallInFlight, Failures, Recycling};
-use workers::{LinkState, WorkerLink};
 
 /// The supervisor proper: the workers (their processes, blocks, channels and layouts), the
 /// shared batch buffer and the bookkeeping of the call in flight, grouped by concern
@@ -77,8 +84,6 @@ use workers::{LinkState, WorkerLink};
 struct Supervisor {
     cfg: PoolConfig,
     spec: EnvSpec,
-    /// Block layout of each worker (blocks may differ by one env).
-    layouts: Vec<BlockLayout>,
     /// The envs of each worker ([`block_range_of`]).
     blocks: Vec<Range<usize>>,
     id: PoolId,
@@ -185,15 +190,6 @@ impl Pool {
         spec.validate()?;
         let aw = spec.action_words();
         let whole_blocks = registry.builds_blocks(&cfg.env);
-        let layouts: Vec<BlockLayout> = blocks
-            .iter()
-            .map(|b| BlockLayout {
-                envs: b.len(),
-                obs_bytes: spec.obs_bytes(),
-                final_obs: cfg.autoreset == AutoresetMode::SameStep,
-                extra_bytes: spec.extra_bytes,
-            })
-            .collect();
         let slot_layout = SlotLayout {
             num_envs: cfg.num_envs,
             obs_bytes: spec.obs_bytes(),
@@ -203,7 +199,7 @@ impl Pool {
         };
         // Before anything is created: a pool that does not fit /dev/shm fails now, with the
         // fixes, not later with a SIGBUS in a worker.
-        let shm_need = shm_need(&layouts);
+        let shm_need = shm_need(&blocks, spec.action_words());
         let buffers_need = buffers_bytes(cfg.batch_slots, &slot_layout, cfg.num_workers);
         let mut flags = vec![Flag::Terminated, Flag::Truncated];
         flags.extend(spec.flag_info_rows().into_iter().map(Flag::Info));
@@ -220,20 +216,18 @@ impl Pool {
         id.create_dirs()?;
         let settings = ChannelSettings {
             num_workers: cfg.num_workers,
-            max_borrowed: cfg.max_borrowed,
         };
         let wcfg = WorkerConfig::new(&cfg, id.name(), runtime_dir, pinned);
         let config_path = id.aux_dir().join("worker.json");
         let num_workers = cfg.num_workers;
         let concurrent = cfg.env_threads > 0 && !whole_blocks;
-        let envs = async_envs::AsyncEnvs::new(&blocks, aw);
+        let envs = async_envs::AsyncEnvs::new(&blocks, aw, cfg.batch_slots);
         let mut pool = Pool {
             listener: None,
             interrupt,
             sup: Supervisor {
                 cfg,
                 spec,
-                layouts,
                 blocks,
                 id,
                 config_path,
@@ -287,9 +281,8 @@ impl Pool {
         let node = c.id.node("sup")?;
         self.listener = Some(BlockListener::new(&node, &c.settings)?);
         for k in 0..c.cfg.num_workers {
-            // An action per env, and for a SUBSET step one word per env more.
-            let words = c.blocks[k].len() * (c.spec.action_words() + 1);
-            let ports = SupervisorPorts::new(&node, k, words, &c.settings)?;
+            let words = command_words(c.blocks[k].len(), c.spec.action_words());
+            let ports = SupervisorPorts::new(&node, k, words)?;
             c.workers.push(WorkerLink::new(ports));
         }
         c.node = Some(node);
@@ -345,8 +338,9 @@ impl Pool {
     pub fn num_workers(&self) -> usize {
         self.sup.cfg.num_workers
     }
-    /// Bytes the pool needs in `/dev/shm`, checked against its free space before the pool was
-    /// created: each worker's channels (the blocks' records and infos).
+    /// Bytes the pool maps in `/dev/shm`, checked against its free space before the pool was
+    /// created: its workers' channels, each file in whole pages (every answer's rows are in
+    /// the pool's own buffers, [`Pool::buffer_bytes`]).
     pub fn shm_bytes(&self) -> u64 {
         self.sup.shm_need
     }
@@ -472,26 +466,19 @@ impl Pool {
 
     /// Every worker idle, for a sync call: the usual case is read off the link states, and
     /// only a worker still coming back (raise policy, or a call that outlived its bound) is
-    /// waited for; an outstanding async request is an error.
-    fn all_idle(&mut self) -> Result<(), PoolError> {
-        if self
-            .sup
-            .workers
-            .iter()
-            .all(|s| matches!(s.state, LinkState::Idle))
-        {
+    /// waited for; an outstanding async request is an error. `slots`: the call writes a
+    /// slot, so async results not yet received are outstanding too (their rows are in the
+    /// slots).
+    fn all_idle(&mut self, slots: bool) -> Result<(), PoolError> {
+        let pending = "async requests are outstanding: recv() them before a sync reset/step";
+        let received =
+            |c: &Supervisor| !slots || !c.async_api.on || c.async_api.envs.outstanding() == 0;
+        if received(&self.sup) && self.sup.workers.iter().all(|s| s.state.is_idle()) {
             return Ok(());
         }
         self.wait_until(|c| !c.workers.iter().any(|s| s.state.coming_back()))?;
-        if self
-            .sup
-            .workers
-            .iter()
-            .any(|s| !matches!(s.state, LinkState::Idle))
-        {
-            return Err(PoolError::State(
-                "async requests are outstanding: recv() them before a sync reset/step".into(),
-            ));
+        if !received(&self.sup) || self.sup.workers.iter().any(|s| !s.state.is_idle()) {
+            return Err(PoolError::State(pending.into()));
         }
         Ok(())
     }
@@ -505,14 +492,12 @@ impl Pool {
         let drained = self.wait_until(|c| {
             !c.workers
                 .iter()
-                .any(|s| s.state.coming_back() || matches!(s.state, LinkState::Pending { .. }))
+                .any(|s| s.state.coming_back() || s.state.is_pending())
         });
         self.sup.call.discard_faults = false;
         drained?;
         for s in &mut self.sup.workers {
-            if matches!(s.state, LinkState::Ready(_)) {
-                s.state = LinkState::Idle;
-            }
+            s.forget_answer();
             s.restarted = false;
         }
         self.sup.arrived.clear();

@@ -18,7 +18,6 @@ use std::process::Child;
 use std::time::{Duration, Instant};
 
 use super::Supervisor;
-use super::workers::LinkState;
 use crate::error::PoolError;
 use crate::wire::{Command, Op, successor_go, successor_marker};
 
@@ -102,7 +101,7 @@ impl Supervisor {
     /// breaks the bound). Returns whether `k` was replaced: it is then starting, and its next
     /// command resets its envs.
     pub(super) fn recycle_if_due(&mut self, k: usize) -> Result<bool, PoolError> {
-        if !self.recycling() || !matches!(self.workers[k].state, LinkState::Idle) {
+        if !self.recycling() || !self.workers[k].state.is_idle() {
             return Ok(false);
         }
         let progress = self.progress(k);
@@ -218,10 +217,7 @@ impl Supervisor {
         s.pid = succ.child.id();
         s.child = Some(succ.child);
         s.stderr_path = succ.stderr_path;
-        s.state = LinkState::Starting {
-            since: Instant::now(),
-            then_reset: false,
-        };
+        s.starting_now(false);
         s.cut = true;
         s.recycled = true;
         s.served = 0;

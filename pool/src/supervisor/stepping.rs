@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 
 use super::Pool;
 use super::actions::Actions;
+use super::link::Target;
 use super::slot_answers::SlotCollect;
 use crate::batch::{BatchOutput, SlotAnswer, SlotExtras};
 use crate::error::PoolError;
@@ -74,14 +75,14 @@ impl Pool {
                 "call reset() before step() (after creation or after a failure)".into(),
             ));
         }
-        self.all_idle()?;
+        self.all_idle(true)?;
         // Planned replacements happen here, between two commands (see `recycling`).
         let mut replaced = false;
         for k in 0..self.sup.workers.len() {
             replaced |= self.sup.recycle_if_due(k)?;
         }
         if replaced {
-            self.all_idle()?;
+            self.all_idle(true)?;
         }
         let slot = self.sup.next_slot;
         let ab = self.sup.spec.action_bytes;
@@ -127,12 +128,12 @@ impl Pool {
                             .into(),
                     ));
                 }
-                self.all_idle()?;
+                self.all_idle(true)?;
             }
         }
         let slot = self.sup.next_slot;
         for k in 0..self.sup.workers.len() {
-            self.send_or_fail(|c| c.send_reset(k, slot as u32 + 1, mask))?;
+            self.send_or_fail(|c| c.send_reset(k, Target::Slot(slot), mask))?;
         }
         if mask.is_none() {
             self.sup.failures.must_reset = false;
@@ -186,6 +187,7 @@ impl Pool {
                 }
                 let answer = sent.answers.answer;
                 self.sup.next_slot = (answer.slot + 1) % self.sup.cfg.batch_slots;
+                self.sup.async_api.envs.whole_call(answer.slot);
                 Ok(Some(answer))
             }
             Err(e) => {
@@ -324,9 +326,7 @@ mod tests {
     fn assert_send<T: Send>() {}
 
     #[test]
-    fn pool_and_block_are_send() {
-        use crate::batch::Block;
+    fn a_pool_is_send() {
         assert_send::<Pool>();
-        assert_send::<Block>();
     }
 }

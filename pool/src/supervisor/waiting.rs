@@ -9,7 +9,6 @@ use std::time::{Duration, Instant};
 
 use rogue_gym_ipc::{WaitCall, WaitOutcome, hybrid_wait};
 
-use super::workers::LinkState;
 use super::{Pool, Supervisor};
 use crate::error::PoolError;
 
@@ -89,11 +88,7 @@ impl Pool {
                     .retain(|f| !matches!(f, PoolError::EnvFailed { .. }));
             }
             if !sup.call.faults.is_empty() {
-                if !sup
-                    .workers
-                    .iter()
-                    .any(|s| matches!(s.state, LinkState::Pending { .. }))
-                {
+                if !sup.workers.iter().any(|s| s.state.is_pending()) {
                     // Every worker of the call has answered or was handled: raise all its
                     // failures at once, so that one reset clears them.
                     let all = std::mem::take(&mut sup.call.faults);
@@ -166,15 +161,7 @@ impl Supervisor {
             .workers
             .iter()
             .enumerate()
-            .filter_map(|(k, s)| {
-                let what = match s.state {
-                    LinkState::Down { .. } => "waiting out its restart backoff",
-                    LinkState::Starting { .. } => "starting",
-                    LinkState::Pending { .. } => "not answering",
-                    _ => return None,
-                };
-                Some((k, what))
-            })
+            .filter_map(|(k, s)| s.state.waiting_for().map(|what| (k, what)))
             .collect();
         let bound = match self.cfg.step_timeout {
             Some(t) => format!(

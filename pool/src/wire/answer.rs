@@ -1,38 +1,44 @@
-//! A worker's answer to a command, typed: the kind of block it sends (`BlockKind`) and, for
-//! an answer whose rows were written in place in a batch slot, what its first words say of
-//! them (`Answer`).
+//! A worker's answer to a command, typed: the kind of sample it sends (`BlockKind`) and what
+//! its first words say of the rows it wrote in the batch slots (`Answer`). A sample carries
+//! those words only, and for an answer of some envs their rows (`rows_of`): every answer's
+//! rows are in the slots.
 //!
 //! Only `Answer::encode` and `Answer::decode` know how the words are packed; the worker
 //! builds an answer env by env (`AnswerBuilder`), the supervisor decodes it, and decoding
 //! checks every value the worker wrote, so that a worker that writes garbage is named, never
 //! believed.
 
-use crate::wire::layout::EnvRecord;
+use crate::wire::record::EnvRecord;
 
 /// The leading bytes of an env's extra info that say its layout (hosted envs: the typed row's
 /// magic, tag and structure hash): answers whose envs share them share one layout. Python
 /// reads it as `rogue_gym._native.EXTRA_HEAD`.
 pub const EXTRA_HEAD: usize = 16;
 
-/// Words at the head of an answer written in place ([`Answer::encode`]).
+/// Words at the head of an answer ([`Answer::encode`]).
 pub(crate) const ANSWER_WORDS: usize = 2 + EXTRA_HEAD / 8;
+
+/// Words of every sample a worker of `envs` envs publishes: the answer's words, then (an
+/// answer of some envs, [`BlockKind::Rows`]) their number and their rows.
+pub(crate) fn sample_words(envs: usize) -> usize {
+    ANSWER_WORDS + 1 + envs
+}
 
 /// What a block from a worker is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum BlockKind {
     /// The worker is up (no payload).
     Ready,
-    /// The answer to a reset or step: records and observations in the block, or, for a
-    /// command with a slot target, an [`Answer`] in its first words (the rows are in the
-    /// slot).
+    /// The answer to a reset or step: an [`Answer`] in its first words (the rows are in the
+    /// slots the command named).
     Data,
     /// An env failed on the command (no data); the report is in the worker's fault file
     /// ([`crate::wire::env_fault_path`]).
     Error,
     /// The replies of an env call are written (no data).
     Call,
-    /// Some envs of a [`crate::wire::Command::partial`] command, done: their rows are in the
-    /// slot; the payload is the [`Answer`] of those envs, then their number, then their rows in
+    /// Some envs of a [`crate::wire::Command::partial`] command, done: their rows are in their
+    /// slots; the payload is the [`Answer`] of those envs, then their number, then their rows in
     /// the block ([`rows_of`]).
     Rows,
 }
@@ -98,7 +104,7 @@ pub(crate) enum AnswerExtras {
     Mixed,
 }
 
-/// What an answer written in place says of its rows.
+/// What an answer says of the rows it wrote.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Answer {
     /// Some env has a final observation in the slot (SAME_STEP).
@@ -232,7 +238,7 @@ impl AnswerBuilder {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::wire::layout::{FLAG_EXTRA_APART, FLAG_FINAL_OBS};
+    use crate::wire::record::{FLAG_EXTRA_APART, FLAG_FINAL_OBS};
     use proptest::prelude::*;
 
     fn extras() -> impl Strategy<Value = AnswerExtras> {

@@ -32,22 +32,22 @@ pub(crate) enum Serve {
 pub(crate) struct Command {
     /// The operation.
     pub op: Op,
-    /// Where the answer's observations go: 0 = the block's own observation area, `s + 1` =
-    /// slot `s` of the shared batch buffer.
+    /// The batch slot every env of the command writes its rows in, `s + 1` for slot `s` (0:
+    /// none, for a command that serves no env, or one whose envs name their slots: `subset`).
     pub target: u32,
     /// (reset) Re-read the seed schedule from the config file first.
     pub reload_seeds: bool,
     /// (step) Hand the envs the parts of their actions of no fixed size, in the worker's
     /// action-extras file ([`super::calls::action_extras_path`]), before they step.
     pub action_extras: bool,
-    /// (step) Only some envs of the block step (the async API serves envs, not blocks): the
-    /// payload carries, after the action words, one word per env of the block, 1 for an env
-    /// that steps, 0 for one left as it is (its row of the answer is not to be read).
+    /// (reset, step) Each env has a slot of its own, and only some envs are served (the async
+    /// API serves envs, not blocks, and each env's rows alternate between the slots): the
+    /// payload carries, after the per-env words, one word per env of the block, `s + 1` for an
+    /// env served into slot `s`, 0 for one left as it is.
     pub subset: bool,
     /// How to wait for the next command after answering this one.
     pub pace: Pace,
-    /// (step, rows in place, a worker whose envs run on threads) Answer each env as it
-    /// finishes ([`super::answer::BlockKind::Rows`]), and take further commands for other envs
+    /// (step, a worker whose envs run on threads) Answer each env as it finishes ([`super::answer::BlockKind::Rows`]), and take further commands for other envs
     /// meanwhile; without it, one answer when every env of the command is done.
     pub partial: bool,
 }

@@ -1,14 +1,14 @@
 //! The wire protocol between the supervisor and its workers, imported by both sides: one file
 //! per message, its encoding and decoding together: commands (`command.rs`) and answers
-//! ([`answer`]), the layout of a slot of the shared batch buffer ([`slot_layout`]) and of a
-//! worker's block ([`layout`]), the episode books (`books.rs`), the worker's config file
+//! ([`answer`]), the layout of a slot of the shared batch buffer ([`slot_layout`]), the per-env
+//! record ([`record`]), the episode books (`books.rs`), the worker's config file
 //! ([`WorkerConfig`]) and the files of env calls ([`calls`]).
 
 pub mod answer;
 pub(crate) mod books;
 pub mod calls;
 pub(crate) mod command;
-pub mod layout;
+pub mod record;
 pub mod sabotage;
 pub mod slot_layout;
 
@@ -55,21 +55,22 @@ pub fn block_range_of(
     groups.start * unit..groups.end * unit
 }
 
-/// Blocks of one worker whose pages a pool counts as taken in `/dev/shm`: the one a worker
-/// writes and the one the supervisor holds.
-const BLOCKS_IN_USE: usize = 2;
-/// Room counted for iceoryx2's own segments of one worker (management, commands, events).
-const SHM_PER_WORKER: usize = 64 * 1024;
+/// Words of the largest command to a worker of `envs` envs whose actions take `aw` words: an
+/// action per env, and for a [`Command::subset`] command one word per env more.
+pub(crate) fn command_words(envs: usize, aw: usize) -> usize {
+    envs * (aw.max(1) + 1)
+}
 
-/// Bytes a pool needs in `/dev/shm` before it creates anything: per worker, the records, final
-/// observations and extra infos of the blocks in use, and iceoryx2's own segments. In the
-/// async API observations travel in the blocks too ([`layout::BlockLayout::words`]), which
-/// this does not count.
-pub(crate) fn shm_need(layouts: &[layout::BlockLayout]) -> u64 {
-    layouts
+/// Bytes a pool needs in `/dev/shm` before it creates anything: its workers' channels
+/// ([`rogue_gym_ipc::channels_bytes`]; `blocks`: each worker's envs, `aw`: action words per
+/// env). Observations, records and infos are in the pool's own buffers ([`buffers_bytes`]),
+/// not there.
+pub(crate) fn shm_need(blocks: &[std::ops::Range<usize>], aw: usize) -> u64 {
+    let workers: Vec<(usize, usize)> = blocks
         .iter()
-        .map(|l| (BLOCKS_IN_USE * l.side_bytes() + SHM_PER_WORKER) as u64)
-        .sum()
+        .map(|b| (command_words(b.len(), aw), answer::sample_words(b.len())))
+        .collect();
+    rogue_gym_ipc::channels_bytes(&workers)
 }
 
 /// Bytes of a pool's own buffers, reserved when they are made (not in `/dev/shm`:
@@ -127,7 +128,7 @@ pub(crate) fn env_fault_path_of(
 
 /// Where worker `index`, generation `generation`, puts the extra info of its answer `seq` that
 /// did not fit the envs' rooms (entries in the [`calls::encode`] format, one per env flagged
-/// [`layout::FLAG_EXTRA_APART`]); the supervisor reads and removes it.
+/// [`record::FLAG_EXTRA_APART`]); the supervisor reads and removes it.
 pub(crate) fn extra_apart_path(
     id: &rogue_gym_ipc::PoolId,
     index: usize,
@@ -156,8 +157,6 @@ pub struct WorkerConfig {
     pub seeds: SeedSchedule,
     /// Autoreset mode.
     pub autoreset: AutoresetMode,
-    /// Samples of one worker the supervisor may hold at once.
-    pub max_borrowed: usize,
     /// Yield-poll budget of the worker's wait, µs.
     pub poll_budget_us: u64,
     /// Longest blocking wait slice of the worker, ms (parent liveness is checked between).
@@ -216,7 +215,6 @@ impl WorkerConfig {
             env: cfg.env.clone(),
             seeds: cfg.seeds.clone(),
             autoreset: cfg.autoreset,
-            max_borrowed: cfg.max_borrowed,
             poll_budget_us: cfg.worker_wait.poll_budget.as_micros() as u64,
             block_slice_ms: cfg.worker_wait.block_slice.as_millis() as u64,
             poll_yield: cfg.worker_wait.yield_cpu,
@@ -237,7 +235,6 @@ impl WorkerConfig {
     pub fn channel_settings(&self) -> ChannelSettings {
         ChannelSettings {
             num_workers: self.num_workers,
-            max_borrowed: self.max_borrowed,
         }
     }
 }

@@ -20,12 +20,12 @@ pub struct Sabotage {
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Misdeed {
-    /// (Rows in place) the answer says every env wrote `size` bytes of extra info.
+    /// the answer says every env wrote `size` bytes of extra info.
     ExtraSize {
         /// The size said.
         size: u64,
     },
-    /// (Rows in place) extra info travels beside the answer for row `row` of its block.
+    /// extra info travels beside the answer for row `row` of its block.
     ApartRow {
         /// The row, counted from the block's first env.
         row: u32,
@@ -35,12 +35,12 @@ pub enum Misdeed {
         /// The episode index written.
         episode: u64,
     },
-    /// (Rows in place) its first env's `terminated` byte is `byte`.
+    /// its first env's `terminated` byte is `byte`.
     FlagByte {
         /// The byte written.
         byte: u8,
     },
-    /// (Rows in place) its first env's extra info is `bytes` (at most its room).
+    /// its first env's extra info is `bytes` (at most its room).
     InfoBytes {
         /// The bytes written.
         bytes: Vec<u8>,

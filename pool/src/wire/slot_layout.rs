@@ -11,7 +11,7 @@
 //! (at 4096 envs that cost the workers 40% of their time).
 
 use crate::env::MAX_INFO;
-use crate::wire::layout::EnvRecord;
+use crate::wire::record::EnvRecord;
 
 /// One column of a slot: its name (as the Python front knows it), numpy dtype name, bytes per
 /// entry, and rows (1, or one per info value for the `info_*` columns).
@@ -207,6 +207,10 @@ pub struct SlotRows {
 unsafe impl Send for SlotRows {}
 
 impl SlotRows {
+    /// The slot's layout.
+    pub fn layout(&self) -> SlotLayout {
+        self.layout
+    }
     /// Entry `row` of row `j` of column `col` (`j` is 0 but for the `info_*` columns).
     #[inline]
     fn at<T>(&self, col: usize, j: usize, row: usize) -> *mut T {
@@ -327,7 +331,7 @@ impl SlotRows {
     /// Rust API's copying forms use it).
     pub fn read(&self, row: usize) -> EnvRecord {
         assert!(row < self.layout.num_envs);
-        use crate::wire::layout::{
+        use crate::wire::record::{
             FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED,
         };
         // SAFETY: in bounds and aligned, as in `put`.
@@ -406,7 +410,7 @@ impl SlotRows {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::wire::layout::{FLAG_FINAL_OBS, FLAG_TERMINATED};
+    use crate::wire::record::{FLAG_FINAL_OBS, FLAG_TERMINATED};
 
     #[test]
     fn areas_are_aligned_and_apart_and_a_row_round_trips() {

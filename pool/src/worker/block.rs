@@ -6,7 +6,7 @@ use std::ops::Range;
 
 use crate::config::AutoresetMode;
 use crate::env::{EnvBlock, EnvSpec, StepOutcome};
-use crate::wire::layout::{EnvRecord, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED};
+use crate::wire::record::{EnvRecord, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED};
 use crate::wire::{EnvFault, KEEP_EPISODE, Serve};
 
 use super::block_out::{BlockOut, place_extra};
@@ -180,7 +180,7 @@ mod tests {
     use crate::env::{Env, EnvError};
     use crate::kinds::test_env::TestEnv;
     use crate::seeds::SeedSchedule;
-    use crate::wire::layout::BlockLayout;
+    use crate::wire::slot_layout::{SlotLayout, SlotRows};
     use crate::worker::block_out::{EnvOut, Scratch};
     use crate::worker::env_state::apply;
 
@@ -279,26 +279,33 @@ mod tests {
         BlockHost::new(Box::new(naive), FIRST..FIRST + N as u64)
     }
 
-    /// Serve one command; the block's words.
+    /// 64 bytes of 64-byte aligned memory (a slot is made of them).
+    #[derive(Clone, Copy)]
+    #[repr(align(64))]
+    struct Line(#[allow(dead_code)] [u8; 64]);
+
+    /// Serve one command into a slot of a pool of `FIRST + N` envs; the slot's memory and rows.
     fn serve(
         host: &mut BlockHost,
         kind: Serve,
         payload: &[u64],
         ctx: &ServeCtx,
-    ) -> Result<(BlockLayout, Vec<u64>), EnvFault> {
-        let same_step = ctx.autoreset == AutoresetMode::SameStep;
-        let layout = BlockLayout {
-            envs: N,
+    ) -> Result<(Vec<Line>, SlotRows), EnvFault> {
+        let layout = SlotLayout {
+            num_envs: FIRST as usize + N,
             obs_bytes: OB,
-            final_obs: same_step,
+            n_info: 0,
+            final_obs: ctx.autoreset == AutoresetMode::SameStep,
             extra_bytes: 0,
         };
-        let mut block = vec![0u64; layout.words()];
-        let areas = layout.split_mut(&mut block);
+        let mut slot = vec![Line([0; 64]); layout.bytes().div_ceil(64)];
+        // SAFETY: a slot of this layout, 64-byte aligned, this test's alone.
+        let rows = unsafe { layout.rows(slot.as_mut_ptr().cast()) };
         let mut scratch = Scratch::default();
-        let mut out = BlockOut::in_block(areas, &layout, &mut scratch);
+        // SAFETY: as above.
+        let mut out = unsafe { BlockOut::in_slot(rows, FIRST as usize, N, &mut scratch) };
         host.serve(kind, payload, &mut out, ctx)?;
-        Ok((layout, block))
+        Ok((slot, rows))
     }
 
     #[test]
@@ -323,7 +330,7 @@ mod tests {
         commands.push((Serve::Step, vec![1, 2, 3]));
         let mut ends = 0;
         for (kind, payload) in commands {
-            let (layout, block) = serve(&mut host, kind, &payload, &ctx).unwrap();
+            let (_slot, rows) = serve(&mut host, kind, &payload, &ctx).unwrap();
             for (j, s) in slots.iter_mut().enumerate() {
                 let (mut obs, mut fin) = ([0u8; OB], [0u8; OB]);
                 let fb = if mode == AutoresetMode::SameStep {
@@ -339,15 +346,14 @@ mod tests {
                 };
                 let want = apply(s, kind, &payload[j..j + 1], env_out, &ctx).unwrap();
                 ends += usize::from(want.truncated() || want.terminated());
-                assert_eq!(
-                    layout.record(&block, j),
-                    want,
-                    "{mode:?}: command {kind:?}, env {j}"
-                );
-                assert_eq!(&layout.obs(&block)[j * OB..(j + 1) * OB], &obs);
+                let e = FIRST as usize + j;
+                assert_eq!(rows.read(e), want, "{mode:?}: command {kind:?}, env {j}");
+                // SAFETY: the slot is alive (`_slot`) and no one writes it now.
+                let (got, got_fin) =
+                    unsafe { (rows.obs_rows(e..e + 1), rows.final_rows(e..e + 1)) };
+                assert_eq!(got, &obs);
                 if want.has_final_obs() {
-                    let got = layout.final_obs(&block).unwrap();
-                    assert_eq!(&got[j * OB..(j + 1) * OB], &fin);
+                    assert_eq!(got_fin, &fin);
                 }
             }
         }

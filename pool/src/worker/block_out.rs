@@ -1,11 +1,8 @@
-//! Where one command's answers go: the areas of the worker's own block (the async API's answers
-//! by block) or the worker's rows of a batch slot (answers in place), env by env
+//! Where one command's answers go: the worker's rows of a batch slot, env by env
 //! ([`BlockOut::env`], [`BlockOut::finish`]).
 
 use crate::wire::answer::AnswerBuilder;
-use crate::wire::layout::{
-    BlockAreas, BlockLayout, EnvRecord, FLAG_EXTRA_APART, write_record_words,
-};
+use crate::wire::record::{EnvRecord, FLAG_EXTRA_APART};
 use crate::wire::slot_layout::SlotRows;
 
 /// Where one env writes its answer to a command.
@@ -36,15 +33,6 @@ pub(crate) fn place_extra(
     Ok(())
 }
 
-/// Where the records of one command's answers go.
-enum Records<'a> {
-    /// The block's own records area (answers by block).
-    Block(&'a mut [u64]),
-    /// In place, in the columns of a batch slot, the block's envs from row `first` (the
-    /// caller reads them there).
-    Slot { rows: Box<SlotRows>, first: usize },
-}
-
 /// The buffers a worker reuses from command to command.
 #[derive(Default)]
 pub(crate) struct Scratch {
@@ -57,11 +45,12 @@ pub(crate) struct Scratch {
     pub(crate) stage: Vec<u8>,
 }
 
-/// Where one command's answers go: the parts of the worker's block being filled, or of the
-/// batch slot it writes in place.
+/// Where one command's answers go: the worker's rows of the batch slot it writes.
 pub(crate) struct BlockOut<'a> {
-    records: Records<'a>,
-    /// What an answer in place says of itself.
+    /// The slot's rows, and the block's first env (its row `first`).
+    rows: SlotRows,
+    first: usize,
+    /// What the answer says of its rows.
     pub(crate) answer: AnswerBuilder,
     pub(crate) obs: &'a mut [u8],
     pub(crate) final_obs: &'a mut [u8],
@@ -76,29 +65,8 @@ pub(crate) struct BlockOut<'a> {
 }
 
 impl<'a> BlockOut<'a> {
-    /// The answers of a command written into a block's own areas (`layout`'s), with the
-    /// worker's buffers `scratch` (its `apart` list is emptied).
-    pub(crate) fn in_block(
-        areas: BlockAreas<'a>,
-        layout: &BlockLayout,
-        scratch: &'a mut Scratch,
-    ) -> Self {
-        let BlockAreas {
-            records,
-            obs,
-            final_obs,
-            extra,
-        } = areas;
-        Self::new(
-            Records::Block(records),
-            [obs, final_obs, extra],
-            layout,
-            scratch,
-        )
-    }
-
-    /// The answers of a command written in place: rows `first..first + layout.envs` of the
-    /// slot `rows` writes.
+    /// The answers of a command: rows `first..first + envs` of the slot `rows` writes, with
+    /// the worker's buffers `scratch` (its `apart` list is emptied).
     ///
     /// # Safety
     /// Those rows of every area of the slot must be this worker's alone while the value lives
@@ -107,34 +75,23 @@ impl<'a> BlockOut<'a> {
     pub(crate) unsafe fn in_slot(
         rows: SlotRows,
         first: usize,
-        layout: &BlockLayout,
+        envs: usize,
         scratch: &'a mut Scratch,
     ) -> Self {
-        let r = first..first + layout.envs;
+        let r = first..first + envs;
         // SAFETY: the caller's promise.
-        let areas = unsafe {
+        let [obs, final_obs, extra] = unsafe {
             [
                 rows.obs_rows(r.clone()),
                 rows.final_rows(r.clone()),
                 rows.extra_rows(r),
             ]
         };
-        let records = Records::Slot {
-            rows: Box::new(rows),
-            first,
-        };
-        Self::new(records, areas, layout, scratch)
-    }
-
-    fn new(
-        records: Records<'a>,
-        [obs, final_obs, extra]: [&'a mut [u8]; 3],
-        layout: &BlockLayout,
-        scratch: &'a mut Scratch,
-    ) -> Self {
+        let layout = rows.layout();
         scratch.apart.clear();
         BlockOut {
-            records,
+            rows,
+            first,
             answer: AnswerBuilder::default(),
             obs,
             final_obs,
@@ -173,21 +130,16 @@ impl<'a> BlockOut<'a> {
             let ob = self.obs_bytes;
             super::streaming::copy(&mut self.obs[j * ob..(j + 1) * ob], self.stage);
         }
-        match &mut self.records {
-            Records::Block(words) => write_record_words(words, j, rec),
-            Records::Slot { rows, first } => {
-                rows.record(*first + j, rec);
-                let xb = self.extra_bytes;
-                self.answer.add(rec, &self.extra[j * xb..(j + 1) * xb]);
-            }
-        }
+        self.rows.record(self.first + j, rec);
+        let xb = self.extra_bytes;
+        self.answer.add(rec, &self.extra[j * xb..(j + 1) * xb]);
         if rec.extra_apart() {
             self.apart.push((j as u32, std::mem::take(self.info)));
         }
     }
 
-    /// The infos that did not fit their rooms, as `(row in the block, bytes)`.
-    pub(crate) fn apart(&self) -> &[(u32, Vec<u8>)] {
-        self.apart
+    /// The infos that did not fit their rooms, as `(row in the block, bytes)`, taken.
+    pub(crate) fn take_apart(&mut self) -> Vec<(u32, Vec<u8>)> {
+        std::mem::take(self.apart)
     }
 }

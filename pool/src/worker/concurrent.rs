@@ -4,17 +4,16 @@
 //!
 //! Two kinds of thread:
 //!
-//! * **env threads** (`env_threads` of them) take jobs, one env's reset or step each, from one
-//!   queue; the env writes its observation, final observation and extra info straight into its
-//!   own rows (of the batch slot the command names, or of the worker's answer block), as the
-//!   serial loop does; each env is behind a lock, taken by one thread at a time. A job done
-//!   goes to the done list, and its thread wakes the worker's command listener
-//!   ([`CmdWaker`]);
+//! * **env threads** (`env_threads` of them, `env_threads.rs`) take jobs, one env's reset or
+//!   step each, from one queue; the env writes its observation, final observation and extra
+//!   info straight into its own rows of the batch slot the command names for it, as the serial
+//!   loop does; each env is behind a lock, taken by one thread at a time. A job done goes to
+//!   the done list, and its thread wakes the worker's command listener ([`CmdWaker`]);
 //! * the worker's **own thread** waits on that one listener for both commands and finished
 //!   envs, takes commands from the port, starts them (in order: a command waits until every
 //!   env it names is idle), writes each finished env's record and episode books, and publishes
 //!   the answers: one per command, when all its envs are done; or, for a `partial` command (the
-//!   async API with rows in place), envs as they finish ([`BlockKind::Rows`]), several to an
+//!   async API's steps), envs as they finish ([`BlockKind::Rows`]), several to an
 //!   answer when they finish together, while further commands for other envs arrive.
 //!
 //! One listener for both keeps a step's round trip inside the worker to three wake-ups (the
@@ -38,19 +37,14 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex, PoisonError, RwLock};
 use std::time::{Duration, Instant};
 
-use rogue_gym_ipc::BlockSampleMut;
 use rogue_gym_ipc::CmdWaker;
 use rogue_gym_ipc::iceoryx2::port::listener::ListenerWaitError;
 
-use super::block_out::EnvOut;
-use super::env_state::{EnvState, ServeCtx, apply};
+use super::env_threads::{Area, Ctx, Done, Job, Shared, batch_scheduling, env_thread, guard};
 use super::envs::{WorkerEnvs, lock, take_action_extras};
 use super::{Worker, WorkerError};
-use crate::config::AutoresetMode;
-use crate::seeds::SeedSchedule;
-use crate::stats::{Counter, StatsBuffer};
-use crate::wire::answer::{ANSWER_WORDS, AnswerBuilder, BlockKind};
-use crate::wire::layout::{EnvRecord, RECORD_WORDS};
+use crate::stats::Counter;
+use crate::wire::answer::{ANSWER_WORDS, AnswerBuilder, BlockKind, sample_words};
 use crate::wire::slot_layout::SlotRows;
 use crate::wire::{Command, EnvFault, Op, Serve, calls, env_fault_path_of, extra_apart_path};
 
@@ -60,119 +54,6 @@ const UNTAKEN: u64 = 3;
 /// How often a worker that holds finished envs checks whether answers were taken.
 const HOLD_CHECK: Duration = Duration::from_millis(1);
 
-/// An area of memory a job writes: an env's rows of a slot, or of an answer block, which
-/// stay mapped while the command is in flight (the slot: the pool's buffer; the block: a
-/// sample the worker's own thread keeps until it publishes it).
-#[derive(Clone, Copy)]
-struct Area {
-    ptr: *mut u8,
-    len: usize,
-}
-
-// SAFETY: a plain area of a mapping that outlives the job; each env's areas are disjoint from
-// every other env's, and one thread writes them at a time (see the module docs).
-unsafe impl Send for Area {}
-
-impl Area {
-    fn of(s: &mut [u8]) -> Area {
-        Area {
-            ptr: s.as_mut_ptr(),
-            len: s.len(),
-        }
-    }
-
-    /// # Safety
-    /// The area must be live and this thread's alone while the slice lives.
-    unsafe fn slice<'a>(self) -> &'a mut [u8] {
-        if self.len == 0 {
-            return &mut [];
-        }
-        // SAFETY: the caller's promise.
-        unsafe { std::slice::from_raw_parts_mut(self.ptr, self.len) }
-    }
-}
-
-/// What a job needs besides its env: the serving context of the command.
-struct Ctx {
-    seeds: SeedSchedule,
-    num_envs: u64,
-    autoreset: AutoresetMode,
-    action_bytes: usize,
-    n_info: usize,
-}
-
-/// One env's reset or step.
-struct Job {
-    j: usize,
-    kind: Serve,
-    words: Vec<u64>,
-    obs: Area,
-    fin: Area,
-    extra: Area,
-    ctx: Arc<Ctx>,
-}
-
-/// A job done.
-struct Done {
-    j: usize,
-    /// The env's record, and its whole extra info (it travels apart when the record says so).
-    result: Result<(EnvRecord, Vec<u8>), EnvFault>,
-    wall_ns: u64,
-}
-
-/// How often a busy env thread reads its CPU time (a system call, not a vDSO read): the time
-/// its jobs spent off the CPU is counted in lumps of about this much wall time.
-const CPU_READ_EVERY: Duration = Duration::from_millis(20);
-/// An env thread about to wait for a job reads its CPU time when its jobs since the last read
-/// took at least this long, so that the count is current whenever the envs are idle; envs
-/// that take microseconds still read it once a few hundred jobs at most.
-const CPU_READ_IDLE_NS: u64 = 1_000_000;
-
-/// An env thread's count of its jobs' time on and off the CPU.
-struct CpuClock {
-    /// Wall time of the jobs since the last read, and when and at what CPU time it was.
-    wall_ns: u64,
-    read_at: Instant,
-    cpu_ns: u64,
-}
-
-impl CpuClock {
-    fn new() -> CpuClock {
-        CpuClock {
-            wall_ns: 0,
-            read_at: Instant::now(),
-            cpu_ns: thread_cpu_ns(),
-        }
-    }
-
-    /// A job took `wall_ns`: the jobs' time off the CPU since the last read, when it is time
-    /// to read again (else 0). The thread's CPU time outside its jobs (taking them from the
-    /// queue) is small and counted as the jobs'.
-    fn job(&mut self, wall_ns: u64) -> u64 {
-        self.wall_ns += wall_ns;
-        if self.read_at.elapsed() < CPU_READ_EVERY {
-            return 0;
-        }
-        self.read()
-    }
-
-    /// The thread is about to wait for a job: the jobs' time off the CPU since the last read,
-    /// when they took at least [`CPU_READ_IDLE_NS`] (else 0).
-    fn idle(&mut self) -> u64 {
-        if self.wall_ns < CPU_READ_IDLE_NS {
-            return 0;
-        }
-        self.read()
-    }
-
-    fn read(&mut self) -> u64 {
-        let cpu = thread_cpu_ns();
-        let wait = self.wall_ns.saturating_sub(cpu.saturating_sub(self.cpu_ns));
-        (self.wall_ns, self.read_at, self.cpu_ns) = (0, Instant::now(), cpu);
-        wait
-    }
-}
-
 /// A command taken from the port: its sequence number, the command, its payload.
 struct Incoming {
     seq: u64,
@@ -180,133 +61,14 @@ struct Incoming {
     payload: Vec<u64>,
 }
 
-/// What the threads share.
-struct Shared {
-    envs: Arc<[Mutex<EnvState>]>,
-    jobs: Mutex<VecDeque<Job>>,
-    job_ready: Condvar,
-    /// Jobs done, for the worker's own thread.
-    done: Mutex<Vec<Done>>,
-    /// Wakes the worker's own thread; taken (dropped) when the worker stops, so that its port
-    /// is given back even while env threads are stuck in an env's wait.
-    waker: RwLock<Option<CmdWaker>>,
-    stop: AtomicBool,
-    /// The pool's counters and this worker's index in them (env threads count their time off
-    /// the CPU themselves).
-    stats: Arc<StatsBuffer>,
-    me: usize,
-}
-
-fn guard<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(PoisonError::into_inner)
-}
-
-/// The CPU time of this thread, ns.
-fn thread_cpu_ns() -> u64 {
-    let mut ts = nix::libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: a valid clock id and a valid out-pointer.
-    unsafe { nix::libc::clock_gettime(nix::libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
-}
-
-/// Put the calling thread, and the threads it starts from now on, on batch scheduling
-/// (`SCHED_BATCH`): the same share of the CPU, but a thread it wakes does not preempt the
-/// thread running on that core at once. A worker whose envs wait wakes a thread per env
-/// answer and per command; on a busy core the one preempted is most often the caller, whose
-/// next call those answers wait for. The io workload of `benchmarks/async_pools.py` gains
-/// about 7% by it (`benchmarks/results/async_pools/`). A kernel that refuses leaves the
-/// worker as it was: only speed is at stake.
-fn batch_scheduling() {
-    let param = nix::libc::sched_param { sched_priority: 0 };
-    // SAFETY: pid 0 is the calling thread; a valid parameter block.
-    let _ = unsafe { nix::libc::sched_setscheduler(0, nix::libc::SCHED_BATCH, &param) };
-}
-
-/// An env thread: jobs until the worker stops.
-fn env_thread(shared: Arc<Shared>) {
-    let mut clock = CpuClock::new();
-    let count = |wait_ns: u64| {
-        if wait_ns > 0 {
-            (shared.stats).add(shared.me, Counter::EnvWaitNs, wait_ns);
-        }
-    };
-    loop {
-        let job = {
-            let mut q = guard(&shared.jobs);
-            loop {
-                if shared.stop.load(Ordering::Relaxed) {
-                    return;
-                }
-                if let Some(job) = q.pop_front() {
-                    break job;
-                }
-                let wait_ns = clock.idle();
-                if wait_ns > 0 {
-                    // Counted without the queue's lock, then the queue is looked at again.
-                    drop(q);
-                    count(wait_ns);
-                    q = guard(&shared.jobs);
-                    continue;
-                }
-                q = shared
-                    .job_ready
-                    .wait(q)
-                    .unwrap_or_else(PoisonError::into_inner);
-            }
-        };
-        let t0 = Instant::now();
-        let mut info = Vec::new();
-        let result = {
-            let mut env = lock(&shared.envs[job.j]);
-            let c = &job.ctx;
-            let ctx = ServeCtx {
-                seeds: &c.seeds,
-                num_envs: c.num_envs,
-                autoreset: c.autoreset,
-                action_bytes: c.action_bytes,
-                n_info: c.n_info,
-            };
-            // SAFETY: the job's areas are its env's rows, live until the worker's own thread
-            // has this job's answer (it keeps the block, the pool keeps the slot), and no one
-            // else touches them meanwhile.
-            let out = unsafe {
-                EnvOut {
-                    obs: job.obs.slice(),
-                    fin: job.fin.slice(),
-                    extra: job.extra.slice(),
-                    info: &mut info,
-                }
-            };
-            apply(&mut env, job.kind, &job.words, out, &ctx)
-        };
-        let wall_ns = t0.elapsed().as_nanos() as u64;
-        let done = Done {
-            j: job.j,
-            result: result.map(|rec| (rec, info)),
-            wall_ns,
-        };
-        count(clock.job(wall_ns));
-        guard(&shared.done).push(done);
-        // A wake-up that fails is made up for by the worker's thread's timed wait.
-        if let Some(waker) = &*shared.waker.read().unwrap_or_else(PoisonError::into_inner) {
-            let _ = waker.wake();
-        }
-    }
-}
-
 /// A command started and not yet answered whole.
 struct Running {
     seq: u64,
-    target: usize,
+    /// The slot (`s + 1`) each env of the block writes in (0: not one of the command's).
+    targets: Vec<usize>,
     partial: bool,
     /// Its envs not done yet.
     remaining: usize,
-    /// The answer block (target 0), kept until it is published, and its records area.
-    block: Option<BlockSampleMut>,
-    records: Area,
     answer: AnswerBuilder,
     apart: Vec<(u32, Vec<u8>)>,
     /// The first env that failed.
@@ -343,7 +105,7 @@ impl Worker<'_> {
         });
         // Before any thread starts: they inherit it.
         batch_scheduling();
-        for t in 0..threads.clamp(1, self.layout.envs) {
+        for t in 0..threads.clamp(1, self.block_envs) {
             let s = shared.clone();
             let scope = self.thread_scope;
             std::thread::Builder::new()
@@ -368,7 +130,7 @@ impl Worker<'_> {
 
     /// The worker's own thread (see the module docs).
     fn serve_concurrently(&mut self, shared: &Shared) -> Result<(), WorkerError> {
-        let epw = self.layout.envs;
+        let epw = self.block_envs;
         // The wait blocks at once: the cores are the env threads' (a poll would take them from
         // envs that compute between their waits), and a wake-up is small beside an env's wait.
         let block_slice = Duration::from_millis(self.cfg.block_slice_ms.max(1));
@@ -441,12 +203,13 @@ impl Worker<'_> {
                         self.answer_calls(seq)?;
                     }
                     Op::Reset | Op::Step => {
-                        let envs = self.named_envs(next)?;
+                        let targets = self.named_envs(next)?;
+                        let envs: Vec<usize> = (0..epw).filter(|&j| targets[j] != 0).collect();
                         if envs.iter().any(|&j| busy[j]) {
                             break;
                         }
                         let Some(inc) = queue.pop_front() else { break };
-                        let r = self.start_command(shared, inc, &envs)?;
+                        let r = self.start_command(shared, inc, targets, &envs)?;
                         for &j in &envs {
                             busy[j] = true;
                             of_env[j] = Some(r.seq);
@@ -477,12 +240,13 @@ impl Worker<'_> {
         Ok(took)
     }
 
-    /// The envs (rows of the block) a reset or step names, its payload checked.
+    /// The slot (`s + 1`) each env of the block writes in under a reset or step, 0 for the
+    /// envs it does not name; its payload checked.
     fn named_envs(&self, inc: &Incoming) -> Result<Vec<usize>, WorkerError> {
-        let epw = self.layout.envs;
+        let epw = self.block_envs;
         let step = inc.command.op == Op::Step;
         let per_env = if step { self.action_words } else { 1 };
-        let subset = step && inc.command.subset;
+        let subset = inc.command.subset;
         let n = inc.payload.len();
         if n != epw * per_env + if subset { epw } else { 0 } {
             return Err(WorkerError::Msg(format!(
@@ -490,20 +254,31 @@ impl Worker<'_> {
                 inc.seq
             )));
         }
-        Ok(if subset {
-            (0..epw)
-                .filter(|&j| inc.payload[epw * per_env + j] != 0)
+        let slots = self.cfg.batch_slots;
+        let targets: Vec<usize> = if subset {
+            inc.payload[epw * per_env..]
+                .iter()
+                .map(|&w| w as usize)
                 .collect()
         } else {
-            (0..epw).collect()
-        })
+            vec![inc.command.target as usize; epw]
+        };
+        if let Some(t) = targets.iter().find(|&&t| t > slots || (!subset && t == 0)) {
+            return Err(WorkerError::Msg(format!(
+                "command {}: observation target {t}, but the pool has {slots} slots",
+                inc.seq
+            )));
+        }
+        Ok(targets)
     }
 
-    /// Start a reset or step: its envs' jobs go to the env threads.
+    /// Start a reset or step: its envs' jobs go to the env threads, each to write its rows in
+    /// the slot `targets` names for it.
     fn start_command(
         &mut self,
         shared: &Shared,
         inc: Incoming,
+        targets: Vec<usize>,
         envs: &[usize],
     ) -> Result<Running, WorkerError> {
         let Incoming {
@@ -512,26 +287,31 @@ impl Worker<'_> {
             payload,
         } = inc;
         let kind = command.serve().unwrap_or(Serve::Reset);
-        let target = command.target as usize;
-        if target > self.cfg.batch_slots {
-            return Err(WorkerError::Msg(format!("bad observation target {target}")));
-        }
         if command.reload_seeds {
-            self.seeds = super::read_config(&self.args.config)
+            self.seeds = super::setup::read_config(&self.args.config)
                 .map_err(WorkerError::Msg)?
                 .seeds;
         }
         self.stats.add(self.args.index, Counter::Commands, 1);
+        let mut areas: Vec<[Area; 3]> = Vec::with_capacity(envs.len());
+        for &j in envs {
+            let rows = self.slot_rows(targets[j]);
+            let e = self.first_env + j;
+            // SAFETY: env `e`'s rows of the slot this command names for it, this worker's
+            // while the command is in flight (see `serve`).
+            unsafe {
+                areas.push([
+                    Area::of(rows.obs_rows(e..e + 1)),
+                    Area::of(rows.final_rows(e..e + 1)),
+                    Area::of(rows.extra_rows(e..e + 1)),
+                ]);
+            }
+        }
         let mut r = Running {
             seq,
-            target,
-            partial: command.partial && target != 0,
+            targets,
+            partial: command.partial,
             remaining: envs.len(),
-            block: None,
-            records: Area {
-                ptr: std::ptr::null_mut(),
-                len: 0,
-            },
             answer: AnswerBuilder::default(),
             apart: Vec::new(),
             fault: None,
@@ -541,37 +321,6 @@ impl Worker<'_> {
             if let Err(f) = take_action_extras(&self.id, me, &mut self.envs, self.first_env as u64)
             {
                 r.fault = Some(f);
-            }
-        }
-        // Where each env writes: its rows of the slot, or of the answer block.
-        let (ob, xb) = (self.layout.obs_bytes, self.layout.extra_bytes);
-        let fb = if self.layout.final_obs { ob } else { 0 };
-        let mut areas: Vec<[Area; 3]> = Vec::with_capacity(envs.len());
-        if target == 0 {
-            let mut block = self.ports.loan_block(self.layout.words())?;
-            let a = self.layout.split_mut(block.payload_mut());
-            r.records = Area::of(rogue_gym_ipc::words_as_bytes_mut(a.records));
-            for &j in envs {
-                areas.push([
-                    Area::of(&mut a.obs[j * ob..(j + 1) * ob]),
-                    Area::of(&mut a.final_obs[j * fb..(j + 1) * fb]),
-                    Area::of(&mut a.extra[j * xb..(j + 1) * xb]),
-                ]);
-            }
-            r.block = Some(block);
-        } else {
-            let rows = self.slot_rows(target);
-            for &j in envs {
-                let e = self.first_env + j;
-                // SAFETY: env `e`'s rows of the slot this command names, this worker's while
-                // the command is in flight (see `serve`).
-                unsafe {
-                    areas.push([
-                        Area::of(rows.obs_rows(e..e + 1)),
-                        Area::of(rows.final_rows(e..e + 1)),
-                        Area::of(rows.extra_rows(e..e + 1)),
-                    ]);
-                }
             }
         }
         if r.fault.is_some() {
@@ -651,27 +400,18 @@ impl Worker<'_> {
             self.books.write(r.seq, e, s.episode, s.seed);
             self.books.write(r.seq + 1, e, s.episode, s.seed);
         }
-        let xb = self.layout.extra_bytes;
-        if r.target == 0 {
-            let at = d.j * RECORD_WORDS * 8;
-            if at + RECORD_WORDS * 8 <= r.records.len {
-                // SAFETY: env `j`'s record in the block's records area (8-aligned, inside the
-                // area), written by this thread alone: the env threads write other areas.
-                unsafe { r.records.ptr.add(at).cast::<EnvRecord>().write(rec) };
-            }
+        let xb = self.slot_layout.extra_bytes;
+        let rows = self.slot_rows(r.targets[d.j]);
+        let e = self.first_env + d.j;
+        rows.record(e, &rec);
+        // SAFETY: env `e`'s room, written by its job, which is done.
+        let room = unsafe { rows.extra_rows(e..e + 1) };
+        let into = if r.partial {
+            &mut finished.answer
         } else {
-            let rows = self.slot_rows(r.target);
-            let e = self.first_env + d.j;
-            rows.record(e, &rec);
-            // SAFETY: env `e`'s room, written by its job, which is done.
-            let room = unsafe { rows.extra_rows(e..e + 1) };
-            let into = if r.partial {
-                &mut finished.answer
-            } else {
-                &mut r.answer
-            };
-            into.add(&rec, &room[..xb.min(room.len())]);
-        }
+            &mut r.answer
+        };
+        into.add(&rec, &room[..xb.min(room.len())]);
         if rec.extra_apart() {
             let apart = if r.partial {
                 &mut finished.apart
@@ -688,7 +428,6 @@ impl Worker<'_> {
     /// Publish the answer of a command whose envs are all done (one answer for them all).
     fn answer_whole(&mut self, r: Running) -> Result<(), WorkerError> {
         if let Some(f) = r.fault {
-            drop(r.block);
             f.write(&self.fault_path).map_err(WorkerError::Msg)?;
             return self.send(r.seq, BlockKind::Error);
         }
@@ -698,15 +437,10 @@ impl Worker<'_> {
             let path = extra_apart_path(&self.id, self.args.index, self.args.generation, r.seq);
             calls::write(&path, &calls::encode(&entries)).map_err(WorkerError::Msg)?;
         }
-        let mut block = match r.block {
-            Some(b) => b,
-            None => self.ports.loan_block(self.layout.words())?,
-        };
+        let mut block = self.ports.loan_block(sample_words(self.block_envs))?;
         *block.user_header_mut() = self.header(r.seq, BlockKind::Data);
-        if r.target != 0 {
-            let answer = r.answer.finish(self.layout.envs);
-            block.payload_mut()[..ANSWER_WORDS].copy_from_slice(&answer.encode());
-        }
+        let answer = r.answer.finish(self.block_envs);
+        block.payload_mut()[..ANSWER_WORDS].copy_from_slice(&answer.encode());
         self.publish(block)
     }
 
@@ -727,7 +461,7 @@ impl Worker<'_> {
                 n,
             ))
             .map_err(WorkerError::Msg)?;
-            let mut block = self.ports.loan_block(self.layout.words())?;
+            let mut block = self.ports.loan_block(sample_words(self.block_envs))?;
             *block.user_header_mut() = self.header(n, BlockKind::Error);
             block.payload_mut()[..2].copy_from_slice(&[1, j as u64]);
             self.publish(block)?;
@@ -745,7 +479,7 @@ impl Worker<'_> {
             calls::write(&path, &calls::encode(&entries)).map_err(WorkerError::Msg)?;
             answer.apart = true;
         }
-        let mut block = self.ports.loan_block(self.layout.words())?;
+        let mut block = self.ports.loan_block(sample_words(self.block_envs))?;
         *block.user_header_mut() = self.header(n, BlockKind::Rows);
         let p = block.payload_mut();
         p[..ANSWER_WORDS].copy_from_slice(&answer.encode());

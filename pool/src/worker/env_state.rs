@@ -5,7 +5,7 @@ use super::block_out::{EnvOut, place_extra};
 use crate::config::AutoresetMode;
 use crate::env::Env;
 use crate::seeds::SeedSchedule;
-use crate::wire::layout::{EnvRecord, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED};
+use crate::wire::record::{EnvRecord, FLAG_FINAL_OBS, FLAG_TERMINATED, FLAG_TRUNCATED};
 use crate::wire::{EnvFault, KEEP_EPISODE, Serve};
 
 /// One env of a worker with its episode bookkeeping (`E = ()` for the envs of an

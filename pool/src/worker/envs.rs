@@ -62,14 +62,15 @@ impl WorkerEnvs {
     }
 
     /// Answer one command (`kind`, with `per_env` payload words per env) into `out`; with
-    /// `only` (a [`crate::wire::Command::subset`] command: one word per env, 0 = left alone), only the
-    /// envs it names. Returns how many envs were served.
+    /// `only = (words, w)` (a [`crate::wire::Command::subset`] command: one word per env, the
+    /// slot it is served into), only the envs whose word is `w` (those of `out`'s slot).
+    /// Returns how many envs were served.
     pub(super) fn serve(
         &mut self,
         kind: Serve,
         payload: &[u64],
         per_env: usize,
-        only: Option<&[u64]>,
+        only: Option<(&[u64], u64)>,
         out: &mut BlockOut<'_>,
         ctx: &ServeCtx,
     ) -> Result<usize, EnvFault> {
@@ -93,7 +94,7 @@ impl WorkerEnvs {
         };
         let mut served = 0;
         for (j, s) in slots.iter_mut().enumerate() {
-            if only.is_some_and(|o| o[j] == 0) {
+            if only.is_some_and(|(o, w)| o[j] != w) {
                 continue;
             }
             served += 1;

@@ -17,39 +17,45 @@ impl Worker<'_> {
         (s.worker == self.args.index && s.at == count).then(|| s.what.clone())
     }
 
-    /// Commit `m` in the answer to command `seq` (its rows written in slot `target - 1`, or
-    /// in the block for `target` 0), its books written, its answer words not yet encoded.
-    pub(super) fn commit(&self, m: &Misdeed, seq: u64, target: usize, answer: &mut Answer) {
-        let first = self.first_env;
-        // SAFETY: the slot this command wrote (see `serve`); only this worker's rows touched.
-        let rows = (target > 0).then(|| unsafe {
+    /// Commit `m` in the answer to command `seq` (`(target, j)`: the first env it served is
+    /// row `j` of the block, its rows written in slot `target - 1`), its books written, its
+    /// answer words not yet encoded.
+    pub(super) fn commit(
+        &self,
+        m: &Misdeed,
+        seq: u64,
+        (target, j): (usize, usize),
+        answer: &mut Answer,
+    ) {
+        let first = self.first_env + j;
+        // SAFETY: the slot this command wrote (see `serve`, which checked `target`); only this
+        // worker's rows touched.
+        let rows = unsafe {
             let base = self
                 .batch
                 .as_ptr()
                 .add((target - 1) * self.slot_layout.bytes());
             self.slot_layout.rows(base)
-        });
-        match (m, rows) {
-            (Misdeed::ExtraSize { size }, Some(_)) => {
+        };
+        match m {
+            Misdeed::ExtraSize { size } => {
                 answer.extras = AnswerExtras::Uniform {
                     size: *size as usize,
                     head: [0; EXTRA_HEAD],
                 };
             }
-            (Misdeed::ApartRow { row }, _) => {
+            Misdeed::ApartRow { row } => {
                 let path = extra_apart_path(&self.id, self.args.index, self.args.generation, seq);
                 let _ = calls::write(&path, &calls::encode(&[(*row, b"x")]));
                 answer.apart = true;
             }
-            (Misdeed::Episode { episode }, _) => {
-                for j in 0..self.layout.envs {
-                    self.books.write(seq, first + j, *episode, 0);
+            Misdeed::Episode { episode } => {
+                for j in 0..self.block_envs {
+                    self.books.write(seq, self.first_env + j, *episode, 0);
                 }
             }
-            (Misdeed::FlagByte { byte }, Some(rows)) => {
-                rows.write_flag_byte(Flag::Terminated, first, *byte)
-            }
-            (Misdeed::InfoBytes { bytes }, Some(rows)) => {
+            Misdeed::FlagByte { byte } => rows.write_flag_byte(Flag::Terminated, first, *byte),
+            Misdeed::InfoBytes { bytes } => {
                 // SAFETY: this worker's first env's room, as above.
                 let room = unsafe { rows.extra_rows(first..first + 1) };
                 let n = bytes.len().min(room.len());
@@ -57,7 +63,7 @@ impl Worker<'_> {
                 rows.write_extra_len(first, n as u32);
                 answer.extras = AnswerExtras::Mixed;
             }
-            (Misdeed::Truncate, _) => {
+            Misdeed::Truncate => {
                 let fd = self.args.shared_fds[0];
                 let path = format!("/proc/{}/fd/{fd}", self.args.ppid);
                 let done = std::fs::OpenOptions::new()
@@ -70,10 +76,9 @@ impl Worker<'_> {
                     });
                 eprintln!("sabotage: truncating the batch buffer: {done:?}");
             }
-            (Misdeed::DieMidWrite, _) => {
+            Misdeed::DieMidWrite => {
                 let _ = nix::sys::signal::raise(nix::sys::signal::Signal::SIGKILL);
             }
-            (m, None) => eprintln!("sabotage: {m:?} needs rows in place; not committed"),
         }
     }
 }

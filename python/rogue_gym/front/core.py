@@ -110,9 +110,10 @@ class Core:
         recv = np.zeros(total, np.uint8)
         self.pool.bind_recv_columns(recv)
         self.cols.append(self._columns(recv, columns))
-        # Async step answers are written in place in the slots (``recv`` hands out views)
-        # unless slots are lent out: a lent slot must not be written while it is lent.
-        self.pool.async_in_place(self.lender is None)
+        # ``recv`` hands rows that are one run of envs in one slot out as views, unless slots
+        # are lent out: the lender's caller keeps copies, and tells the pool which slots are
+        # lent before each async call (no answer is written in a lent slot).
+        self.pool.async_views(self.lender is None)
         #: The last call's result (``None`` before the first).
         self.last: Optional[Result] = None
         self._views: dict[tuple[int, int, int], tuple[dict[str, np.ndarray], Any]] = {}
@@ -223,13 +224,20 @@ class Core:
 
     # -- async (EnvPool-style) -------------------------------------------------------------
 
+    def _lend(self) -> None:
+        """Tell the pool which slots arrays handed out still use, before an async call."""
+        if self.lender is not None:
+            native_call(self.pool.lend_slots, self.lender.lent_mask())
+
     def async_reset(self) -> None:
         """Start resetting every env; collect with :meth:`recv`."""
+        self._lend()
         native_call(self.pool.async_reset)
 
     def send(self, actions: np.ndarray, env_ids: Any) -> None:
         """Send actions to any envs (``env_ids``: an int64 array or a sequence of ints, each
         env at most once until received)."""
+        self._lend()
         native_call(self.pool.send, actions, env_ids)
 
     def recv(
@@ -238,11 +246,11 @@ class Core:
         max_batch: Optional[int] = None,
         timeout: Optional[float] = None,
     ) -> Result:
-        """The first envs ready. Rows the workers wrote in place as one run of envs (see
+        """The first envs ready. Rows that are one run of envs in one slot (see
         :meth:`__init__`) are views of their batch slot, columns and observations (the
-        observations copied with ``copy``), valid until the next call; other rows are
-        gathered: columns in the ``recv`` buffer (valid until the next ``recv``), observations
-        a fresh copy."""
+        observations copied with ``copy``), unchanged until those envs' next answer but one;
+        other rows are gathered: columns in the ``recv`` buffer (valid until the next
+        ``recv``), observations a fresh copy."""
         got = native_call(self.pool.recv, min_batch, max_batch, timeout)
         rows, summary, extras, ids, raw, view = got
         if view is not None:

@@ -43,6 +43,11 @@ class SlotLender:
         ref = self._lent[slot]
         return ref is None or ref() is None
 
+    def lent_mask(self) -> int:
+        """The slots an array handed out still uses, as bits (bit ``s``: slot ``s``): the pool
+        writes no async answer there."""
+        return sum(1 << k for k in range(len(self._slots)) if not self._free(k))
+
     def next_free(self) -> int:
         """The slot the next batch should go to: the first one after the last batch's that
         no array handed out still uses (one always is free: see :meth:`lend`)."""

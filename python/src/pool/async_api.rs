@@ -14,13 +14,19 @@ use crate::settings;
 
 #[pymethods]
 impl PyPool {
-    /// Async: have step answers written in place in the batch slots, so that `recv` hands
-    /// out views (see `recv`). Only for a caller that lends no slot out.
-    fn async_in_place(&self, py: Python<'_>, on: bool) -> PyResult<()> {
+    /// Async: have `recv` hand rows that are one run of envs in one slot out as views (see
+    /// `recv`).
+    fn async_views(&self, py: Python<'_>, on: bool) -> PyResult<()> {
         self.with_pool(py, move |p| {
-            p.set_async_in_place(on);
+            p.set_async_views(on);
             Ok(())
         })
+    }
+
+    /// The batch slots the caller has lent out (bit `s`: slot `s`), which no async answer may
+    /// be written in until the next call of this; at least one stays free.
+    fn lend_slots(&self, py: Python<'_>, mask: u64) -> PyResult<()> {
+        self.with_pool(py, move |p| p.lend_slots(mask))
     }
 
     /// Async: reset every env; collect the results with `recv()`.
@@ -62,10 +68,10 @@ impl PyPool {
     /// per-env values decoded into the `recv` column buffer (its first `rows` entries), the
     /// `SUMMARY_*` bits, the joined extras of the rows that wrote some (see `Joined`), the
     /// int64 env id of each row, and their observations as one uint8 array (`rows x
-    /// obs_bytes`, a fresh copy); or, where the rows were written in place as one run of envs
-    /// (`async_in_place`), `obs` is `None` and `view` is `(slot, first)`: the rows are envs
+    /// obs_bytes`, a fresh copy); or, where the rows are one run of envs in one slot
+    /// (`async_views`), `obs` is `None` and `view` is `(slot, first)`: the rows are envs
     /// `first..first + rows` of batch slot `slot` (its observations and columns, see
-    /// `slot_views`), valid until the next call. `min_batch`, `max_batch` (default both `batch_size`) and
+    /// `slot_views`), unchanged until those envs' next answer but one. `min_batch`, `max_batch` (default both `batch_size`) and
     /// `timeout` (seconds) as `RecvWant`: return once `max_batch` are ready, or at the
     /// deadline with at least `min_batch` (else `TimeoutError`, nothing lost).
     #[pyo3(signature = (min_batch=None, max_batch=None, timeout=None))]
