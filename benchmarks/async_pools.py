@@ -19,6 +19,8 @@ run in turn (interleaved), ``--reps`` times each; the table shows medians and ra
 
     python benchmarks/async_pools.py --reps 3
     python benchmarks/async_pools.py --quick         # a smoke run (CI)
+    PYTHONPATH=/tmp/old/python python benchmarks/async_pools.py --only rogue_gym --out ...
+                                                     # this pool only: one build of an A/B
 
 Writes ``async_pools.json`` and ``async_pools.md`` under ``--out``
 (default ``benchmarks/results/async_pools``).
@@ -511,6 +513,13 @@ def main(argv: Optional[list[str]] = None) -> None:
     p.add_argument("--workloads", nargs="*", default=list(WORKLOADS), choices=list(WORKLOADS))
     p.add_argument("--real", nargs="*", default=list(REAL), choices=list(REAL), help="real envs")
     p.add_argument("--quick", action="store_true", help="one short run of a few systems (CI)")
+    p.add_argument(
+        "--only",
+        nargs="*",
+        default=None,
+        help="run only the systems whose label starts with one of these (e.g. 'rogue_gym' to "
+        "compare two builds of this pool, each run on its own PYTHONPATH)",
+    )
     p.add_argument("--out", default=str(Path(__file__).parent / "results" / "async_pools"))
     args = p.parse_args(argv)
     if args.quick:
@@ -529,6 +538,10 @@ def main(argv: Optional[list[str]] = None) -> None:
             supplies[name] = supply(name, max(args.seconds, 2.5))
             print(f"{name}: env supply here {supplies[name]:,.0f} transitions/s")
         tables[name] = systems(name, cores, args.quick)
+        if args.only is not None:
+            tables[name] = {
+                k: v for k, v in tables[name].items() if any(k.startswith(o) for o in args.only)
+            }
     for name in args.real:
         try:
             gym.make(REAL[name][0]).close()
