@@ -1,6 +1,7 @@
 """Two builds of the Python package side by side: the Python ``step()`` of the native game, of
 hosted CartPole and of hosted HalfCheetah (``--kinds ... halfcheetah``, where MuJoCo imports:
-``.venv-bench``), at 64 envs.
+``.venv-bench``), at 64 envs; and the async API in two halves (``native-halves``,
+``hosted-halves``: ``recv`` one half, ``send`` it).
 
 Each build runs in its own process, both alive at once, each with its pool built, reset and
 warmed up; this process has them step in alternating bursts of ``--seconds`` (A B, then B A,
@@ -34,7 +35,7 @@ from common import env_fn, median_interval, write_results
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = Path(__file__).resolve().parent / "results" / "builds_ab"
-KINDS = ("native", "hosted", "halfcheetah")
+KINDS = ("native", "hosted", "halfcheetah", "native-halves", "hosted-halves")
 #: The kinds run when ``--kinds`` is not given.
 DEFAULT_KINDS = ("native", "hosted")
 
@@ -46,12 +47,14 @@ def make_env(kind: str, num_envs: int, workers: int) -> tuple[Any, Any]:
     import rogue_gym
 
     rng = np.random.default_rng(0)
-    if kind == "native":
-        env = rogue_gym.make_vec(num_envs, config="paper", num_workers=workers, seed=0)
+    # The async API in two halves (``*-halves``): recv one half, send it, as a trainer does.
+    halves = {"batch_size": num_envs // 2} if kind.endswith("-halves") else {}
+    if kind.startswith("native"):
+        env = rogue_gym.make_vec(num_envs, config="paper", num_workers=workers, seed=0, **halves)
         return env, rng.integers(0, 11, size=(256, num_envs))
-    if kind == "hosted":
+    if kind.startswith("hosted"):
         fns = [env_fn("cartpole")] * num_envs
-        env = rogue_gym.PoolVectorEnv(fns, num_workers=workers)
+        env = rogue_gym.PoolVectorEnv(fns, num_workers=workers, **halves)
         return env, rng.integers(0, 2, size=(256, num_envs))
     fns = [env_fn("halfcheetah")] * num_envs
     env = rogue_gym.PoolVectorEnv(fns, num_workers=workers)
@@ -63,10 +66,25 @@ def serve(kind: str, num_envs: int, workers: int) -> None:
     ``burst SECONDS`` on stdin step for that long and print env-steps/s; stop at end of
     input."""
     env, actions = make_env(kind, num_envs, workers)
-    try:
-        env.reset(seed=0)
-        for i in range(50):
+    halves = kind.endswith("-halves")
+    half = num_envs // 2
+
+    def one(i: int) -> int:
+        """One step of every env (sync), or of a half (async); env-steps taken."""
+        if not halves:
             env.step(actions[i % 256])
+            return num_envs
+        *_, infos = env.recv()
+        env.send(actions[i % 256][:half], infos["env_id"])
+        return half
+
+    try:
+        if halves:
+            env.async_reset(seed=0)  # both halves in flight from here on
+        else:
+            env.reset(seed=0)
+        for i in range(50):
+            one(i)
         print("ready", flush=True)
         i = 0
         for line in sys.stdin:
@@ -74,10 +92,9 @@ def serve(kind: str, num_envs: int, workers: int) -> None:
             steps, t0 = 0, time.perf_counter()
             while time.perf_counter() - t0 < seconds:
                 for _ in range(20):
-                    env.step(actions[i % 256])
+                    steps += one(i)
                     i += 1
-                steps += 20
-            print(steps * num_envs / (time.perf_counter() - t0), flush=True)
+            print(steps / (time.perf_counter() - t0), flush=True)
     finally:
         env.close()
 

@@ -101,6 +101,14 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=2.0)
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--quick", action="store_true", help="a smoke run: 1 rep, 0.3 s, 1 worker")
+    ap.add_argument(
+        "--per-env-us",
+        nargs="*",
+        default=[],
+        metavar="ENV=US",
+        help="the policy's time per env row, instead of the calibration run's (e.g. rogue=0.3): "
+        "two builds compared in turn then run the same policy",
+    )
     ap.add_argument("--out", type=Path, default=Path("benchmarks/results/double_buffer"))
     args = ap.parse_args()
     if args.quick:
@@ -110,8 +118,9 @@ def main() -> None:
     opened: list[Any] = []
     per_env: dict[str, float] = {}
     modes = ("sync", "halves", "halves, rows copied")
+    fixed = {k: float(v) / 1e6 for k, v in (a.split("=", 1) for a in args.per_env_us)}
     for env, n in WORKLOADS.items():
-        per_env[env] = env_seconds_per_step(env, n)
+        per_env[env] = fixed[env] if env in fixed else env_seconds_per_step(env, n)
         for w in args.workers:
             sync = make(env, n, w, n)
             halves = make(env, n, w, n // 2)

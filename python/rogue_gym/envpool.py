@@ -450,7 +450,6 @@ class EnvPoolEnv(gym.Env):
         # A jitted step may write any batch slot: hand out copies, never lent slots.
         if core.lender is not None:
             core.lender = None
-            core.pool.lend_slots(0)
             core.pool.async_views(True)
         self._xla_used = True
         space = self.spec.observation_space  # type: ignore[union-attr]

@@ -6,6 +6,7 @@ use std::time::{Duration, Instant};
 
 use super::actions::Actions;
 use super::async_envs::{Received, Turn};
+use super::intake::runs;
 use super::link::Target;
 use super::{Pool, Supervisor};
 use crate::error::PoolError;
@@ -294,15 +295,11 @@ impl Supervisor {
         let recycled = std::mem::take(&mut self.workers[k].recycled) && restart;
         let block = self.blocks[k].clone();
         let envs = &self.async_api.envs;
-        let served: Vec<(std::ops::Range<usize>, usize)> = if restart {
-            block
-                .clone()
-                .map(|e| (e..e + 1, envs.last_slot(e)))
-                .collect()
+        let slot_of = |e| envs.last_slot(e);
+        let served = if restart {
+            runs(block.clone(), slot_of)
         } else {
-            (envs.sent_to(k).iter())
-                .map(|&e| (e..e + 1, envs.last_slot(e)))
-                .collect()
+            runs(envs.sent_to(k).iter().copied(), slot_of)
         };
         let Some((_, apart)) = self.checked(k, &arrived, &served)? else {
             return Ok(());

@@ -21,6 +21,23 @@ use crate::wire::{EnvFault, calls, env_fault_path, env_fault_path_of, extra_apar
 /// `(env, bytes)`.
 pub(super) type Apart = Vec<(usize, Vec<u8>)>;
 
+/// `envs` as runs of consecutive envs in one slot (`slot_of`): what an answer's checks go
+/// over ([`Supervisor::checked`]), one pass per run.
+pub(super) fn runs(
+    envs: impl IntoIterator<Item = usize>,
+    slot_of: impl Fn(usize) -> usize,
+) -> Vec<(Range<usize>, usize)> {
+    let mut out: Vec<(Range<usize>, usize)> = Vec::new();
+    for e in envs {
+        let slot = slot_of(e);
+        match out.last_mut() {
+            Some((r, s)) if r.end == e && *s == slot => r.end += 1,
+            _ => out.push((e..e + 1, slot)),
+        }
+    }
+    out
+}
+
 impl Supervisor {
     /// Take every answer that has arrived from starting and pending workers.
     pub(super) fn poll_all(&mut self) -> Result<(), PoolError> {
@@ -112,9 +129,7 @@ impl Supervisor {
             }
         };
         let envs: Vec<usize> = rows.iter().map(|&j| block.start + j).collect();
-        let at: Vec<(Range<usize>, usize)> = (envs.iter())
-            .map(|&e| (e..e + 1, self.async_api.envs.last_slot(e)))
-            .collect();
+        let at = runs(envs.iter().copied(), |e| self.async_api.envs.last_slot(e));
         let Some((_, apart)) = self.checked(k, &answer, &at)? else {
             return Ok(());
         };

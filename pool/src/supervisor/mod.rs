@@ -97,8 +97,9 @@ struct Supervisor {
     pids: std::sync::Arc<[std::sync::atomic::AtomicU32]>,
     node: Option<rogue_gym_ipc::iceoryx2::node::Node<Svc>>,
     batch: Option<std::sync::Arc<rogue_gym_ipc::SharedBuffer>>,
-    /// The layout of every slot of the batch buffer.
+    /// The layout of every slot of the batch buffer, and each slot's rows while it is mapped.
     slot_layout: SlotLayout,
+    slots: Vec<crate::wire::slot_layout::SlotRows>,
     /// Each env's episode index and seed, as its worker last answered ([`crate::wire::books`]).
     books: Option<Books>,
     /// The flag columns whose bytes are checked in every answer written in place
@@ -240,6 +241,7 @@ impl Pool {
                 machine,
                 batch: None,
                 slot_layout,
+                slots: Vec::new(),
                 books: None,
                 flags,
                 shm_need,
@@ -275,6 +277,7 @@ impl Pool {
             BATCH_BUFFER,
             c.cfg.batch_slots * c.slot_layout.bytes(),
         )?));
+        c.make_slot_rows();
         // Right after the pool's first /dev/shm file, before any node: iceoryx2's node counter,
         // private (see rogue_gym_ipc::create_node_counter).
         rogue_gym_ipc::create_node_counter(&c.id)?;
@@ -551,6 +554,7 @@ impl Pool {
         self.listener = None;
         c.node = None;
         // Views of the batch buffer may outlive the pool; its descriptor does not.
+        c.slots.clear();
         if let Some(b) = c.batch.take() {
             b.close_fd();
         }

@@ -304,18 +304,26 @@ impl Pool {
 }
 
 impl super::Supervisor {
-    /// The rows of slot `slot`.
+    /// The rows of slot `slot` (from `slots`, made once: a slot's rows are the same for the
+    /// pool's life).
     pub(super) fn rows_of(&self, slot: usize) -> Result<SlotRows, PoolError> {
-        match &self.batch {
-            // SAFETY: the slot lies inside the mapping, which `self.batch` keeps alive; it is
-            // 64-byte aligned (page-aligned mapping, 64-byte slots).
-            Some(b) if slot < self.cfg.batch_slots => unsafe {
-                Ok(self
-                    .slot_layout
-                    .rows(b.as_ptr().add(slot * self.slot_layout.bytes())))
-            },
-            _ => Err(PoolError::Closed),
-        }
+        self.slots.get(slot).copied().ok_or(PoolError::Closed)
+    }
+
+    /// The rows of every slot of the batch buffer, once it is made.
+    pub(super) fn make_slot_rows(&mut self) {
+        self.slots = match &self.batch {
+            // SAFETY: every slot lies inside the mapping, which `self.batch` keeps alive as
+            // long as `slots` is kept (both go at close); it is 64-byte aligned (page-aligned
+            // mapping, 64-byte slots).
+            Some(b) => (0..self.cfg.batch_slots)
+                .map(|s| unsafe {
+                    self.slot_layout
+                        .rows(b.as_ptr().add(s * self.slot_layout.bytes()))
+                })
+                .collect(),
+            None => Vec::new(),
+        };
     }
 }
 

@@ -111,8 +111,8 @@ class Core:
         self.pool.bind_recv_columns(recv)
         self.cols.append(self._columns(recv, columns))
         # ``recv`` hands rows that are one run of envs in one slot out as views, unless slots
-        # are lent out: the lender's caller keeps copies, and tells the pool which slots are
-        # lent before each async call (no answer is written in a lent slot).
+        # are lent out: the lender's caller keeps copies, and each async call tells the pool
+        # which slots are lent (no answer is written in a lent slot).
         self.pool.async_views(self.lender is None)
         #: The last call's result (``None`` before the first).
         self.last: Optional[Result] = None
@@ -224,21 +224,19 @@ class Core:
 
     # -- async (EnvPool-style) -------------------------------------------------------------
 
-    def _lend(self) -> None:
-        """Tell the pool which slots arrays handed out still use, before an async call."""
-        if self.lender is not None:
-            native_call(self.pool.lend_slots, self.lender.lent_mask())
+    def _lent(self) -> int:
+        """The slots arrays handed out still use (bits), which an async call tells the pool:
+        no answer is written there."""
+        return 0 if self.lender is None else self.lender.lent_mask()
 
     def async_reset(self) -> None:
         """Start resetting every env; collect with :meth:`recv`."""
-        self._lend()
-        native_call(self.pool.async_reset)
+        native_call(self.pool.async_reset, self._lent())
 
     def send(self, actions: np.ndarray, env_ids: Any) -> None:
         """Send actions to any envs (``env_ids``: an int64 array or a sequence of ints, each
         env at most once until received)."""
-        self._lend()
-        native_call(self.pool.send, actions, env_ids)
+        native_call(self.pool.send, actions, env_ids, self._lent())
 
     def recv(
         self,

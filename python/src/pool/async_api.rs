@@ -23,25 +23,27 @@ impl PyPool {
         })
     }
 
-    /// The batch slots the caller has lent out (bit `s`: slot `s`), which no async answer may
-    /// be written in until the next call of this; at least one stays free.
-    fn lend_slots(&self, py: Python<'_>, mask: u64) -> PyResult<()> {
-        self.with_pool(py, move |p| p.lend_slots(mask))
-    }
-
-    /// Async: reset every env; collect the results with `recv()`.
-    fn async_reset(&self, py: Python<'_>) -> PyResult<()> {
-        self.with_pool(py, |p| p.async_reset())
+    /// Async: reset every env; collect the results with `recv()`. `lent`: the batch slots the
+    /// caller has lent out (bit `s`: slot `s`), where no async answer is written until the next
+    /// call that says (`Pool::lend_slots`).
+    #[pyo3(signature = (lent=0))]
+    fn async_reset(&self, py: Python<'_>, lent: u64) -> PyResult<()> {
+        self.with_pool(py, move |p| {
+            p.lend_slots(lent)?;
+            p.async_reset()
+        })
     }
 
     /// Async: send `actions` (int64 indices, or raw uint8 bytes for hosted envs whose actions
     /// travel so) to `env_ids` (a 1-D int64 array, or a sequence of ints: any envs, each at
-    /// most once until received).
+    /// most once until received); `lent` as `async_reset`'s.
+    #[pyo3(signature = (actions, env_ids, lent=0))]
     fn send(
         &self,
         py: Python<'_>,
         actions: &Bound<'_, PyAny>,
         env_ids: &Bound<'_, PyAny>,
+        lent: u64,
     ) -> PyResult<()> {
         let env_ids: Vec<usize> = match env_ids.extract::<PyReadonlyArray1<'_, i64>>() {
             Ok(a) => a
@@ -61,7 +63,10 @@ impl PyPool {
             })?,
         };
         let acts = self.owned_actions(actions)?;
-        self.with_pool(py, move |p| p.send(acts.as_actions(), &env_ids))
+        self.with_pool(py, move |p| {
+            p.lend_slots(lent)?;
+            p.send(acts.as_actions(), &env_ids)
+        })
     }
 
     /// Async: the first envs ready, `(rows, summary, extras, env_ids, obs, view)`: their
