@@ -8,50 +8,49 @@
 //! --shared-fds <batch>,<books>,<stats>` (the descriptors of the pool's buffers, which the
 //! supervisor keeps open across the worker's `exec`).
 //!
-//! The worker is set up ([`worker_main`]; its command line and config in `setup.rs`) and
-//! then one function per command op. Its envs are
-//! stepped one after another (`envs.rs`, each env's state machine in `env_state.rs`), as one
-//! [`crate::EnvBlock`] (`block.rs`), or each on a thread of its own (`concurrent.rs`, the
-//! pool's `env_concurrency`); the rows and the answer are written in `block_out.rs`, written
-//! with streaming stores for large batches (`streaming.rs`); `sabotage.rs` is the trust tests'
-//! hook that makes a worker write bad values.
+//! The worker is set up ([`worker_main`]; its command line and config in `setup.rs`) and then
+//! runs one executor (`executor.rs`): a loop that takes commands, checks each once
+//! (`command.rs`), serves it and publishes its answer (`answers.rs`). A reset or step is served
+//! inline (`inline.rs`: env after env, `envs.rs`, each env's state machine in `env_state.rs`,
+//! or as one [`crate::EnvBlock`], `block.rs`), or with each env on a thread of its own
+//! (`concurrent.rs`, `env_threads.rs`: the pool's `env_concurrency`, the executor with
+//! threads). The rows are written in `block_out.rs`, with streaming stores for large batches
+//! (`streaming.rs`); `sabotage.rs` is the trust tests' hook that makes a worker write bad
+//! values.
 
 use std::path::PathBuf;
 use std::sync::Mutex;
-use std::time::{Duration, Instant};
 
 use rogue_gym_ipc::iceoryx2::node::Node;
-use rogue_gym_ipc::{
-    BlockHeader, IpcError, PoolId, SharedBuffer, Svc, WaitCall, WaitPolicy, WorkerPorts,
-    hybrid_wait,
-};
+use rogue_gym_ipc::{IpcError, PoolId, SharedBuffer, Svc, WorkerPorts};
 
 use crate::config::AutoresetMode;
 use crate::env::MAX_INFO;
 use crate::registry::{Built, EnvRegistry};
-use crate::stats::{Counter, StatsBuffer, ns_since, stamp};
-use crate::wire::answer::{ANSWER_WORDS, AnswerBuilder, BlockKind, sample_words};
+use crate::stats::StatsBuffer;
+use crate::wire::answer::{BlockKind, sample_words};
 use crate::wire::books::Books;
 use crate::wire::slot_layout::SlotLayout;
-use crate::wire::{
-    BATCH_BUFFER, Command, EnvFault, Op, Pace, Serve, WorkerConfig, calls, env_fault_path,
-    extra_apart_path, successor_marker,
-};
+use crate::wire::{BATCH_BUFFER, EnvFault, WorkerConfig, env_fault_path, successor_marker};
 
+mod answers;
 mod block;
 mod block_out;
+mod command;
 mod concurrent;
 mod env_state;
 mod env_threads;
 mod envs;
+mod executor;
+mod inline;
 mod sabotage;
 mod setup;
 mod streaming;
 
 use block::BlockHost;
-use block_out::{BlockOut, Scratch};
-use env_state::{EnvState, ServeCtx};
-use envs::{WorkerEnvs, answer_calls, take_action_extras};
+use block_out::Scratch;
+use env_state::EnvState;
+use envs::WorkerEnvs;
 use setup::{Args, parse_args, pin_to_core, read_config, wait_for_go};
 
 #[derive(Debug, thiserror::Error)]
@@ -119,20 +118,6 @@ pub fn worker_main(args: &[String], registry: &EnvRegistry) -> i32 {
     }
 }
 
-/// The longest a worker polls for a command it expects soon ([`expected_poll`]).
-const MAX_EXPECTED_POLL: Duration = Duration::from_millis(2);
-
-/// How long to poll for the next command: twice the last gap between an answer and the next
-/// command when that was short (a caller in a tight loop: the worker is still polling when
-/// the command comes, and no wake-up is paid), else the configured budget.
-fn expected_poll(budget: Duration, last_gap: Duration) -> Duration {
-    if last_gap <= MAX_EXPECTED_POLL / 2 {
-        budget.max(last_gap * 2)
-    } else {
-        budget
-    }
-}
-
 /// A running worker: its envs, its ports, and the pool's shared memory it writes.
 struct Worker<'a> {
     args: &'a Args,
@@ -164,37 +149,12 @@ struct Worker<'a> {
     answer_no: u64,
     /// The seed schedule (re-read when a reset says so).
     seeds: crate::seeds::SeedSchedule,
-    /// The payload of the command being served.
-    payload: Vec<u64>,
     scratch: Scratch,
     /// The rows are written with streaming stores ([`streaming`]).
     streamed: bool,
     fault_path: PathBuf,
     /// Reset and step commands served so far.
     served: u64,
-}
-
-/// How a worker waits for its next command: as the command before said ([`Pace`]).
-struct Pacing {
-    policy: WaitPolicy,
-    pace: Pace,
-    /// How long the last command took to come after the answer before it.
-    last_gap: Duration,
-}
-
-impl Pacing {
-    /// The policy of the next wait.
-    fn now(&self) -> WaitPolicy {
-        let poll_budget = match self.pace {
-            Pace::Expected => expected_poll(self.policy.poll_budget, self.last_gap),
-            Pace::Short => self.policy.poll_budget,
-            Pace::Block => Duration::ZERO,
-        };
-        WaitPolicy {
-            poll_budget,
-            ..self.policy
-        }
-    }
 }
 
 impl<'a> Worker<'a> {
@@ -306,7 +266,6 @@ impl<'a> Worker<'a> {
             answers: 0,
             answer_no: 0,
             seeds: cfg.seeds.clone(),
-            payload: vec![0; envs.len() * (action_words + 1)],
             scratch,
             streamed,
             fault_path,
@@ -315,258 +274,5 @@ impl<'a> Worker<'a> {
         };
         w.send(0, BlockKind::Ready)?;
         Ok(w)
-    }
-
-    /// Serve commands until the supervisor closes the worker (or is gone).
-    fn run(&mut self) -> Result<(), WorkerError> {
-        if matches!(self.envs, WorkerEnvs::Shared(_)) {
-            return self.run_concurrent(self.cfg.env_threads);
-        }
-        let mut pacing = Pacing {
-            policy: WaitPolicy {
-                poll_budget: Duration::from_micros(self.cfg.poll_budget_us),
-                block_slice: Duration::from_millis(self.cfg.block_slice_ms.max(1)),
-                yield_cpu: self.cfg.poll_yield,
-                sleep_first: Duration::ZERO,
-            },
-            pace: Pace::Expected,
-            last_gap: Duration::MAX,
-        };
-        loop {
-            let (seq, command, words) = self.next_command(&mut pacing)?;
-            match command.serve() {
-                None if command.op == Op::Close => return Ok(()),
-                None => self.answer_calls(seq)?,
-                Some(kind) => self.serve(seq, command, kind, words)?,
-            }
-        }
-    }
-
-    /// Wait for the next command; its payload is copied into `self.payload`. Returns its
-    /// sequence number, the command and its payload's length in words.
-    fn next_command(&mut self, pacing: &mut Pacing) -> Result<(u64, Command, usize), WorkerError> {
-        let ppid = self.args.ppid;
-        loop {
-            let mut cmd = None;
-            let (waiting, since) = (stamp(), Instant::now());
-            hybrid_wait::<WorkerError>(self.ports.cmd_listener(), &pacing.now(), None, |call| {
-                if call == WaitCall::Idle && nix::unistd::getppid().as_raw() != ppid {
-                    return Err(WorkerError::ParentGone(ppid));
-                }
-                cmd = self.ports.try_recv_cmd()?;
-                Ok(cmd.is_some())
-            })?;
-            self.stats
-                .add(self.args.index, Counter::WaitNs, ns_since(waiting));
-            pacing.last_gap = since.elapsed();
-            let Some(cmd) = cmd else { continue };
-            let h = *cmd.user_header();
-            let command = Command::decode(h.kind)
-                .map_err(|e| WorkerError::Msg(format!("command {}: {e}", h.seq)))?;
-            pacing.pace = command.pace;
-            let n = (h.len as usize).min(cmd.payload().len());
-            let Some(dst) = self.payload.get_mut(..n) else {
-                return Err(WorkerError::Msg(format!(
-                    "command {} carries {n} words, more than a command to {} envs can",
-                    h.seq, self.block_envs
-                )));
-            };
-            dst.copy_from_slice(&cmd.payload()[..n]);
-            return Ok((h.seq, command, n));
-        }
-    }
-
-    /// Send an answer without data (`kind`) to command `seq` (its first word 0: it names no
-    /// rows, see [`crate::wire::answer::rows_of`]).
-    fn send(&mut self, seq: u64, kind: BlockKind) -> Result<(), WorkerError> {
-        let mut block = self.ports.loan_block(sample_words(self.block_envs))?;
-        *block.user_header_mut() = self.header(seq, kind);
-        block.payload_mut()[0] = 0;
-        self.publish(block)
-    }
-
-    /// Publish `block` and count it (see [`Worker::answers`]).
-    fn publish(&mut self, block: rogue_gym_ipc::BlockSampleMut) -> Result<(), WorkerError> {
-        let t = stamp();
-        self.ports.send_block(block)?;
-        self.answers += 1;
-        self.stats
-            .add(self.args.index, Counter::PublishNs, ns_since(t));
-        Ok(())
-    }
-
-    fn header(&self, seq: u64, kind: BlockKind) -> BlockHeader {
-        BlockHeader {
-            seq,
-            generation: self.args.generation,
-            worker: self.args.index as u32,
-            kind: kind.word(),
-            ready_ns: 0,
-        }
-    }
-
-    /// Report env fault `f` as the answer to command `seq` (the supervisor raises it to the
-    /// caller and requires a reset); the worker itself is fine and serves on.
-    fn report(&mut self, seq: u64, f: &EnvFault) -> Result<(), WorkerError> {
-        f.write(&self.fault_path).map_err(WorkerError::Msg)?;
-        self.send(seq, BlockKind::Error)
-    }
-
-    /// [`Op::Call`]: env calls, off the hot path.
-    fn answer_calls(&mut self, seq: u64) -> Result<(), WorkerError> {
-        let me = (self.args.index, self.args.generation);
-        match answer_calls(&self.id, me, &mut self.envs, self.first_env as u64) {
-            Ok(()) => self.send(seq, BlockKind::Call),
-            Err(f) => self.report(seq, &f),
-        }
-    }
-
-    /// A reset or a step ([`Serve`]): every env it names writes its rows in the batch slot
-    /// the command targets (a subset command: the slot its word names); one answer for them
-    /// all.
-    fn serve(
-        &mut self,
-        seq: u64,
-        command: Command,
-        kind: Serve,
-        n: usize,
-    ) -> Result<(), WorkerError> {
-        // Words per env: one episode index per env for a reset, one action for a step; a
-        // subset command adds one word per env (its slot).
-        let epw = self.block_envs;
-        let per_env = if kind == Serve::Step {
-            self.action_words
-        } else {
-            1
-        };
-        let subset = command.subset;
-        if n != epw * per_env + if subset { epw } else { 0 } {
-            return Err(WorkerError::Msg(format!(
-                "command {seq} carries {n} words for {epw} envs of {per_env} words (subset: \
-                 {subset})"
-            )));
-        }
-        let slots = self.cfg.batch_slots as u64;
-        let target = u64::from(command.target);
-        let (acts, only) = self.payload[..n].split_at(epw * per_env);
-        let bad = if subset {
-            only.iter().copied().find(|&w| w > slots)
-        } else {
-            (!(1..=slots).contains(&target)).then_some(target)
-        };
-        if let Some(t) = bad {
-            return Err(WorkerError::Msg(format!(
-                "command {seq}: observation target {t}, but the pool has {slots} slots"
-            )));
-        }
-        if command.reload_seeds {
-            self.seeds = read_config(&self.args.config)
-                .map_err(WorkerError::Msg)?
-                .seeds;
-        }
-        let me = self.args.index;
-        self.served += 1;
-        let misdeed = self.misdeed(self.served);
-        let mut block = self.ports.loan_block(sample_words(epw))?;
-        *block.user_header_mut() = self.header(seq, BlockKind::Data);
-        let serving = stamp();
-        let ctx = ServeCtx {
-            seeds: &self.seeds,
-            num_envs: self.cfg.num_envs as u64,
-            autoreset: self.cfg.autoreset,
-            action_bytes: self.action_bytes,
-            n_info: self.n_info,
-        };
-        let first = self.first_env as u64;
-        let extras = if kind == Serve::Step && command.action_extras {
-            let me = (self.args.index, self.args.generation);
-            take_action_extras(&self.id, me, &mut self.envs, first)
-        } else {
-            Ok(())
-        };
-        // One pass per slot the command writes (a whole command writes one).
-        let mut built = AnswerBuilder::default();
-        let mut apart: Vec<(u32, Vec<u8>)> = Vec::new();
-        let mut served = extras.map(|()| 0);
-        for slot in 1..=slots {
-            let only = match subset {
-                true if only.contains(&slot) => Some((only, slot)),
-                false if slot == target => None,
-                _ => continue,
-            };
-            // SAFETY: slot `slot - 1` lies in the batch buffer (`slot <= batch_slots`, checked
-            // above), 64-byte aligned. This worker's envs own their rows of every area of it
-            // during the command: the supervisor neither reads nor lends them out until the
-            // command is answered, and no other worker writes them.
-            let mut out = unsafe {
-                let base = self
-                    .batch
-                    .as_ptr()
-                    .add((slot as usize - 1) * self.slot_layout.bytes());
-                BlockOut::in_slot(
-                    self.slot_layout.rows(base),
-                    self.first_env,
-                    epw,
-                    &mut self.scratch,
-                )
-            };
-            out.answer = built;
-            served = served.and_then(|c| {
-                let more = self.envs.serve(kind, acts, per_env, only, &mut out, &ctx)?;
-                Ok(c + more)
-            });
-            built = out.answer;
-            apart.extend(out.take_apart());
-            if served.is_err() {
-                break;
-            }
-        }
-        if self.streamed {
-            // Streamed rows land before the answer that publishes them (an env that failed
-            // midway included: its rows are written again before anyone reads them).
-            streaming::fence();
-        }
-        let mut answer = built.finish(epw);
-        // Info too long for its room goes beside the answer, in a private file named by it;
-        // the supervisor takes it with the answer.
-        let apart = match &served {
-            Ok(_) if !apart.is_empty() => {
-                let entries: Vec<(u32, &[u8])> =
-                    apart.iter().map(|(j, b)| (*j, b.as_slice())).collect();
-                let path = extra_apart_path(&self.id, me, self.args.generation, seq);
-                calls::write(&path, &calls::encode(&entries)).map_err(|e| {
-                    EnvFault::new(
-                        first + u64::from(apart[0].0),
-                        "extra info",
-                        format!("cannot write the info that did not fit its room: {e}"),
-                    )
-                })
-            }
-            _ => Ok(()),
-        };
-        let served = served.and_then(|served| apart.map(|()| served));
-        self.stats.add(me, Counter::EnvNs, ns_since(serving));
-        self.stats.add(me, Counter::Commands, 1);
-        let served = match served {
-            Ok(served) => served,
-            Err(f) => {
-                drop(block);
-                return self.report(seq, &f);
-            }
-        };
-        self.envs.write_books(&self.books, seq, self.first_env);
-        if let Some(m) = &misdeed {
-            // At the first env the command served, in its slot.
-            let j = if subset {
-                only.iter().position(|&w| w != 0).unwrap_or(0)
-            } else {
-                0
-            };
-            let slot = if subset { only[j] } else { target };
-            self.commit(m, seq, (slot as usize, j), &mut answer);
-        }
-        block.payload_mut()[..ANSWER_WORDS].copy_from_slice(&answer.encode());
-        self.stats.add(me, Counter::EnvSteps, served as u64);
-        self.publish(block)
     }
 }

@@ -6,6 +6,7 @@ use std::time::{Duration, Instant};
 
 use super::actions::Actions;
 use super::async_envs::{Received, Turn};
+use super::commands::StepActions;
 use super::intake::runs;
 use super::link::Target;
 use super::{Pool, Supervisor};
@@ -290,31 +291,20 @@ impl Supervisor {
     /// is (its words, the flag bytes of the rows it wrote, its side file): its envs are
     /// ready. A bad answer is the worker's failure.
     fn take_async_answer(&mut self, k: usize) -> Result<(), PoolError> {
-        let arrived = self.take_answer(k)?;
-        let restart = std::mem::take(&mut self.workers[k].restarted);
-        let recycled = std::mem::take(&mut self.workers[k].recycled) && restart;
         let block = self.blocks[k].clone();
-        let envs = &self.async_api.envs;
-        let slot_of = |e| envs.last_slot(e);
-        let served = if restart {
-            runs(block.clone(), slot_of)
-        } else {
-            runs(envs.sent_to(k).iter().copied(), slot_of)
+        let served = |c: &Self, restart: bool| {
+            let envs = &c.async_api.envs;
+            let slot_of = |e| envs.last_slot(e);
+            match restart {
+                true => runs(block.clone(), slot_of),
+                false => runs(envs.sent_to(k).iter().copied(), slot_of),
+            }
         };
-        let Some((_, apart)) = self.checked(k, &arrived, &served)? else {
+        let Some(t) = self.take_checked(k, served)? else {
             return Ok(());
         };
-        if restart {
-            // Its envs report the restart (their episodes were cut): the supervisor's to
-            // write, as in a whole-batch call.
-            for e in block.clone() {
-                self.rows_of(self.async_api.envs.last_slot(e))?
-                    .mark_restarted(e);
-            }
-        }
-        self.async_api
-            .envs
-            .arrive(k, block, apart, restart.then_some(recycled));
+        let restart = t.restart.then_some(t.recycled);
+        self.async_api.envs.arrive(k, block, t.apart, restart);
         Ok(())
     }
 
@@ -350,7 +340,8 @@ impl Supervisor {
             };
             let partial = self.concurrent;
             let count = targets.iter().filter(|&&t| t != 0).count();
-            if self.send_words(k, &words, &targets, partial)? && partial {
+            let (actions, target) = (StepActions::Words(&words), Target::Each(&targets));
+            if self.send_step(k, actions, target, partial)? && partial {
                 let seq = self.workers[k].seq;
                 self.async_api.envs.sent_partial(k, count, seq);
             }

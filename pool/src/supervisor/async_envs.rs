@@ -515,8 +515,15 @@ impl AsyncEnvs {
     }
 }
 
-/// Env `e`'s extra info of a row in a slot: in its room of the slot, or `apart`.
-fn slot_extra(w: &SlotRows, e: usize, rec: &EnvRecord, apart: Option<&[u8]>) -> Option<Vec<u8>> {
+/// Env `e`'s extra info of a row in a slot (`rec`: its record there): in its room of the slot,
+/// as long as its `extra_len` says (at most the room), or `apart`. The one joiner of extra
+/// info, for whole-batch calls and the async API.
+pub(super) fn slot_extra(
+    w: &SlotRows,
+    e: usize,
+    rec: &EnvRecord,
+    apart: Option<&[u8]>,
+) -> Option<Vec<u8>> {
     if let Some(b) = apart {
         return Some(b.to_vec());
     }
@@ -524,7 +531,8 @@ fn slot_extra(w: &SlotRows, e: usize, rec: &EnvRecord, apart: Option<&[u8]>) -> 
     if len == 0 {
         return None;
     }
-    // SAFETY: env `e`'s extra room of the slot, as its obs rows in `take`.
+    // SAFETY: env `e`'s extra room of the slot, which its worker has answered: no command
+    // writes it until the caller sends to `e` again.
     let room = unsafe { w.extra_rows(e..e + 1) };
     Some(room[..len.min(room.len())].to_vec())
 }

@@ -10,6 +10,36 @@ use crate::wire::books::next_episode;
 use crate::wire::command::next_seq;
 use crate::wire::{Command, KEEP_EPISODE, Op, calls};
 
+/// The actions a step command carries, one per env of the worker's block.
+#[derive(Clone, Copy)]
+pub(super) enum StepActions<'a> {
+    /// The block's rows of the caller's actions (a whole-batch step).
+    Rows(Actions<'a>),
+    /// Action words, `action_words` per env (the async API's staged actions).
+    Words(&'a [u64]),
+}
+
+impl StepActions<'_> {
+    /// Write them into a command's payload `p` (`aw` words per env; `ab` bytes per raw action).
+    fn write(self, p: &mut [u64], aw: usize, ab: usize) {
+        match self {
+            StepActions::Words(w) => p.copy_from_slice(w),
+            StepActions::Rows(Actions::Indices(a)) => {
+                for (d, a) in p.iter_mut().zip(a) {
+                    *d = *a as u64;
+                }
+            }
+            StepActions::Rows(Actions::Bytes(b)) => {
+                for (j, w) in p.chunks_mut(aw).enumerate() {
+                    w.fill(0);
+                    rogue_gym_ipc::words_as_bytes_mut(w)[..ab]
+                        .copy_from_slice(&b[j * ab..(j + 1) * ab]);
+                }
+            }
+        }
+    }
+}
+
 impl Supervisor {
     /// A command to the workers, paced as the machine's booking says (`machine.rs`).
     fn command(&mut self, op: Op, target: u32) -> Command {
@@ -96,67 +126,34 @@ impl Supervisor {
         self.send_reset(k, Target::Each(&targets), None)
     }
 
-    /// Step command to worker `k`; `actions` holds exactly its block's actions. A replaced
-    /// worker ([`WorkerLink::cut`]) resets its envs instead, which report `restarted`.
+    /// Step command to worker `k`: each env of its block (`actions`) into the slot `target`
+    /// names for it (a whole-batch call: every env into one slot; the async API: each env into
+    /// its own, 0 leaving it alone, a [`Command::subset`] step of the others); `partial`:
+    /// answered env by env ([`Command::partial`]). The one step sender of both APIs. A replaced
+    /// worker ([`WorkerLink::cut`]) resets all its envs instead, which report `restarted`:
+    /// whether it stepped.
     pub(super) fn send_step(
         &mut self,
         k: usize,
-        actions: Actions<'_>,
-        target: u32,
-    ) -> Result<(), PoolError> {
-        if self.workers[k].cut {
-            self.workers[k].restarted = true;
-            return self.send_reset(k, Target::Slot(target as usize - 1), None);
-        }
-        let aw = self.spec.action_words();
-        let cmd = Command {
-            action_extras: self.write_action_extras(k)?,
-            ..self.command(Op::Step, target)
-        };
-        let s = &mut self.workers[k];
-        s.seq = next_seq(s.seq, s.delivered);
-        s.target = target;
-        s.whole_call = true;
-        s.served += self.blocks[k].len() as u64;
-        let words = self.blocks[k].len() * aw;
-        s.ports
-            .send_cmd(s.seq, cmd.encode(), words, |p| match actions {
-                Actions::Indices(a) => {
-                    for (d, a) in p.iter_mut().zip(a) {
-                        *d = *a as u64;
-                    }
-                }
-                Actions::Bytes(b) => {
-                    let ab = self.spec.action_bytes;
-                    for (j, w) in p.chunks_mut(aw).enumerate() {
-                        w.fill(0);
-                        rogue_gym_ipc::words_as_bytes_mut(w)[..ab]
-                            .copy_from_slice(&b[j * ab..(j + 1) * ab]);
-                    }
-                }
-            })?;
-        s.pending_now();
-        Ok(())
-    }
-
-    /// Step command to worker `k` from action words (`aw` per env of its block), each env into
-    /// the slot `targets` names for it (`s + 1`; 0: left alone, a [`Command::subset`] step of
-    /// the others); `partial`: answered env by env ([`Command::partial`]). A replaced worker
-    /// ([`WorkerLink::cut`]) resets all its envs instead, which report `restarted`: whether
-    /// it stepped.
-    pub(super) fn send_words(
-        &mut self,
-        k: usize,
-        words: &[u64],
-        targets: &[u64],
+        actions: StepActions<'_>,
+        target: Target<'_>,
         partial: bool,
     ) -> Result<bool, PoolError> {
         if self.workers[k].cut {
-            self.send_restart(k, false)?;
+            match target {
+                Target::Slot(_) => {
+                    self.workers[k].restarted = true;
+                    self.send_reset(k, target, None)?;
+                }
+                Target::Each(_) => self.send_restart(k, false)?,
+            }
             return Ok(false);
         }
-        let served = targets.iter().filter(|&&w| w != 0).count();
-        let (slot, each) = Target::Each(targets).words();
+        let served = match target {
+            Target::Slot(_) => self.blocks[k].len(),
+            Target::Each(t) => t.iter().filter(|&&w| w != 0).count(),
+        };
+        let (slot, each) = target.words();
         let each = each.unwrap_or(&[]);
         let cmd = Command {
             action_extras: self.write_action_extras(k)?,
@@ -164,15 +161,17 @@ impl Supervisor {
             partial,
             ..self.command(Op::Step, slot)
         };
+        let (aw, ab) = (self.spec.action_words(), self.spec.action_bytes);
+        let words = self.blocks[k].len() * aw;
         let s = &mut self.workers[k];
         s.seq = next_seq(s.seq, s.delivered);
         s.target = slot;
-        s.whole_call = false;
+        s.whole_call = matches!(target, Target::Slot(_));
         s.served += served as u64;
         s.ports
-            .send_cmd(s.seq, cmd.encode(), words.len() + each.len(), |p| {
-                let (a, o) = p.split_at_mut(words.len());
-                a.copy_from_slice(words);
+            .send_cmd(s.seq, cmd.encode(), words + each.len(), |p| {
+                let (a, o) = p.split_at_mut(words);
+                actions.write(a, aw, ab);
                 o.copy_from_slice(each);
             })?;
         if !(partial && s.partial) {

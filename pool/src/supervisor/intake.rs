@@ -3,7 +3,7 @@
 //! decoded and checked here, once, before anyone reads a row ([`Supervisor::checked`]: its
 //! words, the flag bytes of the rows it names, the extra info beside it). A worker whose
 //! answer fails a check is handled as a failed worker ([`FailureCause::Corrupt`]). The calls
-//! fold checked answers into their results: a whole-batch call's in `slot_answers.rs`, the
+//! fold checked answers ([`Supervisor::take_checked`]) into their results: a whole-batch call's in `slot_answers.rs`, the
 //! async API's in `async_api.rs`.
 
 use std::ops::Range;
@@ -20,6 +20,19 @@ use crate::wire::{EnvFault, calls, env_fault_path, env_fault_path_of, extra_apar
 /// Extra info that travelled beside an answer (it did not fit its env's room), as
 /// `(env, bytes)`.
 pub(super) type Apart = Vec<(usize, Vec<u8>)>;
+
+/// A worker's answer, taken and checked ([`Supervisor::take_checked`]).
+pub(super) struct Taken {
+    pub(super) answer: Answer,
+    /// The extra info that travelled beside it.
+    pub(super) apart: Apart,
+    /// It answers a restart of the worker (its envs' rows are marked restarted), by plan
+    /// (`recycled`) or after a failure.
+    pub(super) restart: bool,
+    pub(super) recycled: bool,
+    /// When the worker published it (`CLOCK_MONOTONIC`, ns).
+    pub(super) ready_ns: u64,
+}
 
 /// `envs` as runs of consecutive envs in one slot (`slot_of`): what an answer's checks go
 /// over ([`Supervisor::checked`]), one pass per run.
@@ -227,6 +240,39 @@ impl Supervisor {
             rows.check_flags(f, envs.clone())?;
         }
         Ok(())
+    }
+
+    /// Take worker `k`'s answer, which has arrived (it is idle again), checked over the rows
+    /// `at` says it wrote (given whether it answers a restart of the worker: then every env of
+    /// its block, which the supervisor marks restarted, their episodes having been cut).
+    /// `None` when a check failed and the worker was handled as failed. The one taker of a
+    /// worker's answer, for whole-batch calls and the async API.
+    pub(super) fn take_checked(
+        &mut self,
+        k: usize,
+        at: impl FnOnce(&Self, bool) -> Vec<(Range<usize>, usize)>,
+    ) -> Result<Option<Taken>, PoolError> {
+        let arrived = self.take_answer(k)?;
+        let s = &mut self.workers[k];
+        let restart = std::mem::take(&mut s.restarted);
+        let recycled = std::mem::take(&mut s.recycled) && restart;
+        let at = at(self, restart);
+        let Some((answer, apart)) = self.checked(k, &arrived, &at)? else {
+            return Ok(None);
+        };
+        if restart {
+            for (envs, slot) in &at {
+                let rows = self.rows_of(*slot)?;
+                envs.clone().for_each(|e| rows.mark_restarted(e));
+            }
+        }
+        Ok(Some(Taken {
+            answer,
+            apart,
+            restart,
+            recycled,
+            ready_ns: arrived.ready_ns,
+        }))
     }
 
     /// Worker `k`'s answer, which has arrived (it is idle again).

@@ -4,6 +4,7 @@
 //! [`SlotAnswer`].
 
 use super::Supervisor;
+use super::async_envs::slot_extra;
 use super::intake::Apart;
 use crate::batch::{SlotAnswer, SlotExtras};
 use crate::error::PoolError;
@@ -54,31 +55,25 @@ impl Supervisor {
         }
         let rows = self.rows_of(acc.answer.slot)?;
         while let Some(k) = self.arrived.pop_front() {
-            let arrived = self.take_answer(k)?;
-            let s = &mut self.workers[k];
-            let restarted = std::mem::take(&mut s.restarted);
-            if std::mem::take(&mut s.recycled) && restarted {
-                self.recycling.replaced_envs.extend(self.blocks[k].clone());
-            }
-            acc.ready_ns = acc.ready_ns.max(arrived.ready_ns);
-            let at = [(self.blocks[k].clone(), acc.answer.slot)];
-            let Some((answer, apart)) = self.checked(k, &arrived, &at)? else {
+            let at = |c: &Self, _| vec![(c.blocks[k].clone(), acc.answer.slot)];
+            let Some(t) = self.take_checked(k, at)? else {
                 continue;
             };
+            if t.recycled {
+                self.recycling.replaced_envs.extend(self.blocks[k].clone());
+            }
+            acc.ready_ns = acc.ready_ns.max(t.ready_ns);
             acc.answered += 1;
-            if restarted {
+            if t.restart {
                 // Its envs report the restart, not their reset's final obs or info.
                 acc.answer.restarted = true;
                 acc.restarted.push(k);
                 acc.not_uniform = true;
-                for i in self.blocks[k].clone() {
-                    rows.mark_restarted(i);
-                }
                 continue;
             }
-            acc.answer.final_obs |= answer.final_obs;
-            acc.apart.extend(apart);
-            match answer.extras {
+            acc.answer.final_obs |= t.answer.final_obs;
+            acc.apart.extend(t.apart);
+            match t.answer.extras {
                 AnswerExtras::None => acc.not_uniform = true,
                 AnswerExtras::Mixed => {
                     acc.not_uniform = true;
@@ -113,17 +108,11 @@ impl Supervisor {
             (false, false, Some((size, _))) => SlotExtras::Uniform(size),
             _ => {
                 // Not one layout (e.g. infos that are pickled): env by env, each as long as
-                // its `extra_len` says, at most its room.
-                let xb = self.slot_layout.extra_bytes;
-                // SAFETY: every worker has answered: no one writes the slot now.
-                let room = unsafe { rows.extra_rows(0..self.slot_layout.num_envs) };
+                // its `extra_len` says, at most its room (the async API's joiner).
                 let mut out = std::mem::take(&mut acc.apart);
                 for &k in &acc.mixed {
                     for i in self.blocks[k].clone() {
-                        let len = (rows.read(i).extra_len as usize).min(xb);
-                        if len > 0 {
-                            out.push((i, room[i * xb..i * xb + len].to_vec()));
-                        }
+                        out.extend(slot_extra(rows, i, &rows.read(i), None).map(|x| (i, x)));
                     }
                 }
                 out.sort_by_key(|(i, _)| *i);

@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 
 use super::Pool;
 use super::actions::Actions;
+use super::commands::StepActions;
 use super::link::Target;
 use super::slot_answers::SlotCollect;
 use crate::batch::{BatchOutput, SlotAnswer, SlotExtras};
@@ -88,7 +89,8 @@ impl Pool {
         let ab = self.sup.spec.action_bytes;
         for k in 0..self.sup.workers.len() {
             let rows = self.sup.blocks[k].clone();
-            self.send_or_fail(|c| c.send_step(k, actions.rows(rows, ab), slot as u32 + 1))?;
+            let actions = StepActions::Rows(actions.rows(rows, ab));
+            self.send_or_fail(|c| c.send_step(k, actions, Target::Slot(slot), false).map(drop))?;
         }
         self.sup.call.sent = Some(SentCall::now(slot));
         Ok(slot)

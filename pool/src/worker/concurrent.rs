@@ -1,13 +1,14 @@
-//! A worker whose envs run on threads (`WorkerConfig::env_threads` > 0): for envs that wait (a
+//! The executor with env threads (`WorkerConfig::env_threads` > 0): for envs that wait (a
 //! socket, a remote simulator, a subprocess, a sleep), so that an env that waits holds its own
-//! thread only, not its worker-mates.
+//! thread only, not its worker-mates. The loop is the executor's (`executor.rs`); this file
+//! starts the threads, hands them a command's jobs and takes back the finished envs.
 //!
 //! Two kinds of thread:
 //!
 //! * **env threads** (`env_threads` of them, `env_threads.rs`) take jobs, one env's reset or
 //!   step each, from one queue; the env writes its observation, final observation and extra
-//!   info straight into its own rows of the batch slot the command names for it, as the serial
-//!   loop does; each env is behind a lock, taken by one thread at a time. A job done goes to
+//!   info straight into its own rows of the batch slot the command names for it, as an env
+//!   served inline does; each env is behind a lock, taken by one thread at a time. A job done goes to
 //!   the done list, and its thread wakes the worker's command listener ([`CmdWaker`]);
 //! * the worker's **own thread** waits on that one listener for both commands and finished
 //!   envs, takes commands from the port, starts them (in order: a command waits until every
@@ -27,7 +28,7 @@
 //! millisecond, folding whatever finishes meanwhile into its next answer. Nothing is dropped,
 //! and nothing spins.
 //!
-//! What holds as in the serial loop: each env's trajectory (its state is its own), an env
+//! What holds as inline: each env's trajectory (its state is its own), an env
 //! that fails fails alone (an error answer names it; the others go on), and a worker that dies
 //! costs its envs one restarted episode. What differs: a command's envs finish in any order,
 //! and streaming stores are off (each thread writes its env's rows).
@@ -35,40 +36,29 @@
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex, PoisonError, RwLock};
-use std::time::{Duration, Instant};
 
 use rogue_gym_ipc::CmdWaker;
-use rogue_gym_ipc::iceoryx2::port::listener::ListenerWaitError;
 
 use super::env_threads::{Area, Ctx, Done, Job, Shared, batch_scheduling, env_thread, guard};
 use super::envs::{WorkerEnvs, lock, take_action_extras};
+use super::executor::Incoming;
 use super::{Worker, WorkerError};
 use crate::stats::Counter;
-use crate::wire::answer::{ANSWER_WORDS, AnswerBuilder, BlockKind, sample_words};
-use crate::wire::slot_layout::SlotRows;
-use crate::wire::{Command, EnvFault, Op, Serve, calls, env_fault_path_of, extra_apart_path};
+use crate::wire::answer::{AnswerBuilder, BlockKind};
+use crate::wire::{EnvFault, Serve, env_fault_path_of};
 
 /// Answers a worker may have untaken before it holds its finished envs (the answer port
 /// holds four; one is left for an answer that cannot wait, an error's).
 const UNTAKEN: u64 = 3;
-/// How often a worker that holds finished envs checks whether answers were taken.
-const HOLD_CHECK: Duration = Duration::from_millis(1);
-
-/// A command taken from the port: its sequence number, the command, its payload.
-struct Incoming {
-    seq: u64,
-    command: Command,
-    payload: Vec<u64>,
-}
 
 /// A command started and not yet answered whole.
-struct Running {
-    seq: u64,
+pub(super) struct Running {
+    pub(super) seq: u64,
     /// The slot (`s + 1`) each env of the block writes in (0: not one of the command's).
-    targets: Vec<usize>,
+    pub(super) targets: Vec<u64>,
     partial: bool,
     /// Its envs not done yet.
-    remaining: usize,
+    pub(super) remaining: usize,
     answer: AnswerBuilder,
     apart: Vec<(u32, Vec<u8>)>,
     /// The first env that failed.
@@ -77,20 +67,32 @@ struct Running {
 
 /// Finished envs of partial commands, for the next answer.
 #[derive(Default)]
-struct Finished {
-    rows: Vec<u64>,
+pub(super) struct Finished {
+    pub(super) rows: Vec<u64>,
     answer: AnswerBuilder,
     apart: Vec<(u32, Vec<u8>)>,
     /// Envs that failed, with their fault: an error answer each.
-    failed: Vec<(usize, EnvFault)>,
+    pub(super) failed: Vec<(usize, EnvFault)>,
+}
+
+/// Stop the env threads (those stuck in an env's wait are not joined: the process exits with
+/// them).
+pub(super) fn stop_env_threads(shared: &Shared) {
+    shared.stop.store(true, Ordering::Relaxed);
+    shared.job_ready.notify_all();
+    drop(
+        (shared.waker.write())
+            .unwrap_or_else(PoisonError::into_inner)
+            .take(),
+    );
 }
 
 impl Worker<'_> {
-    /// Serve commands with the envs on `threads` threads until the supervisor closes the
-    /// worker (or is gone).
-    pub(super) fn run_concurrent(&mut self, threads: usize) -> Result<(), WorkerError> {
+    /// Start the env threads of a worker whose envs run on threads (`None`: its envs run
+    /// inline).
+    pub(super) fn start_env_threads(&mut self) -> Result<Option<Arc<Shared>>, WorkerError> {
         let WorkerEnvs::Shared(envs) = &self.envs else {
-            return Err(WorkerError::Msg("envs on threads need one env each".into()));
+            return Ok(None);
         };
         let waker = CmdWaker::new(&self.node, self.args.index)?;
         let shared = Arc::new(Shared {
@@ -105,182 +107,64 @@ impl Worker<'_> {
         });
         // Before any thread starts: they inherit it.
         batch_scheduling();
-        for t in 0..threads.clamp(1, self.block_envs) {
+        for t in 0..self.cfg.env_threads.clamp(1, self.block_envs) {
             let s = shared.clone();
             let scope = self.thread_scope;
-            std::thread::Builder::new()
+            let started = std::thread::Builder::new()
                 .name(format!("rg-env-{t}"))
                 .spawn(move || match scope {
                     Some(scope) => scope(&mut || env_thread(s.clone())),
                     None => env_thread(s),
-                })
-                .map_err(|e| WorkerError::Msg(format!("cannot start an env thread: {e}")))?;
+                });
+            if let Err(e) = started {
+                stop_env_threads(&shared);
+                return Err(WorkerError::Msg(format!("cannot start an env thread: {e}")));
+            }
         }
-        let result = self.serve_concurrently(&shared);
-        // Threads stuck in an env's wait are not joined: the process exits with them.
-        shared.stop.store(true, Ordering::Relaxed);
-        shared.job_ready.notify_all();
-        drop(
-            (shared.waker.write())
-                .unwrap_or_else(PoisonError::into_inner)
-                .take(),
-        );
-        result
+        Ok(Some(shared))
     }
 
-    /// The worker's own thread (see the module docs).
-    fn serve_concurrently(&mut self, shared: &Shared) -> Result<(), WorkerError> {
-        let epw = self.block_envs;
-        // The wait blocks at once: the cores are the env threads' (a poll would take them from
-        // envs that compute between their waits), and a wake-up is small beside an env's wait.
-        let block_slice = Duration::from_millis(self.cfg.block_slice_ms.max(1));
-        let mut alive_checked = Instant::now();
-        let mut queue: VecDeque<Incoming> = VecDeque::new();
-        let mut busy = vec![false; epw];
-        // Which running command each busy env belongs to.
-        let mut of_env: Vec<Option<u64>> = vec![None; epw];
-        let mut running: Vec<Running> = Vec::new();
-        let mut finished = Finished::default();
-        loop {
-            if alive_checked.elapsed() >= block_slice {
-                let ppid = self.args.ppid;
-                if nix::unistd::getppid().as_raw() != ppid {
-                    return Err(WorkerError::ParentGone(ppid));
-                }
-                alive_checked = Instant::now();
-            }
-            let took = self.take_commands(&mut queue)?;
-            let done = std::mem::take(&mut *guard(&shared.done));
-            if !took && done.is_empty() {
-                // Nothing new: wait until a command or a finished env wakes the listener, or
-                // until it is time to look at held answers again.
-                let holding = !finished.rows.is_empty() || !finished.failed.is_empty();
-                let slice = if holding { HOLD_CHECK } else { block_slice };
-                match self.ports.cmd_listener().timed_wait(|_| {}, slice) {
-                    Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
-                    Err(e) => {
-                        return Err(WorkerError::Msg(format!(
-                            "wait on the command listener: {e:?}"
-                        )));
-                    }
-                }
-                if !holding {
-                    continue;
-                }
-            }
-            for d in done {
-                let j = d.j;
-                busy[j] = false;
-                let Some(seq) = of_env[j].take() else {
-                    continue;
-                };
-                let Some(r) = running.iter_mut().find(|r| r.seq == seq) else {
-                    continue;
-                };
-                self.finish(r, d, &mut finished);
-            }
-            // Whole answers of the commands that are done.
-            let mut k = 0;
-            while k < running.len() {
-                if running[k].remaining == 0 && !running[k].partial {
-                    let r = running.remove(k);
-                    self.answer_whole(r)?;
-                } else if running[k].remaining == 0 {
-                    running.remove(k);
-                } else {
-                    k += 1;
-                }
-            }
-            self.answer_partial(&mut finished)?;
-            // Start what the queue holds, in order, while its envs are idle.
-            while let Some(next) = queue.front() {
-                match next.command.op {
-                    Op::Close => return Ok(()),
-                    Op::Call if busy.iter().any(|&b| b) => break,
-                    Op::Call => {
-                        let seq = next.seq;
-                        queue.pop_front();
-                        self.answer_calls(seq)?;
-                    }
-                    Op::Reset | Op::Step => {
-                        let targets = self.named_envs(next)?;
-                        let envs: Vec<usize> = (0..epw).filter(|&j| targets[j] != 0).collect();
-                        if envs.iter().any(|&j| busy[j]) {
-                            break;
-                        }
-                        let Some(inc) = queue.pop_front() else { break };
-                        let r = self.start_command(shared, inc, targets, &envs)?;
-                        for &j in &envs {
-                            busy[j] = true;
-                            of_env[j] = Some(r.seq);
-                        }
-                        running.push(r);
-                    }
-                }
+    /// Envs `done` on their threads: each finished env's record and books written
+    /// ([`Worker::finish`]), its place in `busy` freed; then the whole answer of each command
+    /// whose envs are all done.
+    pub(super) fn take_done(
+        &mut self,
+        done: Vec<Done>,
+        busy: &mut [Option<u64>],
+        running: &mut Vec<Running>,
+        finished: &mut Finished,
+    ) -> Result<(), WorkerError> {
+        for d in done {
+            let Some(seq) = busy[d.j].take() else {
+                continue;
+            };
+            if let Some(r) = running.iter_mut().find(|r| r.seq == seq) {
+                self.finish(r, d, finished);
             }
         }
-    }
-
-    /// Take every command the port holds into `queue`; whether there was one.
-    fn take_commands(&mut self, queue: &mut VecDeque<Incoming>) -> Result<bool, WorkerError> {
-        let mut took = false;
-        while let Some(cmd) = self.ports.try_recv_cmd()? {
-            let h = *cmd.user_header();
-            let command = Command::decode(h.kind)
-                .map_err(|e| WorkerError::Msg(format!("command {}: {e}", h.seq)))?;
-            let n = (h.len as usize).min(cmd.payload().len());
-            queue.push_back(Incoming {
-                seq: h.seq,
-                command,
-                payload: cmd.payload()[..n].to_vec(),
-            });
-            self.stats.read_one(self.args.index);
-            took = true;
+        let mut k = 0;
+        while k < running.len() {
+            if running[k].remaining > 0 {
+                k += 1;
+                continue;
+            }
+            let r = running.remove(k);
+            if !r.partial {
+                self.answer_whole(r)?;
+            }
         }
-        Ok(took)
-    }
-
-    /// The slot (`s + 1`) each env of the block writes in under a reset or step, 0 for the
-    /// envs it does not name; its payload checked.
-    fn named_envs(&self, inc: &Incoming) -> Result<Vec<usize>, WorkerError> {
-        let epw = self.block_envs;
-        let step = inc.command.op == Op::Step;
-        let per_env = if step { self.action_words } else { 1 };
-        let subset = inc.command.subset;
-        let n = inc.payload.len();
-        if n != epw * per_env + if subset { epw } else { 0 } {
-            return Err(WorkerError::Msg(format!(
-                "command {} carries {n} words for {epw} envs of {per_env} words (subset: {subset})",
-                inc.seq
-            )));
-        }
-        let slots = self.cfg.batch_slots;
-        let targets: Vec<usize> = if subset {
-            inc.payload[epw * per_env..]
-                .iter()
-                .map(|&w| w as usize)
-                .collect()
-        } else {
-            vec![inc.command.target as usize; epw]
-        };
-        if let Some(t) = targets.iter().find(|&&t| t > slots || (!subset && t == 0)) {
-            return Err(WorkerError::Msg(format!(
-                "command {}: observation target {t}, but the pool has {slots} slots",
-                inc.seq
-            )));
-        }
-        Ok(targets)
+        Ok(())
     }
 
     /// Start a reset or step: its envs' jobs go to the env threads, each to write its rows in
     /// the slot `targets` names for it.
-    fn start_command(
+    pub(super) fn start_command(
         &mut self,
         shared: &Shared,
         inc: Incoming,
-        targets: Vec<usize>,
-        envs: &[usize],
+        targets: Vec<u64>,
     ) -> Result<Running, WorkerError> {
+        let envs: Vec<usize> = (0..self.block_envs).filter(|&j| targets[j] != 0).collect();
         let Incoming {
             seq,
             command,
@@ -294,7 +178,7 @@ impl Worker<'_> {
         }
         self.stats.add(self.args.index, Counter::Commands, 1);
         let mut areas: Vec<[Area; 3]> = Vec::with_capacity(envs.len());
-        for &j in envs {
+        for &j in &envs {
             let rows = self.slot_rows(targets[j]);
             let e = self.first_env + j;
             // SAFETY: env `e`'s rows of the slot this command names for it, this worker's
@@ -359,19 +243,6 @@ impl Worker<'_> {
         Ok(r)
     }
 
-    /// The rows of slot `target - 1`.
-    fn slot_rows(&self, target: usize) -> SlotRows {
-        // SAFETY: `target <= batch_slots` (checked by the caller): inside the batch buffer,
-        // 64-byte aligned.
-        unsafe {
-            let base = self
-                .batch
-                .as_ptr()
-                .add((target - 1) * self.slot_layout.bytes());
-            self.slot_layout.rows(base)
-        }
-    }
-
     /// An env of command `r` is done: its record written, its books (both copies: the envs of
     /// a worker answer at different commands), its rows counted for the answer.
     fn finish(&mut self, r: &mut Running, d: Done, finished: &mut Finished) {
@@ -426,45 +297,31 @@ impl Worker<'_> {
     }
 
     /// Publish the answer of a command whose envs are all done (one answer for them all).
-    fn answer_whole(&mut self, r: Running) -> Result<(), WorkerError> {
-        if let Some(f) = r.fault {
-            f.write(&self.fault_path).map_err(WorkerError::Msg)?;
-            return self.send(r.seq, BlockKind::Error);
+    pub(super) fn answer_whole(&mut self, r: Running) -> Result<(), WorkerError> {
+        let written = match r.fault {
+            Some(f) => Err(f),
+            None => self.write_apart_of(r.seq, &r.apart),
+        };
+        if let Err(f) = written {
+            return self.report(r.seq, &f);
         }
-        if !r.apart.is_empty() {
-            let entries: Vec<(u32, &[u8])> =
-                r.apart.iter().map(|(j, b)| (*j, b.as_slice())).collect();
-            let path = extra_apart_path(&self.id, self.args.index, self.args.generation, r.seq);
-            calls::write(&path, &calls::encode(&entries)).map_err(WorkerError::Msg)?;
-        }
-        let mut block = self.ports.loan_block(sample_words(self.block_envs))?;
-        *block.user_header_mut() = self.header(r.seq, BlockKind::Data);
         let answer = r.answer.finish(self.block_envs);
-        block.payload_mut()[..ANSWER_WORDS].copy_from_slice(&answer.encode());
-        self.publish(block)
+        self.publish_answer(r.seq, BlockKind::Data, Some(&answer), &[])
     }
 
     /// Publish what partial commands finished, while the supervisor has taken enough of this
     /// worker's answers (see the module docs): each failed env in an error answer, the others
     /// together in one [`BlockKind::Rows`] answer.
-    fn answer_partial(&mut self, finished: &mut Finished) -> Result<(), WorkerError> {
+    pub(super) fn answer_partial(&mut self, finished: &mut Finished) -> Result<(), WorkerError> {
         while let Some((j, f)) = finished.failed.first().cloned() {
             if !self.may_answer() {
                 return Ok(());
             }
             finished.failed.remove(0);
             let n = self.next_answer_no();
-            f.write(&env_fault_path_of(
-                &self.id,
-                self.args.index,
-                self.args.generation,
-                n,
-            ))
-            .map_err(WorkerError::Msg)?;
-            let mut block = self.ports.loan_block(sample_words(self.block_envs))?;
-            *block.user_header_mut() = self.header(n, BlockKind::Error);
-            block.payload_mut()[..2].copy_from_slice(&[1, j as u64]);
-            self.publish(block)?;
+            let path = env_fault_path_of(&self.id, self.args.index, self.args.generation, n);
+            f.write(&path).map_err(WorkerError::Msg)?;
+            self.publish_answer(n, BlockKind::Error, None, &[j as u64])?;
         }
         if finished.rows.is_empty() || !self.may_answer() {
             return Ok(());
@@ -473,19 +330,10 @@ impl Worker<'_> {
         let n = self.next_answer_no();
         let mut answer = f.answer.finish(f.rows.len());
         if !f.apart.is_empty() {
-            let entries: Vec<(u32, &[u8])> =
-                f.apart.iter().map(|(j, b)| (*j, b.as_slice())).collect();
-            let path = extra_apart_path(&self.id, self.args.index, self.args.generation, n);
-            calls::write(&path, &calls::encode(&entries)).map_err(WorkerError::Msg)?;
+            self.write_apart(n, &f.apart).map_err(WorkerError::Msg)?;
             answer.apart = true;
         }
-        let mut block = self.ports.loan_block(sample_words(self.block_envs))?;
-        *block.user_header_mut() = self.header(n, BlockKind::Rows);
-        let p = block.payload_mut();
-        p[..ANSWER_WORDS].copy_from_slice(&answer.encode());
-        p[ANSWER_WORDS] = f.rows.len() as u64;
-        p[ANSWER_WORDS + 1..ANSWER_WORDS + 1 + f.rows.len()].copy_from_slice(&f.rows);
-        self.publish(block)
+        self.publish_answer(n, BlockKind::Rows, Some(&answer), &f.rows)
     }
 
     /// Whether the supervisor has taken enough of this worker's answers for one more.

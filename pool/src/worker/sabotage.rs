@@ -28,15 +28,8 @@ impl Worker<'_> {
         answer: &mut Answer,
     ) {
         let first = self.first_env + j;
-        // SAFETY: the slot this command wrote (see `serve`, which checked `target`); only this
-        // worker's rows touched.
-        let rows = unsafe {
-            let base = self
-                .batch
-                .as_ptr()
-                .add((target - 1) * self.slot_layout.bytes());
-            self.slot_layout.rows(base)
-        };
+        // The slot this command wrote; only this worker's rows touched.
+        let rows = self.slot_rows(target as u64);
         match m {
             Misdeed::ExtraSize { size } => {
                 answer.extras = AnswerExtras::Uniform {

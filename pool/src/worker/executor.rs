@@ -1,0 +1,244 @@
+//! The worker's one executor: its loop over commands, whether its envs run inline or on
+//! threads of their own (`env_concurrency`).
+//!
+//! The loop takes commands from the port into a queue, starts them in order (a command waits
+//! until every env it names is idle), and publishes the answers. A reset or step is served
+//! inline when the worker has no env threads (every env of the command, or the vector env of
+//! the block, on the worker's own thread: [`Worker::serve_inline`]), its answer published at
+//! once; on env threads, its envs' jobs go to them and each finished env comes back to this
+//! loop, which writes its record and answers (`concurrent.rs`). Either way one command check
+//! ([`Worker::check_command`]), one choice of output area ([`Worker::slot_rows`]), one
+//! side-file writer and one publisher (`answers.rs`).
+//!
+//! How the loop waits: on one listener, for both commands and finished envs (env threads
+//! wake it). Inline, it polls first for a command it expects soon, as the command before
+//! said ([`Pace`], [`expected_poll`]); with env threads it blocks at once, the cores being
+//! theirs.
+
+use std::collections::VecDeque;
+use std::time::{Duration, Instant};
+
+use rogue_gym_ipc::{WaitCall, WaitPolicy, hybrid_wait};
+
+use super::concurrent::{Finished, Running};
+use super::env_threads::{Shared, guard};
+use super::{Worker, WorkerError};
+use crate::stats::{Counter, ns_since, stamp};
+use crate::wire::answer::BlockKind;
+use crate::wire::{Command, Op, Pace};
+
+/// The longest a worker polls for a command it expects soon ([`expected_poll`]).
+const MAX_EXPECTED_POLL: Duration = Duration::from_millis(2);
+/// How often a worker that holds finished envs checks whether answers were taken
+/// (`concurrent.rs`).
+const HOLD_CHECK: Duration = Duration::from_millis(1);
+
+/// How long to poll for the next command: twice the last gap between an answer and the next
+/// command when that was short (a caller in a tight loop: the worker is still polling when
+/// the command comes, and no wake-up is paid), else the configured budget.
+pub(super) fn expected_poll(budget: Duration, last_gap: Duration) -> Duration {
+    if last_gap <= MAX_EXPECTED_POLL / 2 {
+        budget.max(last_gap * 2)
+    } else {
+        budget
+    }
+}
+
+/// A command taken from the port: its sequence number, the command, its payload.
+pub(super) struct Incoming {
+    pub(super) seq: u64,
+    pub(super) command: Command,
+    pub(super) payload: Vec<u64>,
+}
+
+/// How a worker waits for its next command: as the command before said ([`Pace`]).
+struct Pacing {
+    policy: WaitPolicy,
+    pace: Pace,
+    /// How long the last command took to come after the answer before it.
+    last_gap: Duration,
+}
+
+impl Pacing {
+    /// The policy of the next wait (`threads`: the envs run on threads, whose cores a poll
+    /// would take: block at once).
+    fn now(&self, threads: bool) -> WaitPolicy {
+        let poll_budget = match self.pace {
+            _ if threads => Duration::ZERO,
+            Pace::Expected => expected_poll(self.policy.poll_budget, self.last_gap),
+            Pace::Short => self.policy.poll_budget,
+            Pace::Block => Duration::ZERO,
+        };
+        WaitPolicy {
+            poll_budget,
+            ..self.policy
+        }
+    }
+}
+
+/// What the loop keeps between its turns.
+struct Queue {
+    /// Commands taken and not started, in order; payload buffers to reuse.
+    waiting: VecDeque<Incoming>,
+    spare: Vec<Vec<u64>>,
+    /// Envs of the block a started command still runs, and which command each belongs to.
+    busy: Vec<Option<u64>>,
+    /// Commands started and not answered whole (env threads only).
+    running: Vec<Running>,
+    /// Finished envs of partial commands, for the next answer.
+    finished: Finished,
+}
+
+impl Worker<'_> {
+    /// Serve commands until the supervisor closes the worker (or is gone).
+    pub(super) fn run(&mut self) -> Result<(), WorkerError> {
+        let threads = self.start_env_threads()?;
+        let result = self.serve_commands(threads.as_deref());
+        if let Some(shared) = threads {
+            super::concurrent::stop_env_threads(&shared);
+        }
+        result
+    }
+
+    /// The loop (see the module docs).
+    fn serve_commands(&mut self, threads: Option<&Shared>) -> Result<(), WorkerError> {
+        let mut pacing = Pacing {
+            policy: WaitPolicy {
+                poll_budget: Duration::from_micros(self.cfg.poll_budget_us),
+                block_slice: Duration::from_millis(self.cfg.block_slice_ms.max(1)),
+                yield_cpu: self.cfg.poll_yield,
+                sleep_first: Duration::ZERO,
+            },
+            pace: Pace::Expected,
+            last_gap: Duration::MAX,
+        };
+        let mut q = Queue {
+            waiting: VecDeque::new(),
+            spare: Vec::new(),
+            busy: vec![None; self.block_envs],
+            running: Vec::new(),
+            finished: Finished::default(),
+        };
+        loop {
+            if let Some(shared) = threads {
+                let done = std::mem::take(&mut *guard(&shared.done));
+                self.take_done(done, &mut q.busy, &mut q.running, &mut q.finished)?;
+                self.answer_partial(&mut q.finished)?;
+            }
+            if self.start_waiting(threads, &mut q)? {
+                return Ok(()); // closed
+            }
+            self.wait_for_work(&mut pacing, threads, &mut q)?;
+        }
+    }
+
+    /// Start what the queue holds, in order, while the envs it names are idle; `true` when
+    /// the supervisor closed the worker.
+    fn start_waiting(
+        &mut self,
+        threads: Option<&Shared>,
+        q: &mut Queue,
+    ) -> Result<bool, WorkerError> {
+        let epw = self.block_envs;
+        while let Some(next) = q.waiting.front() {
+            let idle = q.busy.iter().all(Option::is_none);
+            match next.command.serve() {
+                None if next.command.op == Op::Close => return Ok(true),
+                None if !idle => break,
+                None => {
+                    let seq = next.seq;
+                    self.answer_calls(seq)?;
+                }
+                Some(kind) => {
+                    let named = self.check_command(next.seq, &next.command, &next.payload)?;
+                    let Some(shared) = threads else {
+                        self.serve_inline(next.seq, &next.command, kind, &named)?;
+                        let done = q.waiting.pop_front();
+                        q.spare.extend(done.map(|inc| inc.payload));
+                        continue;
+                    };
+                    let targets: Vec<u64> = (0..epw).map(|j| named.slots.of(j)).collect();
+                    if (0..epw).any(|j| targets[j] != 0 && q.busy[j].is_some()) {
+                        break;
+                    }
+                    let Some(inc) = q.waiting.pop_front() else {
+                        break;
+                    };
+                    let r = self.start_command(shared, inc, targets)?;
+                    if r.remaining == 0 {
+                        // Failed before any env started (its action extras): answered now.
+                        self.answer_whole(r)?;
+                        continue;
+                    }
+                    for (j, b) in q.busy.iter_mut().enumerate() {
+                        if r.targets[j] != 0 {
+                            *b = Some(r.seq);
+                        }
+                    }
+                    q.running.push(r);
+                    continue;
+                }
+            }
+            let done = q.waiting.pop_front();
+            q.spare.extend(done.map(|inc| inc.payload));
+        }
+        Ok(false)
+    }
+
+    /// Wait until there is something to do: a command in the port (taken into the queue), an
+    /// env done on its thread, or (answers held back) the time to look at them again.
+    fn wait_for_work(
+        &mut self,
+        pacing: &mut Pacing,
+        threads: Option<&Shared>,
+        q: &mut Queue,
+    ) -> Result<(), WorkerError> {
+        let ppid = self.args.ppid;
+        let holding = !q.finished.rows.is_empty() || !q.finished.failed.is_empty();
+        let deadline = holding.then(|| Instant::now() + HOLD_CHECK);
+        let idle = q.running.is_empty();
+        let (waiting, since) = (stamp(), Instant::now());
+        let mut took = false;
+        let policy = pacing.now(threads.is_some());
+        hybrid_wait::<WorkerError>(self.ports.cmd_listener(), &policy, deadline, |call| {
+            if call == WaitCall::Idle && nix::unistd::getppid().as_raw() != ppid {
+                return Err(WorkerError::ParentGone(ppid));
+            }
+            while let Some(cmd) = self.ports.try_recv_cmd()? {
+                let h = *cmd.user_header();
+                let command = Command::decode(h.kind)
+                    .map_err(|e| WorkerError::Msg(format!("command {}: {e}", h.seq)))?;
+                let n = (h.len as usize).min(cmd.payload().len());
+                let mut payload = q.spare.pop().unwrap_or_default();
+                payload.clear();
+                payload.extend_from_slice(&cmd.payload()[..n]);
+                pacing.pace = command.pace;
+                q.waiting.push_back(Incoming {
+                    seq: h.seq,
+                    command,
+                    payload,
+                });
+                self.stats.read_one(self.args.index);
+                took = true;
+            }
+            Ok(took || threads.is_some_and(|s| !guard(&s.done).is_empty()))
+        })?;
+        if took {
+            pacing.last_gap = since.elapsed();
+        }
+        if idle {
+            self.stats
+                .add(self.args.index, Counter::WaitNs, ns_since(waiting));
+        }
+        Ok(())
+    }
+
+    /// [`Op::Call`]: env calls, off the hot path.
+    fn answer_calls(&mut self, seq: u64) -> Result<(), WorkerError> {
+        let me = (self.args.index, self.args.generation);
+        match super::envs::answer_calls(&self.id, me, &mut self.envs, self.first_env as u64) {
+            Ok(()) => self.send(seq, BlockKind::Call),
+            Err(f) => self.report(seq, &f),
+        }
+    }
+}
