@@ -251,7 +251,7 @@ impl Supervisor {
                     n - 1
                 )));
             }
-            let why = match self.async_api.envs.turn[e] {
+            let why = match self.async_api.envs.turn(e) {
                 _ if seen[e] => "appears twice in env_ids",
                 Turn::Caller => "",
                 Turn::Staged | Turn::InFlight => {

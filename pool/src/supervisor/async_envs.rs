@@ -84,7 +84,9 @@ impl Received {
 
 /// The async API's per-env state (see the module docs).
 pub(super) struct AsyncEnvs {
-    pub(super) turn: Vec<Turn>,
+    turn: Vec<Turn>,
+    /// Envs not with the caller (staged, in flight or ready), kept with `turn`.
+    outstanding: usize,
     /// Action words of staged envs, `aw` per env.
     staged: Vec<u64>,
     aw: usize,
@@ -134,6 +136,7 @@ impl AsyncEnvs {
             owner,
             staged_of: vec![0; num_workers],
             turn: vec![Turn::Caller; num_envs],
+            outstanding: 0,
             staged: vec![0; num_envs * aw],
             aw,
             num_staged: 0,
@@ -142,8 +145,9 @@ impl AsyncEnvs {
             rows: (0..num_envs).map(|_| None).collect(),
             restarted: (0..num_envs).map(|_| None).collect(),
             recycled: vec![false; num_envs],
+            // Epoch 0 is no epoch: before any answer, every env's latest is `whole_slot`.
             last: vec![(0, 0); num_envs],
-            epoch: 0,
+            epoch: 1,
             // The first answers go to slot 0.
             whole_slot: slots - 1,
             slots,
@@ -157,6 +161,7 @@ impl AsyncEnvs {
     /// known.
     pub(super) fn clear(&mut self) {
         self.turn.fill(Turn::Caller);
+        self.outstanding = 0;
         self.num_staged = 0;
         self.sent.iter_mut().for_each(Vec::clear);
         self.ready.clear();
@@ -194,6 +199,21 @@ impl AsyncEnvs {
         slot
     }
 
+    /// Where env `e` stands.
+    pub(super) fn turn(&self, e: usize) -> Turn {
+        self.turn[e]
+    }
+
+    /// Env `e` stands at `t` now (the count of outstanding envs follows).
+    fn set_turn(&mut self, e: usize, t: Turn) {
+        let was = std::mem::replace(&mut self.turn[e], t);
+        match (was == Turn::Caller, t == Turn::Caller) {
+            (true, false) => self.outstanding += 1,
+            (false, true) => self.outstanding -= 1,
+            _ => {}
+        }
+    }
+
     /// Env `e` was sent just now: it takes the next ticket ([`ReadySet::sent`]).
     fn take_ticket(&mut self, e: usize) {
         self.ready.sent(e);
@@ -201,7 +221,7 @@ impl AsyncEnvs {
 
     /// Env `e`'s result is ready.
     fn push_ready(&mut self, e: usize) {
-        self.turn[e] = Turn::Ready;
+        self.set_turn(e, Turn::Ready);
         self.ready.ready(e);
     }
 
@@ -217,7 +237,7 @@ impl AsyncEnvs {
 
     /// Envs sent and not yet received (staged, in flight or ready).
     pub(super) fn outstanding(&self) -> usize {
-        self.turn.iter().filter(|t| **t != Turn::Caller).count()
+        self.outstanding
     }
 
     /// The envs of worker `k`'s outstanding commands.
@@ -283,7 +303,7 @@ impl AsyncEnvs {
     pub(super) fn fail_row(&mut self, k: usize, e: usize) {
         if self.partial[e].take().is_some() {
             self.sent[k].retain(|&x| x != e);
-            self.turn[e] = Turn::Caller;
+            self.set_turn(e, Turn::Caller);
             self.ready.dropped(e);
         }
     }
@@ -294,7 +314,7 @@ impl AsyncEnvs {
         let targets = envs
             .clone()
             .map(|e| {
-                self.turn[e] = Turn::InFlight;
+                self.set_turn(e, Turn::InFlight);
                 self.take_ticket(e);
                 self.slot_for(e) as u64 + 1
             })
@@ -335,7 +355,7 @@ impl AsyncEnvs {
             return false;
         }
         self.staged[e * self.aw..(e + 1) * self.aw].copy_from_slice(words);
-        self.turn[e] = Turn::Staged;
+        self.set_turn(e, Turn::Staged);
         self.num_staged += 1;
         self.staged_of[self.owner[e]] += 1;
         true
@@ -365,7 +385,7 @@ impl AsyncEnvs {
             if self.turn[e] == Turn::Staged {
                 words[j * aw..(j + 1) * aw].copy_from_slice(&self.staged[e * aw..(e + 1) * aw]);
                 targets[j] = self.slot_for(e) as u64 + 1;
-                self.turn[e] = Turn::InFlight;
+                self.set_turn(e, Turn::InFlight);
                 self.sent[k].push(e);
                 self.num_staged -= 1;
             }
@@ -448,7 +468,7 @@ impl AsyncEnvs {
             let Some(e) = self.ready.pop() else {
                 break;
             };
-            self.turn[e] = Turn::Caller;
+            self.set_turn(e, Turn::Caller);
             if std::mem::take(&mut self.recycled[e]) {
                 out.recycled.push(e);
             }
@@ -497,7 +517,7 @@ impl AsyncEnvs {
         let mut extras = Vec::new();
         let mut records = Vec::with_capacity(n);
         for (r, &e) in env_ids.iter().enumerate() {
-            self.turn[e] = Turn::Caller;
+            self.set_turn(e, Turn::Caller);
             self.rows[e] = None;
             let rec = w.read(e);
             if let Some(x) = slot_extra(w, e, &rec, None) {
@@ -535,4 +555,49 @@ pub(super) fn slot_extra(
     // writes it until the caller sends to `e` again.
     let room = unsafe { w.extra_rows(e..e + 1) };
     Some(room[..len.min(room.len())].to_vec())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::wire::slot_layout::SlotLayout;
+
+    #[test]
+    fn outstanding_envs_are_counted_through_every_turn() {
+        // Two workers of two envs, one action word each, two slots.
+        let mut envs = AsyncEnvs::new(&[0..2, 2..4], 1, 2);
+        let layout = SlotLayout {
+            num_envs: 4,
+            obs_bytes: 8,
+            n_info: 0,
+            final_obs: false,
+            extra_bytes: 0,
+        };
+        let mut buf = vec![0u64; 2 * layout.bytes() / 8];
+        // SAFETY: two slots of the layout's size, 8-aligned (the test does not need 64).
+        let slots: Vec<SlotRows> = (0..2)
+            .map(|s| unsafe { layout.rows(buf.as_mut_ptr().cast::<u8>().add(s * layout.bytes())) })
+            .collect();
+        assert_eq!(envs.outstanding(), 0);
+        assert!(envs.stage(1, &[3]) && envs.stage(2, &[4]));
+        assert_eq!(envs.outstanding(), 2, "staged envs are outstanding");
+        let (words, targets) = envs.dispatch(0, 0..2).expect("env 1 is staged");
+        assert_eq!(
+            (words, targets),
+            (vec![0, 3], vec![0, 1]),
+            "env 1 into slot 0"
+        );
+        envs.arrive(0, 0..2, Vec::new(), None);
+        assert_eq!((envs.outstanding(), envs.num_ready()), (2, 1));
+        let got = envs.take(1, 8, &slots);
+        assert_eq!((got.env_ids, envs.outstanding()), (vec![1], 1));
+        // Worker 1 restarts: its staged env 2 is ready with the restart's rows; env 3, which
+        // the caller holds, keeps them for its next send.
+        envs.arrive(1, 2..4, Vec::new(), Some(false));
+        assert_eq!((envs.outstanding(), envs.num_ready()), (1, 1));
+        assert!(!envs.stage(3, &[0]), "its restart's rows are ready at once");
+        assert_eq!((envs.outstanding(), envs.num_ready()), (2, 2));
+        envs.clear();
+        assert_eq!(envs.outstanding(), 0);
+    }
 }
