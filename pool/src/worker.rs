@@ -9,8 +9,8 @@
 //! supervisor keeps open across the worker's `exec`).
 //!
 //! The worker is set up ([`worker_main`]; its command line and config in `setup.rs`) and then
-//! runs one executor (`executor.rs`): a loop that takes commands, checks each once
-//! (`command.rs`), serves it and publishes its answer (`answers.rs`). A reset or step is served
+//! runs one executor (`executor.rs`): a loop that takes commands, checks each once, serves it
+//! and publishes its answer. A reset or step is served
 //! inline (`inline.rs`: env after env, `envs.rs`, each env's state machine in `env_state.rs`,
 //! or as one [`crate::EnvBlock`], `block.rs`), or with each env on a thread of its own
 //! (`concurrent.rs`, `env_threads.rs`: the pool's `env_concurrency`, the executor with
@@ -33,10 +33,8 @@ use crate::wire::books::Books;
 use crate::wire::slot_layout::SlotLayout;
 use crate::wire::{BATCH_BUFFER, EnvFault, WorkerConfig, env_fault_path, successor_marker};
 
-mod answers;
 mod block;
 mod block_out;
-mod command;
 mod concurrent;
 mod env_state;
 mod env_threads;

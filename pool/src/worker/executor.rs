@@ -7,8 +7,10 @@
 //! the block, on the worker's own thread: [`Worker::serve_inline`]), its answer published at
 //! once; on env threads, its envs' jobs go to them and each finished env comes back to this
 //! loop, which writes its record and answers (`concurrent.rs`). Either way one command check
-//! ([`Worker::check_command`]), one choice of output area ([`Worker::slot_rows`]), one
-//! side-file writer and one publisher (`answers.rs`).
+//! ([`Worker::check_command`], [`Named`]), one choice of output area ([`Worker::slot_rows`]),
+//! one side-file writer ([`Worker::write_apart`]) and one publisher
+//! ([`Worker::publish_answer`]: an iceoryx2 sample of answer words and, for a partial answer,
+//! its rows), all here.
 //!
 //! How the loop waits: on one listener, for both commands and finished envs (env threads
 //! wake it). Inline, it polls first for a command it expects soon, as the command before
@@ -18,14 +20,15 @@
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
-use rogue_gym_ipc::{WaitCall, WaitPolicy, hybrid_wait};
+use rogue_gym_ipc::{BlockHeader, WaitCall, WaitPolicy, hybrid_wait};
 
 use super::concurrent::{Finished, Running};
 use super::env_threads::{Shared, guard};
 use super::{Worker, WorkerError};
 use crate::stats::{Counter, ns_since, stamp};
-use crate::wire::answer::BlockKind;
-use crate::wire::{Command, Op, Pace};
+use crate::wire::answer::{ANSWER_WORDS, Answer, BlockKind, sample_words};
+use crate::wire::slot_layout::SlotRows;
+use crate::wire::{Command, EnvFault, Op, Pace, calls, extra_apart_path};
 
 /// The longest a worker polls for a command it expects soon ([`expected_poll`]).
 const MAX_EXPECTED_POLL: Duration = Duration::from_millis(2);
@@ -240,5 +243,179 @@ impl Worker<'_> {
             Ok(()) => self.send(seq, BlockKind::Call),
             Err(f) => self.report(seq, &f),
         }
+    }
+}
+
+/// The slot (`s + 1`) each env of the block writes in under a reset or step.
+#[derive(Clone, Copy)]
+pub(super) enum Slots<'p> {
+    /// Every env into this one.
+    All(u64),
+    /// Each env into its own (a [`Command::subset`] command; 0: left alone).
+    Each(&'p [u64]),
+}
+
+impl Slots<'_> {
+    /// The slot (`s + 1`) of the block's env `j`; 0: not one of the command's.
+    pub(super) fn of(self, j: usize) -> u64 {
+        match self {
+            Slots::All(t) => t,
+            Slots::Each(t) => t[j],
+        }
+    }
+
+    /// The slots written, each once, in order (`1..=slots`).
+    pub(super) fn written(self, slots: u64) -> impl Iterator<Item = u64> {
+        (1..=slots).filter(move |s| match self {
+            Slots::All(t) => t == *s,
+            Slots::Each(t) => t.contains(s),
+        })
+    }
+}
+
+/// A reset or step's payload, checked: its words per env (an episode index for a reset, the
+/// action words for a step), those words, and each env's slot.
+pub(super) struct Named<'p> {
+    pub(super) per_env: usize,
+    pub(super) words: &'p [u64],
+    pub(super) slots: Slots<'p>,
+}
+
+impl Worker<'_> {
+    /// Check command `seq`'s `payload` (a reset or step): as many words as the block's envs
+    /// take, and every slot in the pool. The one check of both executors: an error ends the
+    /// worker (the supervisor sent what no supervisor sends).
+    pub(super) fn check_command<'p>(
+        &self,
+        seq: u64,
+        command: &Command,
+        payload: &'p [u64],
+    ) -> Result<Named<'p>, WorkerError> {
+        let epw = self.block_envs;
+        let per_env = if command.op == Op::Step {
+            self.action_words
+        } else {
+            1
+        };
+        let subset = command.subset;
+        let n = payload.len();
+        if n != epw * per_env + if subset { epw } else { 0 } {
+            return Err(WorkerError::Msg(format!(
+                "command {seq} carries {n} words for {epw} envs of {per_env} words (subset: \
+                 {subset})"
+            )));
+        }
+        let slots = self.cfg.batch_slots as u64;
+        let (words, each) = payload.split_at(epw * per_env);
+        let (named, bad) = if subset {
+            (Slots::Each(each), each.iter().copied().find(|&w| w > slots))
+        } else {
+            let t = u64::from(command.target);
+            (Slots::All(t), (!(1..=slots).contains(&t)).then_some(t))
+        };
+        if let Some(t) = bad {
+            return Err(WorkerError::Msg(format!(
+                "command {seq}: observation target {t}, but the pool has {slots} slots"
+            )));
+        }
+        Ok(Named {
+            per_env,
+            words,
+            slots: named,
+        })
+    }
+}
+
+impl Worker<'_> {
+    /// The rows of batch slot `target - 1` (`target` checked: 1 to `batch_slots`).
+    pub(super) fn slot_rows(&self, target: u64) -> SlotRows {
+        // SAFETY: `target <= batch_slots` (every command's slots are checked,
+        // `check_command`): inside the batch buffer, 64-byte aligned.
+        unsafe {
+            let base = self
+                .batch
+                .as_ptr()
+                .add((target as usize - 1) * self.slot_layout.bytes());
+            self.slot_layout.rows(base)
+        }
+    }
+
+    /// Write the extra info that did not fit its rooms (`(row, bytes)`) beside answer `n`, in
+    /// a private file named by it; the supervisor takes it with the answer.
+    pub(super) fn write_apart(&self, n: u64, apart: &[(u32, Vec<u8>)]) -> Result<(), String> {
+        let entries: Vec<(u32, &[u8])> = apart.iter().map(|(j, b)| (*j, b.as_slice())).collect();
+        let path = extra_apart_path(&self.id, self.args.index, self.args.generation, n);
+        calls::write(&path, &calls::encode(&entries))
+    }
+
+    /// [`Worker::write_apart`] for a command's answer: a failure is its first env's fault.
+    pub(super) fn write_apart_of(&self, n: u64, apart: &[(u32, Vec<u8>)]) -> Result<(), EnvFault> {
+        match apart.first() {
+            None => Ok(()),
+            Some((j, _)) => self.write_apart(n, apart).map_err(|e| {
+                EnvFault::new(
+                    (self.first_env as u64) + u64::from(*j),
+                    "extra info",
+                    format!("cannot write the info that did not fit its room: {e}"),
+                )
+            }),
+        }
+    }
+
+    /// Publish answer `n` of kind `kind`: `answer`'s words (none: a zero word, naming no
+    /// rows) and, for a partial answer, the rows of the block it is for.
+    pub(super) fn publish_answer(
+        &mut self,
+        n: u64,
+        kind: BlockKind,
+        answer: Option<&Answer>,
+        rows: &[u64],
+    ) -> Result<(), WorkerError> {
+        let mut block = self.ports.loan_block(sample_words(self.block_envs))?;
+        *block.user_header_mut() = self.header(n, kind);
+        let p = block.payload_mut();
+        let at = match answer {
+            Some(a) => {
+                p[..ANSWER_WORDS].copy_from_slice(&a.encode());
+                ANSWER_WORDS
+            }
+            None => 0,
+        };
+        if rows.is_empty() {
+            if answer.is_none() {
+                p[0] = 0;
+            }
+        } else {
+            p[at] = rows.len() as u64;
+            p[at + 1..at + 1 + rows.len()].copy_from_slice(rows);
+        }
+        let t = stamp();
+        self.ports.send_block(block)?;
+        self.answers += 1;
+        self.stats
+            .add(self.args.index, Counter::PublishNs, ns_since(t));
+        Ok(())
+    }
+
+    /// Send an answer without data (`kind`) to command `seq`.
+    pub(super) fn send(&mut self, seq: u64, kind: BlockKind) -> Result<(), WorkerError> {
+        self.publish_answer(seq, kind, None, &[])
+    }
+
+    fn header(&self, seq: u64, kind: BlockKind) -> BlockHeader {
+        BlockHeader {
+            seq,
+            generation: self.args.generation,
+            worker: self.args.index as u32,
+            kind: kind.word(),
+            ready_ns: 0,
+        }
+    }
+
+    /// Report env fault `f` as the answer to command `seq` (the supervisor raises it to the
+    /// caller and requires a reset); the worker itself is fine and serves on.
+    pub(super) fn report(&mut self, seq: u64, f: &EnvFault) -> Result<(), WorkerError> {
+        f.write(&self.fault_path).map_err(WorkerError::Msg)?;
+        self.send(seq, BlockKind::Error)
     }
 }

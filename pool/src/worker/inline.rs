@@ -3,9 +3,9 @@
 //! it (`block_out.rs`), streamed for large batches (`streaming.rs`).
 
 use super::block_out::BlockOut;
-use super::command::{Named, Slots};
 use super::env_state::ServeCtx;
 use super::envs::take_action_extras;
+use super::executor::{Named, Slots};
 use super::setup::read_config;
 use super::{Worker, WorkerError, streaming};
 use crate::stats::{Counter, ns_since, stamp};
