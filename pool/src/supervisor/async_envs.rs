@@ -20,6 +20,7 @@
 
 use std::time::Instant;
 
+use super::intake::slot_extra;
 use super::ready_set::ReadySet;
 
 use crate::wire::record::EnvRecord;
@@ -535,28 +536,6 @@ impl AsyncEnvs {
     }
 }
 
-/// Env `e`'s extra info of a row in a slot (`rec`: its record there): in its room of the slot,
-/// as long as its `extra_len` says (at most the room), or `apart`. The one joiner of extra
-/// info, for whole-batch calls and the async API.
-pub(super) fn slot_extra(
-    w: &SlotRows,
-    e: usize,
-    rec: &EnvRecord,
-    apart: Option<&[u8]>,
-) -> Option<Vec<u8>> {
-    if let Some(b) = apart {
-        return Some(b.to_vec());
-    }
-    let len = rec.extra_len as usize;
-    if len == 0 {
-        return None;
-    }
-    // SAFETY: env `e`'s extra room of the slot, which its worker has answered: no command
-    // writes it until the caller sends to `e` again.
-    let room = unsafe { w.extra_rows(e..e + 1) };
-    Some(room[..len.min(room.len())].to_vec())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -566,12 +545,13 @@ mod tests {
     fn outstanding_envs_are_counted_through_every_turn() {
         // Two workers of two envs, one action word each, two slots.
         let mut envs = AsyncEnvs::new(&[0..2, 2..4], 1, 2);
+        let (num_envs, obs_bytes, n_info, final_obs, extra_bytes) = (4, 8, 0, false, 0);
         let layout = SlotLayout {
-            num_envs: 4,
-            obs_bytes: 8,
-            n_info: 0,
-            final_obs: false,
-            extra_bytes: 0,
+            num_envs,
+            obs_bytes,
+            n_info,
+            final_obs,
+            extra_bytes,
         };
         let mut buf = vec![0u64; 2 * layout.bytes() / 8];
         // SAFETY: two slots of the layout's size, 8-aligned (the test does not need 64).

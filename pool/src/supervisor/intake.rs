@@ -14,6 +14,7 @@ use super::Supervisor;
 use super::link::{Arrived, LinkState};
 use crate::error::{FailureCause, PoolError};
 use crate::wire::answer::{ANSWER_WORDS, Answer, BlockKind, rows_of};
+use crate::wire::record::EnvRecord;
 use crate::wire::slot_layout::SlotRows;
 use crate::wire::{EnvFault, calls, env_fault_path, env_fault_path_of, extra_apart_path};
 
@@ -49,6 +50,28 @@ pub(super) fn runs(
         }
     }
     out
+}
+
+/// Env `e`'s extra info of a row in a slot (`rec`: its record there): in its room of the slot,
+/// as long as its `extra_len` says (at most the room), or `apart`. The one joiner of extra
+/// info, for whole-batch calls and the async API.
+pub(super) fn slot_extra(
+    w: &SlotRows,
+    e: usize,
+    rec: &EnvRecord,
+    apart: Option<&[u8]>,
+) -> Option<Vec<u8>> {
+    if let Some(b) = apart {
+        return Some(b.to_vec());
+    }
+    let len = rec.extra_len as usize;
+    if len == 0 {
+        return None;
+    }
+    // SAFETY: env `e`'s extra room of the slot, which its worker has answered: no command
+    // writes it until the caller sends to `e` again.
+    let room = unsafe { w.extra_rows(e..e + 1) };
+    Some(room[..len.min(room.len())].to_vec())
 }
 
 impl Supervisor {

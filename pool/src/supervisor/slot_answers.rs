@@ -4,8 +4,7 @@
 //! [`SlotAnswer`].
 
 use super::Supervisor;
-use super::async_envs::slot_extra;
-use super::intake::Apart;
+use super::intake::{Apart, slot_extra};
 use crate::batch::{SlotAnswer, SlotExtras};
 use crate::error::PoolError;
 use crate::wire::answer::{AnswerExtras, EXTRA_HEAD};
