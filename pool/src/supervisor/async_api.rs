@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use super::actions::Actions;
 use super::async_envs::{Received, Turn};
 use super::commands::StepActions;
-use super::intake::runs;
+use super::intake::runs_into;
 use super::link::Target;
 use super::{Pool, Supervisor};
 use crate::error::PoolError;
@@ -292,12 +292,12 @@ impl Supervisor {
     /// ready. A bad answer is the worker's failure.
     fn take_async_answer(&mut self, k: usize) -> Result<(), PoolError> {
         let block = self.blocks[k].clone();
-        let served = |c: &Self, restart: bool| {
+        let served = |c: &Self, restart: bool, out: &mut _| {
             let envs = &c.async_api.envs;
             let slot_of = |e| envs.last_slot(e);
             match restart {
-                true => runs(block.clone(), slot_of),
-                false => runs(envs.sent_to(k).iter().copied(), slot_of),
+                true => runs_into(block.clone(), slot_of, out),
+                false => runs_into(envs.sent_to(k).iter().copied(), slot_of, out),
             }
         };
         let Some(t) = self.take_checked(k, served)? else {

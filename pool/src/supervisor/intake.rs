@@ -35,13 +35,16 @@ pub(super) struct Taken {
     pub(super) ready_ns: u64,
 }
 
-/// `envs` as runs of consecutive envs in one slot (`slot_of`): what an answer's checks go
-/// over ([`Supervisor::checked`]), one pass per run.
-pub(super) fn runs(
+/// Runs of consecutive envs in one slot: what an answer's checks go over
+/// ([`Supervisor::checked`]), one pass per run.
+pub(super) type Runs = Vec<(Range<usize>, usize)>;
+
+/// Append `envs` to `out` as runs of consecutive envs in one slot (`slot_of`).
+pub(super) fn runs_into(
     envs: impl IntoIterator<Item = usize>,
     slot_of: impl Fn(usize) -> usize,
-) -> Vec<(Range<usize>, usize)> {
-    let mut out: Vec<(Range<usize>, usize)> = Vec::new();
+    out: &mut Runs,
+) {
     for e in envs {
         let slot = slot_of(e);
         match out.last_mut() {
@@ -49,7 +52,6 @@ pub(super) fn runs(
             _ => out.push((e..e + 1, slot)),
         }
     }
-    out
 }
 
 /// Env `e`'s extra info of a row in a slot (`rec`: its record there): in its room of the slot,
@@ -165,7 +167,12 @@ impl Supervisor {
             }
         };
         let envs: Vec<usize> = rows.iter().map(|&j| block.start + j).collect();
-        let at = runs(envs.iter().copied(), |e| self.async_api.envs.last_slot(e));
+        let mut at = Runs::new();
+        runs_into(
+            envs.iter().copied(),
+            |e| self.async_api.envs.last_slot(e),
+            &mut at,
+        );
         let Some((_, apart)) = self.checked(k, &answer, &at)? else {
             return Ok(());
         };
@@ -232,14 +239,14 @@ impl Supervisor {
         answer: &Arrived,
         rows: &[(Range<usize>, usize)],
     ) -> Result<Option<(Answer, Apart)>, PoolError> {
-        let slots = (rows.iter())
-            .map(|(_, slot)| self.rows_of(*slot))
-            .collect::<Result<Vec<_>, _>>()?;
+        if let Some((_, slot)) = rows.iter().find(|(_, s)| *s >= self.slots.len()) {
+            self.rows_of(*slot)?; // closed
+        }
         let seq = answer.seq;
         let decoded = Answer::decode(&answer.words, self.slot_layout.extra_bytes)
             .and_then(|a| {
-                for ((envs, _), slot) in rows.iter().zip(&slots) {
-                    self.check_flags(slot, envs.clone())?;
+                for (envs, slot) in rows {
+                    self.check_flags(&self.slots[*slot], envs.clone())?;
                 }
                 Ok(a)
             })
@@ -273,23 +280,25 @@ impl Supervisor {
     pub(super) fn take_checked(
         &mut self,
         k: usize,
-        at: impl FnOnce(&Self, bool) -> Vec<(Range<usize>, usize)>,
+        at: impl FnOnce(&Self, bool, &mut Runs),
     ) -> Result<Option<Taken>, PoolError> {
         let arrived = self.take_answer(k)?;
         let s = &mut self.workers[k];
         let restart = std::mem::take(&mut s.restarted);
         let recycled = std::mem::take(&mut s.recycled) && restart;
-        let at = at(self, restart);
-        let Some((answer, apart)) = self.checked(k, &arrived, &at)? else {
-            return Ok(None);
-        };
-        if restart {
-            for (envs, slot) in &at {
+        // The runs' buffer is the supervisor's, reused answer after answer.
+        let mut runs = std::mem::take(&mut self.runs);
+        runs.clear();
+        at(self, restart, &mut runs);
+        let checked = self.checked(k, &arrived, &runs);
+        if let (true, Ok(Some(_))) = (restart, &checked) {
+            for (envs, slot) in &runs {
                 let rows = self.rows_of(*slot)?;
                 envs.clone().for_each(|e| rows.mark_restarted(e));
             }
         }
-        Ok(Some(Taken {
+        self.runs = runs;
+        Ok(checked?.map(|(answer, apart)| Taken {
             answer,
             apart,
             restart,

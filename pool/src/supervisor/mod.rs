@@ -100,6 +100,8 @@ struct Supervisor {
     /// The layout of every slot of the batch buffer, and each slot's rows while it is mapped.
     slot_layout: SlotLayout,
     slots: Vec<crate::wire::slot_layout::SlotRows>,
+    /// The runs of envs an answer is checked over, reused answer after answer (`intake.rs`).
+    runs: intake::Runs,
     /// Each env's episode index and seed, as its worker last answered ([`crate::wire::books`]).
     books: Option<Books>,
     /// The flag columns whose bytes are checked in every answer written in place
@@ -242,6 +244,7 @@ impl Pool {
                 batch: None,
                 slot_layout,
                 slots: Vec::new(),
+                runs: Vec::new(),
                 books: None,
                 flags,
                 shm_need,

@@ -4,7 +4,7 @@
 //! [`SlotAnswer`].
 
 use super::Supervisor;
-use super::intake::{Apart, slot_extra};
+use super::intake::{Apart, Runs, slot_extra};
 use crate::batch::{SlotAnswer, SlotExtras};
 use crate::error::PoolError;
 use crate::wire::answer::{AnswerExtras, EXTRA_HEAD};
@@ -54,7 +54,8 @@ impl Supervisor {
         }
         let rows = self.rows_of(acc.answer.slot)?;
         while let Some(k) = self.arrived.pop_front() {
-            let at = |c: &Self, _| vec![(c.blocks[k].clone(), acc.answer.slot)];
+            let slot = acc.answer.slot;
+            let at = |c: &Self, _, out: &mut Runs| out.push((c.blocks[k].clone(), slot));
             let Some(t) = self.take_checked(k, at)? else {
                 continue;
             };
