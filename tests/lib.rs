@@ -10,11 +10,11 @@ use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
 
 use rogue_gym_pool::{
-    Actions, AutoresetMode, BatchOutput, EnvRegistry, Pool, PoolConfig, PoolError, Received,
-    WorkerCommand, seeds::splitmix,
+    Actions, AutoresetMode, BatchOutput, EnvRegistry, Pool, PoolConfig, PoolError, WorkerCommand,
+    seeds::splitmix,
 };
 
-/// The pool's whole-batch calls with their rows copied out ([`Pool::read_slot`]): into
+/// The pool's whole-batch calls with their rows copied out ([`Pool::read_rows`]): into
 /// `obs` and `out` (`*_into`), or into `out` alone, returning the slot (`*_read`).
 pub trait Copying {
     /// [`Pool::reset`], copied out.
@@ -52,7 +52,7 @@ pub trait Copying {
 impl Copying for Pool {
     fn reset_into(&mut self, obs: &mut [u8], out: &mut BatchOutput) -> Result<(), PoolError> {
         let a = self.reset(None)?;
-        self.read_slot(&a, Some(obs), out)
+        self.read_rows(&a, Some(obs), out)
     }
     fn step_into<'a>(
         &mut self,
@@ -61,7 +61,7 @@ impl Copying for Pool {
         out: &mut BatchOutput,
     ) -> Result<(), PoolError> {
         let a = self.step(actions)?;
-        self.read_slot(&a, Some(obs), out)
+        self.read_rows(&a, Some(obs), out)
     }
     fn partial_reset_into(
         &mut self,
@@ -70,12 +70,13 @@ impl Copying for Pool {
         out: &mut BatchOutput,
     ) -> Result<(), PoolError> {
         let a = self.reset(Some(mask))?;
-        self.read_slot(&a, Some(obs), out)
+        self.read_rows(&a, Some(obs), out)
     }
     fn reset_read(&mut self, out: &mut BatchOutput) -> Result<usize, PoolError> {
         let a = self.reset(None)?;
-        self.read_slot(&a, None, out)?;
-        Ok(a.slot)
+        self.read_rows(&a, None, out)?;
+        Ok(a.slot()
+            .expect("a whole-batch call's result is a view of its slot"))
     }
     fn step_read<'a>(
         &mut self,
@@ -83,8 +84,9 @@ impl Copying for Pool {
         out: &mut BatchOutput,
     ) -> Result<usize, PoolError> {
         let a = self.step(actions)?;
-        self.read_slot(&a, None, out)?;
-        Ok(a.slot)
+        self.read_rows(&a, None, out)?;
+        Ok(a.slot()
+            .expect("a whole-batch call's result is a view of its slot"))
     }
     fn partial_reset_read(
         &mut self,
@@ -92,21 +94,10 @@ impl Copying for Pool {
         out: &mut BatchOutput,
     ) -> Result<usize, PoolError> {
         let a = self.reset(Some(mask))?;
-        self.read_slot(&a, None, out)?;
-        Ok(a.slot)
+        self.read_rows(&a, None, out)?;
+        Ok(a.slot()
+            .expect("a whole-batch call's result is a view of its slot"))
     }
-}
-
-/// A `recv`'s rows as per-env arrays (no final observations: the async API returns none).
-pub fn received_output(got: &Received, n_info: usize) -> BatchOutput {
-    let mut out = BatchOutput::default();
-    for (&e, r) in got.env_ids.iter().zip(&got.records) {
-        out.push(e, r, n_info, None);
-    }
-    for (row, bytes) in &got.extras {
-        out.extras.push((got.env_ids[*row], bytes.clone()));
-    }
-    out
 }
 
 /// Runtime directory of the pools created by the tests (short: unix socket paths < 108
@@ -220,22 +211,15 @@ pub fn run_async(pool: &mut Pool, steps: u64) -> Result<Digests, PoolError> {
     let n = pool.num_envs();
     let ob = pool.obs_bytes();
     let na = pool.spec().num_actions;
-    let n_info = pool.spec().info_names.len();
     let mut d = Digests::new(n);
     // Results received per env (the reset counts as the first).
     let mut got = vec![0u64; n];
     pool.async_reset()?;
     while got.iter().any(|&g| g < steps + 1) {
         let got_now = pool.recv()?;
-        let out = received_output(&got_now, n_info);
-        let obs = match got_now.view {
-            // A view (`set_async_views`): envs `first..` of the slot.
-            Some((slot, first)) => {
-                let rows = got_now.env_ids.len();
-                pool.shared_obs(slot)[first * ob..(first + rows) * ob].to_vec()
-            }
-            None => got_now.obs,
-        };
+        // A view (`set_async_views`) or gathered rows, copied out alike.
+        let (mut out, mut obs) = (BatchOutput::default(), vec![0; got_now.env_ids.len() * ob]);
+        pool.read_rows(&got_now, Some(&mut obs), &mut out)?;
         for (row, &e) in out.env_ids.iter().enumerate() {
             if got[e] < steps + 1 {
                 d.add(e, &obs[row * ob..(row + 1) * ob], &out, row);

@@ -67,7 +67,13 @@ fn async_views_stay_put_while_their_envs_step_again() {
         if let Some((slot, first)) = got.view {
             views += 1;
             assert_eq!(got.env_ids, (first..first + 4).collect::<Vec<_>>());
-            assert_eq!(got.records.len(), 4, "the records come with a view");
+            assert!(
+                got.records.is_empty(),
+                "a view's records are read in its slot"
+            );
+            let mut out = BatchOutput::default();
+            p.read_rows(&got, None, &mut out).unwrap();
+            assert_eq!(out.env_ids, got.env_ids, "read where the view says");
             held = Some((
                 slot,
                 first,
@@ -151,7 +157,7 @@ fn bad_input_is_an_error_value() {
         "env 2: action 7 is out of range; valid actions are 0 to 4 (range(5))"
     );
     let a = p.step(&[0; 4]).unwrap();
-    let e = p.read_slot(&a, Some(&mut obs[1..]), &mut out).unwrap_err();
+    let e = p.read_rows(&a, Some(&mut obs[1..]), &mut out).unwrap_err();
     assert!(matches!(e, PoolError::BadBuffer { .. }));
     // Async misuse.
     let e = p.send(&[0, 0], &[1, 1]).unwrap_err();
@@ -160,6 +166,16 @@ fn bad_input_is_an_error_value() {
     assert!(e.to_string().contains("envs 0 to 3"), "{e}");
     let e = p.recv().unwrap_err();
     assert!(e.to_string().contains("send()"), "{e}");
+    // Between the halves of a whole-batch call, the async API is refused and the call stands.
+    p.send_step(&[0; 4]).unwrap();
+    for e in [p.recv().unwrap_err(), p.send(&[0], &[1]).unwrap_err()] {
+        assert!(e.to_string().contains("wait() for it"), "{e}");
+    }
+    let a = p
+        .wait(Some(Duration::from_secs(10)))
+        .unwrap()
+        .expect("the step is answered");
+    assert_eq!(a.env_ids, [0, 1, 2, 3], "every env, in env order");
     // The pool still works.
     p.step_into(&[0, 1, 2, 3], &mut obs, &mut out).unwrap();
 
@@ -478,8 +494,8 @@ fn partial_reset_needs_a_started_pool_and_a_full_mask() {
         .wait(Some(Duration::from_secs(10)))
         .unwrap()
         .expect("answered");
-    assert_eq!(a.slot, slot);
-    p.read_slot(&a, None, &mut out).unwrap();
+    assert_eq!(a.slot(), Some(slot));
+    p.read_rows(&a, None, &mut out).unwrap();
     assert_eq!(out.episode, vec![1, 1, 1, 0]);
     p.step_read(&[0; 4], &mut out).unwrap();
 }

@@ -31,18 +31,15 @@ fn async_answers_of_a_recycled_worker_are_its_envs_next_episodes_first_rows() {
         let mut restarts = 0;
         for t in 0..80 {
             let got = p.recv().unwrap();
-            for (r, (&e, rec)) in got.env_ids.iter().zip(&got.records).enumerate() {
-                let row = match got.view {
-                    Some((slot, first)) => {
-                        let at = (first + r) * ob;
-                        p.shared_obs(slot)[at..at + ob].to_vec()
-                    }
-                    None => got.obs[r * ob..(r + 1) * ob].to_vec(),
-                };
-                assert_eq!(e, got.env_ids[r]);
-                if rec.restarted() {
+            // A view or gathered rows, copied out alike.
+            let (mut out, mut obs) = (rogue_gym_pool::BatchOutput::default(), vec![0; 4 * ob]);
+            p.read_rows(&got, Some(&mut obs), &mut out).unwrap();
+            assert_eq!(out.env_ids, got.env_ids);
+            for (r, &e) in out.env_ids.iter().enumerate() {
+                if out.restarted[r] {
                     restarts += 1;
-                    fresh.reset(rec.seed, &mut want).unwrap();
+                    fresh.reset(out.seed[r], &mut want).unwrap();
+                    let row = &obs[r * ob..(r + 1) * ob];
                     assert_eq!(row, want, "env {e}'s restart (views: {views})");
                 }
             }

@@ -27,7 +27,7 @@ fn sabotaged(what: Misdeed, at: u64, policy: FailurePolicy) -> PoolConfig {
 fn third_answer(
     what: Misdeed,
     policy: FailurePolicy,
-) -> Result<rogue_gym_pool::SlotAnswer, PoolError> {
+) -> Result<rogue_gym_pool::Received, PoolError> {
     let mut p = pool(sabotaged(what, 3, policy));
     let id = p.id().clone();
     p.reset(None).unwrap();
@@ -56,7 +56,7 @@ fn restarted_for(what: Misdeed, words: &str) {
     let a = p.step(&[1; 4]).unwrap();
     assert!(a.restarted);
     let mut out = rogue_gym_pool::BatchOutput::default();
-    p.read_slot(&a, None, &mut out).unwrap();
+    p.read_rows(&a, None, &mut out).unwrap();
     assert_eq!(out.restarted, [false, false, true, true]);
     assert!(out.truncated[2] && out.truncated[3]);
     assert_eq!(p.restarts(), 1);
@@ -125,7 +125,7 @@ fn an_episode_index_at_its_limits_never_wraps_or_keeps_and_the_envs_start_over()
         );
         let a = p.reset(None).unwrap();
         let mut out = rogue_gym_pool::BatchOutput::default();
-        p.read_slot(&a, None, &mut out).unwrap();
+        p.read_rows(&a, None, &mut out).unwrap();
         assert_eq!(
             out.episode[2..],
             [0, 0],
@@ -214,8 +214,10 @@ fn the_async_api_checks_the_rows_it_hands_over_as_the_sync_calls_do() {
                 p.async_reset().unwrap();
             }
             (FailurePolicy::Restart, Ok(got)) => {
-                let restarted: Vec<usize> = (got.env_ids.iter().zip(&got.records))
-                    .filter(|(_, r)| r.restarted())
+                let mut out = rogue_gym_pool::BatchOutput::default();
+                p.read_rows(&got, None, &mut out).unwrap();
+                let restarted: Vec<usize> = (out.env_ids.iter().zip(&out.restarted))
+                    .filter(|(_, r)| **r)
                     .map(|(&e, _)| e)
                     .collect();
                 assert_eq!(restarted.len(), 2, "{:?}", got.env_ids);

@@ -1,9 +1,9 @@
-//! What a call hands back: the answer of a whole-batch call ([`SlotAnswer`]) and its rows
-//! copied out ([`BatchOutput`]).
+//! What a call hands back: its rows ([`Received`]), and those rows copied out
+//! ([`BatchOutput`]).
 
 use crate::wire::record::EnvRecord;
 
-/// Per-env arrays of one batch, copied out of a slot ([`crate::Pool::read_slot`]). Row `r`
+/// Per-env arrays of one batch, copied out of a slot ([`crate::Pool::read_rows`]). Row `r`
 /// describes env `env_ids[r]`.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct BatchOutput {
@@ -79,31 +79,59 @@ impl BatchOutput {
     }
 }
 
-/// What a whole-batch call (step, reset, partial reset) answers beside the rows the workers
-/// wrote in place in its batch slot ([`crate::wire::slot_layout`]): found out from one word
-/// per worker, never by reading the envs' rows.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct SlotAnswer {
-    /// The slot the workers wrote.
-    pub slot: usize,
-    /// Some env's worker was restarted during the call (its rows say `restarted`).
-    pub restarted: bool,
-    /// (SAME_STEP) some env has a final observation in the slot's final area.
-    pub final_obs: bool,
-    /// The envs' extra info.
+/// What a call hands back, sync or async: envs' rows, first sent first. A whole-batch call
+/// (step, reset, partial reset) hands back every env in env order, as a view of the batch slot
+/// the workers wrote; a `recv` the first envs ready, as a view where they are one run of envs
+/// in one slot and the caller asked for views ([`crate::Pool::set_async_views`]), else
+/// gathered (copied out).
+#[derive(Debug, Default)]
+pub struct Received {
+    /// The envs of the rows.
+    pub env_ids: Vec<usize>,
+    /// Gathered rows: their records (restart flags applied); empty for a view.
+    pub records: Vec<EnvRecord>,
+    /// Gathered rows: their observations, `rows x obs_bytes` bytes; empty for a view.
+    pub obs: Vec<u8>,
+    /// The rows' extra info ([`crate::Env::extra_info`]: hosted envs' infos).
     pub extras: SlotExtras,
+    /// The envs of rows whose worker was replaced by plan ([`crate::Pool::recycled_envs`]).
+    pub recycled: Vec<usize>,
+    /// Some row answers a restart of its worker (its record says `restarted`; a view's
+    /// `restarted` column is valid for every row then, and only then).
+    pub restarted: bool,
+    /// (SAME_STEP) some row has a final observation in its slot's final area.
+    pub final_obs: bool,
+    /// `Some((slot, first))`: the rows are envs `first..first + rows` in order, in batch slot
+    /// `slot`, where the caller reads them (observations, columns, final observations and
+    /// extra room) until those envs' next answer but one. `None`: the rows are gathered.
+    pub view: Option<(usize, usize)>,
 }
 
-/// The extra info of a whole-batch call ([`crate::Env::extra_info`]: hosted envs' infos).
+impl Received {
+    /// The slot of a view (every whole-batch call's result is one).
+    pub fn slot(&self) -> Option<usize> {
+        self.view.map(|(slot, _)| slot)
+    }
+
+    /// Write gathered rows' records into `columns`, row `r` at index `r` (a binding's `recv`
+    /// columns: the layout of a slot's columns, rows in receive order).
+    pub fn write_columns(&self, columns: &crate::SlotRows) {
+        for (r, rec) in self.records.iter().enumerate() {
+            columns.record(r, rec);
+        }
+    }
+}
+
+/// The extra info of a call's rows ([`crate::Env::extra_info`]: hosted envs' infos).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub enum SlotExtras {
     /// No env wrote any.
     #[default]
     None,
-    /// Every env wrote this many bytes of one layout (the same first 16 bytes), each in its
-    /// room of the slot's extra area: read them there.
+    /// (A view) every row's env wrote this many bytes of one layout (the same first 16
+    /// bytes), each in its room of the slot's extra area: read them there.
     Uniform(usize),
-    /// Some envs wrote some, not all of one layout: `(env, bytes)` in env order (collected
-    /// env by env: the irregular case, e.g. infos that are pickled).
+    /// Some envs wrote some, not all of one layout (or the rows are gathered): `(row, bytes)`
+    /// in row order, of those that did.
     Rows(Vec<(usize, Vec<u8>)>),
 }

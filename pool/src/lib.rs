@@ -8,7 +8,7 @@
 //! [`EnvRegistry`] and steps them. Every per-env output of a whole-batch call (step, reset,
 //! partial reset) is written by its worker in place, at the env's row of a shared batch slot
 //! the call names (`batch_slots` of them, 2 by default; [`wire::slot_layout`]), where the
-//! caller reads it ([`Pool::step`]; [`Pool::read_slot`] copies it out). The async API
+//! caller reads it ([`Pool::step`]; [`Pool::read_rows`] copies it out). The async API
 //! ([`Pool::send`], [`Pool::recv`]) has every answer written in the slots too, each env's
 //! answers taking turns over them; a batch of one run of envs in one slot can be handed over
 //! as a view of it ([`Pool::set_async_views`]). A worker's iceoryx2 samples carry its answers'
@@ -47,7 +47,7 @@ pub mod supervisor;
 pub mod wire;
 pub mod worker;
 
-pub use batch::{BatchOutput, SlotAnswer, SlotExtras};
+pub use batch::{BatchOutput, Received, SlotExtras};
 pub use config::{AutoresetMode, CpuAffinity, FailurePolicy, PoolConfig, WorkerCommand};
 pub use env::{
     Dtype, Env, EnvBlock, EnvError, EnvSpec, MAX_INFO, StepOutcome, action_out_of_range,
@@ -58,9 +58,7 @@ pub use registry::{BlockCtor, Built, EnvCtor, EnvRegistry, ThreadScope};
 pub use rogue_gym_ipc::WaitPolicy;
 pub use seeds::{SeedPolicy, SeedSchedule, SeedSet, Shard};
 pub use stats::WorkerStats;
-pub use supervisor::{
-    Actions, InterruptCheck, MachineView, Pool, Received, RecvWant, validate_actions,
-};
+pub use supervisor::{Actions, InterruptCheck, MachineView, Pool, RecvWant, validate_actions};
 pub use wire::answer::EXTRA_HEAD;
 pub use wire::record::{
     EnvRecord, FLAG_FINAL_OBS, FLAG_RESTARTED, FLAG_TERMINATED, FLAG_TRUNCATED,

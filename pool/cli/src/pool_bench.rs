@@ -12,7 +12,7 @@ use serde_json::{Value, json};
 /// Sync (lockstep) or async (EnvPool-style send/recv) mode.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Mode {
-    /// Sync `step` over all envs, the rows copied out (`Pool::read_slot`).
+    /// Sync `step` over all envs, the rows copied out (`Pool::read_rows`).
     Sync,
     /// `send`/`recv` with a batch of `--batch-size` envs.
     Async,
@@ -217,7 +217,7 @@ impl PoolRun {
         match a.mode {
             Mode::Sync => pool
                 .reset(None)
-                .and_then(|r| pool.read_slot(&r, Some(&mut obs), &mut out)),
+                .and_then(|r| pool.read_rows(&r, Some(&mut obs), &mut out)),
             Mode::Shared => pool.reset(None).map(drop),
             Mode::Async => pool.async_reset(),
         }
@@ -252,7 +252,7 @@ impl PoolRun {
                     self.pool
                         .step(&self.actions)
                         .and_then(|r| match copy {
-                            true => self.pool.read_slot(&r, Some(&mut self.obs), &mut self.out),
+                            true => self.pool.read_rows(&r, Some(&mut self.obs), &mut self.out),
                             false => Ok(()),
                         })
                         .map_err(|e| e.to_string())?;

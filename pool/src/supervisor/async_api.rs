@@ -5,11 +5,12 @@
 use std::time::{Duration, Instant};
 
 use super::actions::Actions;
-use super::async_envs::{Received, Turn};
+use super::async_envs::Turn;
 use super::commands::StepActions;
 use super::intake::runs_into;
 use super::link::Target;
 use super::{Pool, Supervisor};
+use crate::batch::Received;
 use crate::error::PoolError;
 
 /// Commands a worker whose envs run on threads may have unread (its command port holds 8:
@@ -82,17 +83,25 @@ impl RecvWant {
 
 impl Pool {
     /// Async: reset every env (as [`Pool::reset`]; outstanding results are discarded); collect
-    /// the results with [`Pool::recv`].
+    /// the results with [`Pool::recv`]. It is [`Pool::send_reset`] into a slot the caller has
+    /// not lent out, its receive left to `recv`.
     pub fn async_reset(&mut self) -> Result<(), PoolError> {
         self.begin_call()?;
         self.drain()?;
         self.sup.async_api.on = true;
-        for k in 0..self.sup.workers.len() {
-            let envs = self.sup.blocks[k].clone();
-            let targets = self.sup.async_api.envs.all_in_flight(k, envs);
-            self.sup.send_reset(k, Target::Each(&targets), None)?;
+        let slots = self.sup.cfg.batch_slots;
+        let c = &mut self.sup;
+        let lent = c.async_api.envs.lent;
+        c.next_slot = (0..slots)
+            .map(|i| (c.next_slot + i) % slots)
+            .find(|s| lent & (1 << s) == 0)
+            .unwrap_or(c.next_slot);
+        let slot = c.send_whole();
+        c.next_slot = (slot + 1) % slots;
+        for k in 0..c.workers.len() {
+            c.send_reset(k, Target::Slot(slot), None)?;
         }
-        self.sup.failures.must_reset = false;
+        c.failures.must_reset = false;
         Ok(())
     }
 
@@ -115,14 +124,7 @@ impl Pool {
         let (ab, aw) = (self.sup.spec.action_bytes, self.sup.spec.action_words());
         let mut words = vec![0u64; aw];
         for (r, &e) in env_ids.iter().enumerate() {
-            match actions {
-                Actions::Indices(a) => words[0] = a[r] as u64,
-                Actions::Bytes(b) => {
-                    words.fill(0);
-                    rogue_gym_ipc::words_as_bytes_mut(&mut words)[..ab]
-                        .copy_from_slice(&b[r * ab..(r + 1) * ab]);
-                }
-            }
+            StepActions::Rows(actions.rows(r..r + 1, ab)).write(&mut words, aw, ab);
             self.sup.async_api.envs.stage(e, &words);
         }
         // Answers that came meanwhile free their workers for what was just staged.
@@ -171,17 +173,34 @@ impl Pool {
                 want.min_batch
             )));
         }
-        let max = want.max_batch.min(outstanding);
-        let enough = if want.timeout.is_some() {
-            max
-        } else {
-            want.min_batch
-        };
         let until = want.timeout.map(|t| Instant::now() + t);
+        let Some(got) = self.receive(want, until, false)? else {
+            return Err(PoolError::RecvTimeout {
+                ready: self.sup.async_api.envs.num_ready(),
+                min_batch: want.min_batch,
+                timeout: want.timeout.unwrap_or_default(),
+            });
+        };
+        // The rows' own replacements by plan, whenever their worker was replaced.
+        self.sup.recycling.replaced_envs.clone_from(&got.recycled);
+        Ok(got)
+    }
+
+    /// The one wait of the lane, for a `recv` and a whole-batch call (`whole`: every env, in
+    /// env order, as a view of its slot): hand over the first envs ready, as many as `want`
+    /// says, once enough are (`until`: give up then with `None`, nothing lost).
+    pub(super) fn receive(
+        &mut self,
+        want: RecvWant,
+        until: Option<Instant>,
+        whole: bool,
+    ) -> Result<Option<Received>, PoolError> {
+        let max = want.max_batch.min(self.sup.async_api.envs.outstanding());
+        let enough = if until.is_some() { max } else { want.min_batch };
         let mut done;
         loop {
             // Enough ready, and the env sent first ready too, unless it is late beyond the
-            // usual (fair service: `async_envs.rs`); a wait for it ends at its patience.
+            // usual (fair service: `ready_set.rs`); a wait for it ends at its patience.
             let patience = self.sup.async_api.envs.patience(Instant::now());
             let stop = match (until, patience) {
                 (Some(u), Some(p)) => Some(u.min(p)),
@@ -201,32 +220,28 @@ impl Pool {
                 break;
             }
         }
-        let ready = self.sup.async_api.envs.num_ready();
-        if !done && ready < want.min_batch {
-            return Err(PoolError::RecvTimeout {
-                ready,
-                min_batch: want.min_batch,
-                timeout: want.timeout.unwrap_or_default(),
-            });
+        if !done && self.sup.async_api.envs.num_ready() < want.min_batch {
+            return Ok(None);
         }
-        let slots = (0..self.sup.cfg.batch_slots)
-            .map(|slot| self.sup.rows_of(slot))
-            .collect::<Result<Vec<_>, _>>()?;
-        let got = self
-            .sup
-            .async_api
-            .envs
-            .take(max, self.sup.spec.obs_bytes(), &slots);
-        // The rows' own replacements by plan, whenever their worker was replaced.
-        self.sup.recycling.replaced_envs.clone_from(&got.recycled);
-        Ok(got)
+        let c = &mut self.sup;
+        if c.slots.is_empty() {
+            return Err(PoolError::Closed);
+        }
+        let ob = c.spec.obs_bytes();
+        Ok(Some(c.async_api.envs.take(max, whole, ob, &c.slots)))
     }
 }
 
 impl Supervisor {
     /// Fail a `send` or `recv` that needs an `async_reset` first: with the failures that made
-    /// it so, if they were seen outside a wait (by a `send`) and not raised yet.
+    /// it so, if they were seen outside a wait (by a `send`) and not raised yet; or that comes
+    /// between the halves of a whole-batch call.
     fn check_started(&mut self, call: &str) -> Result<(), PoolError> {
+        if self.call.sent.is_some() {
+            return Err(PoolError::State(format!(
+                "a step or reset is pending: wait() for it before {call}()"
+            )));
+        }
         if !self.failures.must_reset {
             return Ok(());
         }
@@ -303,8 +318,11 @@ impl Supervisor {
         let Some(t) = self.take_checked(k, served)? else {
             return Ok(());
         };
+        self.call.ready_ns = self.call.ready_ns.max(t.ready_ns);
         let restart = t.restart.then_some(t.recycled);
-        self.async_api.envs.arrive(k, block, t.apart, restart);
+        self.async_api
+            .envs
+            .arrive(k, block, &t.answer, t.apart, restart);
         Ok(())
     }
 

@@ -1,32 +1,36 @@
-//! The async API's envs, one by one: where each env stands ([`Turn`]), the set of ready envs
-//! in the order they were sent, and the batch slot each env's rows are in.
+//! The pool's one lane, env by env: where each env stands ([`Turn`]), the ready set of runs
+//! in the order they were sent ([`super::ready_set`]), and the batch slot each env's rows are
+//! in. A whole-batch call is a send of every env (each worker block one run) and a receive
+//! of all of them in env order; the async API sends any envs, each a run of its own, and
+//! receives the first ready.
 //!
 //! Service is fair by rule: the ready envs are handed over in the order they were sent, and
 //! a `recv` waits a little for the env sent first when it is only a little late
 //! ([`super::ready_set`]).
 //!
-//! Workers still answer one command at a time; this layer turns their answers into envs. An
-//! env sent while its worker is busy is *staged* and goes with the worker's next command, with
-//! any other envs of that worker staged meanwhile ([`crate::wire::Command::subset`] serves only
-//! those).
+//! Workers answer one command at a time (a worker whose envs run on threads answers a partial
+//! command env by env); this layer turns their answers into ready runs. An env sent while its
+//! worker is busy is *staged* and goes with the worker's next command, with any other envs of
+//! that worker staged meanwhile ([`crate::wire::Command::subset`] serves only those).
 //!
-//! Every answer's rows are in the batch slots. Each env's answers take turns over the slots
+//! Every answer's rows are in the batch slots. A whole-batch call writes every env into one
+//! slot ([`AsyncEnvs::send_whole`]); an async env's answers take turns over the slots
 //! ([`AsyncEnvs::slot_for`]): the next goes to the slot after the one its latest answer is in,
 //! skipping the slots the caller has lent out, so that the rows a caller received last (a view
-//! of its slot, [`Received::view`]) stay put until that env's next answer but one; a
-//! whole-batch call counts as every env's latest answer. A `recv` whose rows are one run of
-//! envs in one slot hands them over as a view where the caller asks for views; any other is
-//! gathered.
+//! of its slot, [`Received::view`]) stay put until that env's next answer but one. Rows that
+//! are one run of envs in one slot are handed over as a view where the caller asks for views
+//! (a whole-batch call always does); any other are gathered.
 
+use std::ops::Range;
 use std::time::Instant;
 
-use super::intake::slot_extra;
-use super::ready_set::ReadySet;
-
-use crate::wire::record::EnvRecord;
+use super::intake::{Apart, slot_extra};
+use super::ready_set::{ReadySet, Run};
+use crate::batch::{Received, SlotExtras};
+use crate::wire::answer::{Answer, AnswerExtras};
 use crate::wire::slot_layout::SlotRows;
 
-/// Where an env stands in the async API.
+/// Where an env stands in the lane.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Turn {
     /// With the caller (received, or never sent): it may be sent.
@@ -35,55 +39,11 @@ pub(super) enum Turn {
     Staged,
     /// Its worker is stepping (or resetting) it.
     InFlight,
-    /// Its result waits in the ready queue.
+    /// Its result waits in the ready set.
     Ready,
 }
 
-/// A ready env's result: its rows of batch slot `slot`, with the extra info that did not fit
-/// its room (if any); `restart`: it answers a restart of its worker (its row says so, and
-/// carries no extra info).
-#[derive(Debug)]
-struct Row {
-    slot: usize,
-    apart: Option<Vec<u8>>,
-    restart: bool,
-}
-
-/// What one `recv` hands over: ready envs, first ready first.
-#[derive(Debug, Default)]
-pub struct Received {
-    /// The envs of the rows.
-    pub env_ids: Vec<usize>,
-    /// Their records (restart flags applied).
-    pub records: Vec<EnvRecord>,
-    /// Their observations, `rows x obs_bytes` bytes.
-    pub obs: Vec<u8>,
-    /// `(row, bytes)` of the rows whose env wrote extra info.
-    pub extras: Vec<(usize, Vec<u8>)>,
-    /// The envs of rows whose worker was replaced by plan ([`crate::Pool::recycled_envs`]).
-    pub recycled: Vec<usize>,
-    /// `Some((slot, first))`: the rows are envs `first..first + rows` in order, in batch slot
-    /// `slot`, where the caller reads them (observations, columns and extra room) until those
-    /// envs' next answer but one; `obs` is then empty (`records` are copies of the rows'
-    /// records). `None`: the rows are in `obs` and `records`.
-    pub view: Option<(usize, usize)>,
-}
-
-impl Received {
-    /// Write the rows' records into `columns`, row `r` at index `r` (a binding's `recv`
-    /// columns: the layout of a slot's columns, rows in receive order). Returns whether some
-    /// row reports a restart.
-    pub fn write_columns(&self, columns: &SlotRows) -> bool {
-        let mut restarted = false;
-        for (r, rec) in self.records.iter().enumerate() {
-            columns.record(r, rec);
-            restarted |= rec.restarted();
-        }
-        restarted
-    }
-}
-
-/// The async API's per-env state (see the module docs).
+/// The lane's per-env state (see the module docs).
 pub(super) struct AsyncEnvs {
     turn: Vec<Turn>,
     /// Envs not with the caller (staged, in flight or ready), kept with `turn`.
@@ -93,16 +53,15 @@ pub(super) struct AsyncEnvs {
     aw: usize,
     /// Staged envs, all workers together (nothing to dispatch when 0).
     pub(super) num_staged: usize,
-    /// The envs of each worker's outstanding commands.
-    pub(super) sent: Vec<Vec<usize>>,
-    /// The envs sent and not yet handed over, in the order they were sent.
+    /// The envs of each worker's outstanding commands, in the order sent.
+    sent: Vec<Vec<usize>>,
+    /// The runs sent and not yet handed over, in the order they were sent.
     ready: ReadySet,
-    rows: Vec<Option<Row>>,
-    /// Its result answers a replacement by plan of its worker (`worker_recycled`).
-    recycled: Vec<bool>,
+    /// The runs a receive took, reused receive after receive.
+    taken: Vec<Run>,
     /// The first rows of an env the caller held when its worker was restarted: handed out at
     /// its next send (whose action is dropped).
-    restarted: Vec<Option<Row>>,
+    restarted: Vec<Option<Run>>,
     /// The worker of each env.
     owner: Vec<usize>,
     /// Staged envs of each worker.
@@ -114,7 +73,7 @@ pub(super) struct AsyncEnvs {
     whole_slot: usize,
     /// Slots of the batch buffer.
     slots: usize,
-    /// Slots the caller has lent out (bit `s`: slot `s`): no answer is written there.
+    /// Slots the caller has lent out (bit `s`: slot `s`): no async answer is written there.
     pub(super) lent: u64,
     /// `recv` hands rows that are one run of envs in one slot over as a view.
     pub(super) views: bool,
@@ -126,7 +85,7 @@ pub(super) struct AsyncEnvs {
 impl AsyncEnvs {
     /// The state of `num_envs` envs in `blocks` (one per worker), `aw` action words each, in a
     /// pool of `slots` batch slots.
-    pub(super) fn new(blocks: &[std::ops::Range<usize>], aw: usize, slots: usize) -> Self {
+    pub(super) fn new(blocks: &[Range<usize>], aw: usize, slots: usize) -> Self {
         let num_envs = blocks.last().map_or(0, |b| b.end);
         let num_workers = blocks.len();
         let mut owner = vec![0; num_envs];
@@ -141,11 +100,10 @@ impl AsyncEnvs {
             staged: vec![0; num_envs * aw],
             aw,
             num_staged: 0,
-            sent: vec![Vec::new(); num_workers],
+            sent: blocks.iter().map(|b| Vec::with_capacity(b.len())).collect(),
             ready: ReadySet::new(num_envs),
-            rows: (0..num_envs).map(|_| None).collect(),
+            taken: Vec::with_capacity(num_workers),
             restarted: (0..num_envs).map(|_| None).collect(),
-            recycled: vec![false; num_envs],
             // Epoch 0 is no epoch: before any answer, every env's latest is `whole_slot`.
             last: vec![(0, 0); num_envs],
             epoch: 1,
@@ -166,17 +124,24 @@ impl AsyncEnvs {
         self.num_staged = 0;
         self.sent.iter_mut().for_each(Vec::clear);
         self.ready.clear();
-        self.rows.iter_mut().for_each(|r| *r = None);
         self.restarted.iter_mut().for_each(|r| *r = None);
-        self.recycled.fill(false);
         self.staged_of.fill(0);
         self.partial.fill(None);
     }
 
-    /// A whole-batch call answered every env in slot `slot`: their latest answer.
-    pub(super) fn whole_call(&mut self, slot: usize) {
+    /// A whole-batch call was sent to every env (each worker's block of `blocks` one run, in
+    /// block order), every answer into slot `slot`, their latest. Every env is with the
+    /// caller before (`outstanding() == 0`).
+    pub(super) fn send_whole(&mut self, slot: usize, blocks: &[Range<usize>]) {
         self.epoch += 1;
         self.whole_slot = slot;
+        for (sent, b) in self.sent.iter_mut().zip(blocks) {
+            self.ready.sent(b.clone());
+            sent.clear();
+            sent.extend(b.clone());
+        }
+        self.turn.fill(Turn::InFlight);
+        self.outstanding = self.turn.len();
     }
 
     /// The slot env `e`'s latest answer is in (or goes to, while it is in flight).
@@ -215,15 +180,12 @@ impl AsyncEnvs {
         }
     }
 
-    /// Env `e` was sent just now: it takes the next ticket ([`ReadySet::sent`]).
-    fn take_ticket(&mut self, e: usize) {
-        self.ready.sent(e);
-    }
-
-    /// Env `e`'s result is ready.
-    fn push_ready(&mut self, e: usize) {
-        self.set_turn(e, Turn::Ready);
-        self.ready.ready(e);
+    /// The answer of run `run` is in: its envs are ready.
+    fn push_ready(&mut self, run: Run) {
+        for e in run.envs.clone() {
+            self.set_turn(e, Turn::Ready);
+        }
+        self.ready.ready(run);
     }
 
     /// See [`ReadySet::patience`].
@@ -262,14 +224,16 @@ impl AsyncEnvs {
             .min()
     }
 
-    /// Envs `envs` of worker `k`, in flight under partial commands, are done: their rows are in
-    /// their slots, and `apart` has the extra info that did not fit their rooms. An env not in
-    /// flight so is the worker's error (the string says which), and nothing is taken.
+    /// Envs `envs` of worker `k`, in flight under partial commands, are done (`answer`: what
+    /// the worker said of them): their rows are in their slots, and `apart` has the extra
+    /// info that did not fit their rooms. An env not in flight so is the worker's error (the
+    /// string says which), and nothing is taken.
     pub(super) fn arrive_rows(
         &mut self,
         k: usize,
         envs: &[usize],
-        mut apart: Vec<(usize, Vec<u8>)>,
+        answer: &Answer,
+        mut apart: Apart,
     ) -> Result<(), String> {
         if let Some(&e) = envs
             .iter()
@@ -284,19 +248,27 @@ impl AsyncEnvs {
                 continue;
             }
             self.sent[k].retain(|&x| x != e);
-            let mine = apart
-                .iter()
-                .position(|(a, _)| *a == e)
-                .map(|i| apart.swap_remove(i).1);
-            self.recycled[e] = false;
-            self.rows[e] = Some(Row {
-                slot: self.last_slot(e),
-                apart: mine,
-                restart: false,
-            });
-            self.push_ready(e);
+            let run = self.answered(e..e + 1, answer, &mut apart);
+            self.push_ready(run);
         }
         Ok(())
+    }
+
+    /// The run of `envs` (sent together) as `answer` answers it, with its share of `apart`.
+    fn answered(&self, envs: Range<usize>, answer: &Answer, apart: &mut Apart) -> Run {
+        let mine = match apart.is_empty() {
+            true => Vec::new(),
+            false => apart.extract_if(.., |(e, _)| envs.contains(e)).collect(),
+        };
+        Run {
+            slot: self.last_slot(envs.start),
+            restart: false,
+            recycled: false,
+            extras: answer.extras,
+            final_obs: answer.final_obs,
+            apart: mine,
+            envs,
+        }
     }
 
     /// Env `e` of worker `k` failed under a partial command: it is no longer in flight (the
@@ -309,30 +281,11 @@ impl AsyncEnvs {
         }
     }
 
-    /// Every env of `envs` (worker `k`'s block) is in flight (a reset was sent to all of
-    /// them); the slot of each (`s + 1`), in block order.
-    pub(super) fn all_in_flight(&mut self, k: usize, envs: std::ops::Range<usize>) -> Vec<u64> {
-        let targets = envs
-            .clone()
-            .map(|e| {
-                self.set_turn(e, Turn::InFlight);
-                self.take_ticket(e);
-                self.slot_for(e) as u64 + 1
-            })
-            .collect();
-        self.sent[k] = envs.collect();
-        targets
-    }
-
     /// The slot (`s + 1`) of each env of `envs` (worker `k`'s block) for a reset of them all
     /// that restarts the worker: where an env in flight or ready is written already (its row
     /// is replaced), the next slot of any other. `uniform`: one slot for the whole block (a
     /// vector env per worker writes its block in one), the first env's.
-    pub(super) fn restart_targets(
-        &mut self,
-        envs: std::ops::Range<usize>,
-        uniform: bool,
-    ) -> Vec<u64> {
+    pub(super) fn restart_targets(&mut self, envs: Range<usize>, uniform: bool) -> Vec<u64> {
         let mut targets: Vec<u64> = envs
             .map(|e| match self.turn[e] {
                 Turn::InFlight | Turn::Ready => self.last_slot(e) as u64 + 1,
@@ -345,14 +298,13 @@ impl AsyncEnvs {
         targets
     }
 
-    /// Stage env `e`'s action words; or, if its worker was restarted while the caller held it,
-    /// make its restart's first rows ready at once (the action is dropped, as a restarted env
-    /// drops it in a sync step). Returns whether it was staged.
+    /// Stage env `e`'s action words (it takes the next ticket); or, if its worker was restarted
+    /// while the caller held it, make its restart's first rows ready at once (the action is
+    /// dropped, as a restarted env drops it in a sync step). Returns whether it was staged.
     pub(super) fn stage(&mut self, e: usize, words: &[u64]) -> bool {
-        self.take_ticket(e);
-        if let Some(row) = self.restarted[e].take() {
-            self.rows[e] = Some(row);
-            self.push_ready(e);
+        self.ready.sent(e..e + 1);
+        if let Some(run) = self.restarted[e].take() {
+            self.push_ready(run);
             return false;
         }
         self.staged[e * self.aw..(e + 1) * self.aw].copy_from_slice(words);
@@ -373,7 +325,7 @@ impl AsyncEnvs {
     pub(super) fn dispatch(
         &mut self,
         k: usize,
-        envs: std::ops::Range<usize>,
+        envs: Range<usize>,
     ) -> Option<(Vec<u64>, Vec<u64>)> {
         let aw = self.aw;
         if self.staged_of[k] == 0 {
@@ -394,145 +346,205 @@ impl AsyncEnvs {
         Some((words, targets))
     }
 
-    /// Worker `k`'s answer to its outstanding command: the envs it served become ready, in row
-    /// order, each with its share of `apart` (`(env, bytes)` of the extra info that did not fit
-    /// the rooms). `restart`: the answer is a reset of every env of `block` that restarted the
-    /// worker (`Some(true)`: a replacement by plan); it also replaces the results of its envs
-    /// that wait in the queue, drops the actions staged for the others, and keeps the first
-    /// rows of each env the caller holds for its next send.
+    /// Worker `k`'s answer to its outstanding command (`answer`: what it said of its rows): the
+    /// runs it served are ready, each with its share of `apart`. `restart`: the answer is a
+    /// reset of every env of `block` that restarted the worker (`Some(true)`: a replacement by
+    /// plan); it also replaces the results of its envs that are ready, drops the actions
+    /// staged for the others, and keeps the first rows of each env the caller holds for its
+    /// next send.
     pub(super) fn arrive(
         &mut self,
         k: usize,
-        block: std::ops::Range<usize>,
-        apart: Vec<(usize, Vec<u8>)>,
+        block: Range<usize>,
+        answer: &Answer,
+        mut apart: Apart,
         restart: Option<bool>,
     ) {
-        let sent = std::mem::take(&mut self.sent[k]);
+        let mut sent = std::mem::take(&mut self.sent[k]);
         for &e in &sent {
             self.partial[e] = None; // a restart's answer covers its partial envs too
         }
         let Some(recycled) = restart else {
-            let mut apart = apart.into_iter().peekable();
-            for e in sent {
-                self.recycled[e] = false;
-                let mine = apart.next_if(|(a, _)| *a == e).map(|(_, b)| b);
-                self.rows[e] = Some(Row {
-                    slot: self.last_slot(e),
-                    apart: mine,
-                    restart: false,
-                });
-                self.push_ready(e);
+            let mut i = 0;
+            while i < sent.len() {
+                let (start, mut end) = (sent[i], sent[i] + 1);
+                i += 1;
+                while i < sent.len() && sent[i] == end && self.ready.same_run(start, end) {
+                    (end, i) = (end + 1, i + 1);
+                }
+                let run = self.answered(start..end, answer, &mut apart);
+                self.push_ready(run);
             }
+            sent.clear();
+            self.sent[k] = sent;
             return;
         };
-        for e in block {
-            self.recycled[e] = recycled;
-            let row = Row {
-                slot: self.last_slot(e),
-                apart: None,
-                restart: true,
-            };
+        sent.clear();
+        self.sent[k] = sent;
+        let mut e = block.start;
+        while e < block.end {
+            let mut end = e + 1;
             match self.turn[e] {
-                Turn::InFlight => {
-                    self.rows[e] = Some(row);
-                    self.push_ready(e);
+                Turn::InFlight | Turn::Staged => {
+                    while end < block.end
+                        && self.turn[end] == self.turn[e]
+                        && self.ready.same_run(e, end)
+                    {
+                        end += 1;
+                    }
+                    if self.turn[e] == Turn::Staged {
+                        self.num_staged -= end - e;
+                        self.staged_of[k] -= end - e;
+                    }
+                    let run = Run::restart(e..end, self.last_slot(e), recycled);
+                    self.push_ready(run);
                 }
-                Turn::Staged => {
-                    self.num_staged -= 1;
-                    self.staged_of[k] -= 1;
-                    self.rows[e] = Some(row);
-                    self.push_ready(e);
+                Turn::Ready => {
+                    if let Some(run) = self.ready.ready_run(e) {
+                        let slot = run.slot;
+                        *run = Run::restart(run.envs.clone(), slot, recycled);
+                    }
                 }
-                Turn::Ready => self.rows[e] = Some(row),
-                Turn::Caller => self.restarted[e] = Some(row),
+                Turn::Caller => {
+                    self.restarted[e] = Some(Run::restart(e..e + 1, self.last_slot(e), recycled))
+                }
             }
+            e = end;
         }
     }
 
-    /// Hand over up to `n` ready envs, the one sent first first. `slots`: each batch slot's
-    /// rows; rows that are one run of envs in one slot are handed over as a view of it where
-    /// the caller asks for views (see [`Received::view`]).
-    pub(super) fn take(&mut self, n: usize, obs_bytes: usize, slots: &[SlotRows]) -> Received {
-        let n = n.min(self.ready.len());
-        if self.views
-            && let Some(got) = self.take_view(n, slots)
-        {
-            return got;
-        }
-        let mut out = Received {
-            env_ids: Vec::with_capacity(n),
-            records: Vec::with_capacity(n),
-            obs: Vec::with_capacity(n * obs_bytes),
-            ..Default::default()
-        };
-        for r in 0..n {
-            let Some(e) = self.ready.pop() else {
+    /// Hand over up to `n` ready envs, the one sent first first: as a view of their slot when
+    /// they are one run of envs in one slot and `view` (or the caller asked for views), else
+    /// gathered. `slots`: each batch slot's rows.
+    pub(super) fn take(
+        &mut self,
+        n: usize,
+        view: bool,
+        obs_bytes: usize,
+        slots: &[SlotRows],
+    ) -> Received {
+        let mut runs = std::mem::take(&mut self.taken);
+        runs.clear();
+        let mut count = 0;
+        while count < n {
+            let Some(run) = self.ready.pop(n - count) else {
                 break;
             };
-            self.set_turn(e, Turn::Caller);
-            if std::mem::take(&mut self.recycled[e]) {
-                out.recycled.push(e);
-            }
-            match self.rows[e].take() {
-                Some(row) => {
-                    let w = &slots[row.slot];
-                    let rec = w.read(e);
-                    // SAFETY: env `e`'s rows of the slot: its worker answered, and no command
-                    // writes them again until the caller sends to `e`.
-                    out.obs.extend_from_slice(unsafe { w.obs_rows(e..e + 1) });
-                    if !row.restart
-                        && let Some(extra) = slot_extra(w, e, &rec, row.apart.as_deref())
-                    {
-                        out.extras.push((r, extra));
-                    }
-                    out.records.push(rec);
-                }
-                None => {
-                    out.obs.resize(out.obs.len() + obs_bytes, 0);
-                    out.records.push(EnvRecord::default());
-                }
-            }
-            out.env_ids.push(e);
+            count += run.envs.len();
+            runs.push(run);
         }
+        let mut out = Received {
+            env_ids: Vec::with_capacity(count),
+            ..Default::default()
+        };
+        for run in &runs {
+            for e in run.envs.clone() {
+                self.set_turn(e, Turn::Caller);
+            }
+            if run.recycled {
+                out.recycled.extend(run.envs.clone());
+            }
+            out.restarted |= run.restart;
+            out.final_obs |= run.final_obs;
+            out.env_ids.extend(run.envs.clone());
+        }
+        let first = runs.first().map_or((0, 0), |r| (r.slot, r.envs.start));
+        let one_run =
+            (runs.windows(2)).all(|w| w[1].envs.start == w[0].envs.end && w[1].slot == first.0);
+        if (view || self.views) && one_run && !runs.is_empty() {
+            let w = &slots[first.0];
+            if out.restarted {
+                // The column is the supervisor's to vouch for (a worker cannot know it was
+                // restarted): made right for every row of the view.
+                for r in runs.iter().filter(|r| !r.restart) {
+                    r.envs.clone().for_each(|e| w.clear_restarted(e));
+                }
+            }
+            out.extras = view_extras(&runs, slots, first.1);
+            out.view = Some(first);
+        } else {
+            gather(&runs, obs_bytes, slots, &mut out);
+        }
+        self.taken = runs;
         out
     }
+}
 
-    /// The next `n` ready envs as a view, when they are one run of envs `first..first + n` in
-    /// order, in one slot, with no extra info apart and no restart (else `None`, nothing
-    /// taken). Extra info in the rows' rooms is copied out (`extras`).
-    fn take_view(&mut self, n: usize, slots: &[SlotRows]) -> Option<Received> {
-        let first = self.ready.first()?;
-        let plain = |row: &Option<Row>| match row {
-            Some(r) if r.apart.is_none() && !r.restart => Some(r.slot),
-            _ => None,
-        };
-        let slot = plain(&self.rows[first])?;
-        let run = self.ready.peek(n).enumerate().all(|(i, e)| {
-            e == first + i && !self.recycled[e] && plain(&self.rows[e]) == Some(slot)
-        });
-        if !run || n == 0 {
-            return None;
-        }
-        let w = slots.get(slot)?;
-        let env_ids: Vec<usize> = (0..n).filter_map(|_| self.ready.pop()).collect();
-        let mut extras = Vec::new();
-        let mut records = Vec::with_capacity(n);
-        for (r, &e) in env_ids.iter().enumerate() {
-            self.set_turn(e, Turn::Caller);
-            self.rows[e] = None;
-            let rec = w.read(e);
-            if let Some(x) = slot_extra(w, e, &rec, None) {
-                extras.push((r, x));
+/// The extra info of a view's runs (its first env `first`): read in place when every run's
+/// envs wrote one layout, else joined row by row.
+fn view_extras(runs: &[Run], slots: &[SlotRows], first: usize) -> SlotExtras {
+    let mut uniform = None;
+    let (mut any, mut not_uniform) = (false, false);
+    for r in runs {
+        any |= !r.apart.is_empty();
+        not_uniform |= r.restart || !r.apart.is_empty();
+        match r.extras {
+            _ if r.restart => {}
+            AnswerExtras::None => not_uniform = true,
+            AnswerExtras::Mixed => (any, not_uniform) = (true, true),
+            AnswerExtras::Uniform { size, head } => {
+                any = true;
+                not_uniform |= uniform.is_some_and(|u| u != (size, head));
+                uniform = Some((size, head));
             }
-            records.push(rec);
         }
-        Some(Received {
-            env_ids,
-            records,
-            extras,
-            view: Some((slot, first)),
-            ..Default::default()
-        })
+    }
+    match (any, not_uniform, uniform) {
+        (false, _, _) => SlotExtras::None,
+        (true, false, Some((size, _))) => SlotExtras::Uniform(size),
+        _ => {
+            let mut out = Vec::new();
+            for r in runs {
+                let w = &slots[r.slot];
+                for e in r.envs.clone() {
+                    out.extend(run_extra(r, w, e, &w.read(e)).map(|x| (e - first, x)));
+                }
+            }
+            SlotExtras::Rows(out)
+        }
+    }
+}
+
+/// Env `e`'s extra info in run `r` (`rec`: its record in the run's slot `w`).
+fn run_extra(
+    r: &Run,
+    w: &SlotRows,
+    e: usize,
+    rec: &crate::wire::record::EnvRecord,
+) -> Option<Vec<u8>> {
+    if r.restart {
+        return None;
+    }
+    match r.apart.iter().find(|(a, _)| *a == e) {
+        Some((_, b)) => Some(b.clone()),
+        None if r.extras == AnswerExtras::None => None,
+        None => slot_extra(w, e, rec, None),
+    }
+}
+
+/// Copy the runs' rows out into `out`: records (restart flags applied), observations, extra
+/// info by row.
+fn gather(runs: &[Run], obs_bytes: usize, slots: &[SlotRows], out: &mut Received) {
+    let n: usize = runs.iter().map(|r| r.envs.len()).sum();
+    out.records.reserve(n);
+    out.obs.reserve(n * obs_bytes);
+    let mut extras = Vec::new();
+    for r in runs {
+        let w = &slots[r.slot];
+        for e in r.envs.clone() {
+            if !r.restart {
+                w.clear_restarted(e); // a worker cannot know it: the supervisor's to say
+            }
+            let rec = w.read(e);
+            // SAFETY: env `e`'s rows of the slot: its worker answered, and no command writes
+            // them again until the caller sends to `e`.
+            out.obs.extend_from_slice(unsafe { w.obs_rows(e..e + 1) });
+            extras.extend(run_extra(r, w, e, &rec).map(|x| (out.records.len(), x)));
+            out.records.push(rec);
+        }
+    }
+    if !extras.is_empty() {
+        out.extras = SlotExtras::Rows(extras);
     }
 }
 
@@ -541,23 +553,54 @@ mod tests {
     use super::*;
     use crate::wire::slot_layout::SlotLayout;
 
+    const PLAIN: Answer = Answer {
+        final_obs: false,
+        apart: false,
+        extras: AnswerExtras::None,
+    };
+
+    /// Two slots of a pool of 4 envs (8-byte observations), in `buf`.
+    fn slots(buf: &mut Vec<u64>) -> Vec<SlotRows> {
+        let layout = SlotLayout {
+            num_envs: 4,
+            obs_bytes: 8,
+            n_info: 0,
+            final_obs: false,
+            extra_bytes: 0,
+        };
+        *buf = vec![0u64; 2 * layout.bytes() / 8];
+        // SAFETY: two slots of the layout's size, 8-aligned (the test does not need 64).
+        (0..2)
+            .map(|s| unsafe { layout.rows(buf.as_mut_ptr().cast::<u8>().add(s * layout.bytes())) })
+            .collect()
+    }
+
+    #[test]
+    fn a_whole_batch_call_is_every_env_received_in_env_order_as_a_view() {
+        // Two workers of two envs; the second answers first.
+        let mut buf = Vec::new();
+        let slots = slots(&mut buf);
+        let mut envs = AsyncEnvs::new(&[0..2, 2..4], 1, 2);
+        envs.send_whole(1, &[0..2, 2..4]);
+        assert_eq!(envs.outstanding(), 4);
+        envs.arrive(1, 2..4, &PLAIN, Vec::new(), None);
+        envs.arrive(0, 0..2, &PLAIN, Vec::new(), None);
+        assert_eq!(envs.num_ready(), 4);
+        let got = envs.take(4, true, 8, &slots);
+        assert_eq!(got.env_ids, vec![0, 1, 2, 3]);
+        assert_eq!(got.view, Some((1, 0)), "every env in the call's slot");
+        assert!(got.records.is_empty() && got.obs.is_empty() && !got.restarted);
+        assert_eq!(envs.outstanding(), 0);
+        // The next async answer of an env goes to the slot after the call's.
+        assert!(envs.stage(3, &[1]));
+        assert_eq!(envs.dispatch(1, 2..4), Some((vec![0, 1], vec![0, 1])));
+    }
+
     #[test]
     fn outstanding_envs_are_counted_through_every_turn() {
-        // Two workers of two envs, one action word each, two slots.
+        let mut buf = Vec::new();
+        let slots = slots(&mut buf);
         let mut envs = AsyncEnvs::new(&[0..2, 2..4], 1, 2);
-        let (num_envs, obs_bytes, n_info, final_obs, extra_bytes) = (4, 8, 0, false, 0);
-        let layout = SlotLayout {
-            num_envs,
-            obs_bytes,
-            n_info,
-            final_obs,
-            extra_bytes,
-        };
-        let mut buf = vec![0u64; 2 * layout.bytes() / 8];
-        // SAFETY: two slots of the layout's size, 8-aligned (the test does not need 64).
-        let slots: Vec<SlotRows> = (0..2)
-            .map(|s| unsafe { layout.rows(buf.as_mut_ptr().cast::<u8>().add(s * layout.bytes())) })
-            .collect();
         assert_eq!(envs.outstanding(), 0);
         assert!(envs.stage(1, &[3]) && envs.stage(2, &[4]));
         assert_eq!(envs.outstanding(), 2, "staged envs are outstanding");
@@ -567,16 +610,20 @@ mod tests {
             (vec![0, 3], vec![0, 1]),
             "env 1 into slot 0"
         );
-        envs.arrive(0, 0..2, Vec::new(), None);
+        envs.arrive(0, 0..2, &PLAIN, Vec::new(), None);
         assert_eq!((envs.outstanding(), envs.num_ready()), (2, 1));
-        let got = envs.take(1, 8, &slots);
+        let got = envs.take(1, false, 8, &slots);
         assert_eq!((got.env_ids, envs.outstanding()), (vec![1], 1));
         // Worker 1 restarts: its staged env 2 is ready with the restart's rows; env 3, which
         // the caller holds, keeps them for its next send.
-        envs.arrive(1, 2..4, Vec::new(), Some(false));
+        envs.arrive(1, 2..4, &PLAIN, Vec::new(), Some(false));
         assert_eq!((envs.outstanding(), envs.num_ready()), (1, 1));
         assert!(!envs.stage(3, &[0]), "its restart's rows are ready at once");
         assert_eq!((envs.outstanding(), envs.num_ready()), (2, 2));
+        let got = envs.take(2, false, 8, &slots);
+        // (The intake marks a restart's rows in the slot; here only the runs say so.)
+        assert!(got.restarted && got.env_ids == [2, 3]);
+        assert_eq!(envs.outstanding(), 0);
         envs.clear();
         assert_eq!(envs.outstanding(), 0);
     }

@@ -21,7 +21,7 @@ pub(super) enum StepActions<'a> {
 
 impl StepActions<'_> {
     /// Write them into a command's payload `p` (`aw` words per env; `ab` bytes per raw action).
-    fn write(self, p: &mut [u64], aw: usize, ab: usize) {
+    pub(super) fn write(self, p: &mut [u64], aw: usize, ab: usize) {
         match self {
             StepActions::Words(w) => p.copy_from_slice(w),
             StepActions::Rows(Actions::Indices(a)) => {
@@ -103,23 +103,17 @@ impl Supervisor {
         };
         let s = &mut self.workers[k];
         s.seq = next_seq(s.seq, s.delivered);
-        s.target = slot;
-        s.whole_call = matches!(target, Target::Slot(_));
         s.ports
             .send_cmd(s.seq, cmd.encode(), eps.len(), |p| p.copy_from_slice(&eps))?;
         s.pending_now();
         Ok(())
     }
 
-    /// The reset that brings worker `k`'s envs back after it was replaced: for a whole-batch
-    /// call (`whole`), into the slot of the call it interrupted; for the async API, each env
-    /// into its own ([`super::async_envs::AsyncEnvs::restart_targets`]).
-    pub(super) fn send_restart(&mut self, k: usize, whole: bool) -> Result<(), PoolError> {
+    /// The reset that brings worker `k`'s envs back after it was replaced, each env into its
+    /// slot ([`super::async_envs::AsyncEnvs::restart_targets`]: an env in flight into the slot
+    /// its command named, as a whole-batch call's envs are).
+    pub(super) fn send_restart(&mut self, k: usize) -> Result<(), PoolError> {
         self.workers[k].restarted = true;
-        if whole {
-            let slot = self.workers[k].target as usize;
-            return self.send_reset(k, Target::Slot(slot.max(1) - 1), None);
-        }
         let envs = self.blocks[k].clone();
         let uniform = self.async_api.whole_blocks;
         let targets = self.async_api.envs.restart_targets(envs, uniform);
@@ -140,13 +134,7 @@ impl Supervisor {
         partial: bool,
     ) -> Result<bool, PoolError> {
         if self.workers[k].cut {
-            match target {
-                Target::Slot(_) => {
-                    self.workers[k].restarted = true;
-                    self.send_reset(k, target, None)?;
-                }
-                Target::Each(_) => self.send_restart(k, false)?,
-            }
+            self.send_restart(k)?;
             return Ok(false);
         }
         let served = match target {
@@ -165,8 +153,6 @@ impl Supervisor {
         let words = self.blocks[k].len() * aw;
         let s = &mut self.workers[k];
         s.seq = next_seq(s.seq, s.delivered);
-        s.target = slot;
-        s.whole_call = matches!(target, Target::Slot(_));
         s.served += served as u64;
         s.ports
             .send_cmd(s.seq, cmd.encode(), words + each.len(), |p| {

@@ -2,9 +2,9 @@
 //! ([`Supervisor::poll_all`]), and every answer that says its envs' rows are written is
 //! decoded and checked here, once, before anyone reads a row ([`Supervisor::checked`]: its
 //! words, the flag bytes of the rows it names, the extra info beside it). A worker whose
-//! answer fails a check is handled as a failed worker ([`FailureCause::Corrupt`]). The calls
-//! fold checked answers ([`Supervisor::take_checked`]) into their results: a whole-batch call's in `slot_answers.rs`, the
-//! async API's in `async_api.rs`.
+//! answer fails a check is handled as a failed worker ([`FailureCause::Corrupt`]). A checked
+//! answer ([`Supervisor::take_checked`]) becomes ready runs of the one lane (`async_api.rs`,
+//! `async_envs.rs`), whichever API sent it.
 
 use std::ops::Range;
 
@@ -110,8 +110,7 @@ impl Supervisor {
                     (LinkState::Starting { then_reset, .. }, Some(BlockKind::Ready)) => {
                         if *then_reset {
                             drop(sample);
-                            let whole = s.whole_call;
-                            self.send_restart(k, whole)?;
+                            self.send_restart(k)?;
                         } else {
                             s.state = LinkState::Idle;
                         }
@@ -173,10 +172,10 @@ impl Supervisor {
             |e| self.async_api.envs.last_slot(e),
             &mut at,
         );
-        let Some((_, apart)) = self.checked(k, &answer, &at)? else {
+        let Some((decoded, apart)) = self.checked(k, &answer, &at)? else {
             return Ok(());
         };
-        if let Err(what) = self.async_api.envs.arrive_rows(k, &envs, apart) {
+        if let Err(what) = self.async_api.envs.arrive_rows(k, &envs, &decoded, apart) {
             return self.lose_corrupt(k, format!("its answer {}: {what}", answer.seq));
         }
         self.workers[k].restart_streak = 0;

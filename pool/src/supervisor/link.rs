@@ -111,10 +111,6 @@ pub(super) struct WorkerLink {
     /// its next command resets them (and they report `restarted`).
     pub(super) cut: bool,
     pub(super) stderr_path: PathBuf,
-    /// The `target` word of its last command ([`crate::wire::Command::target`]), and whether that command
-    /// was of a whole-batch call (every env into that slot) rather than of the async API.
-    pub(super) target: u32,
-    pub(super) whole_call: bool,
     /// Failures of this worker in a row, with no answer to a command in between (see
     /// [`restart_backoff`]); an answer ends the streak.
     pub(super) restart_streak: u32,
@@ -197,8 +193,6 @@ impl WorkerLink {
             delivered: None,
             first_episodes: true,
             stderr_path: PathBuf::new(),
-            target: 0,
-            whole_call: false,
             action_extras: None,
         }
     }

@@ -14,16 +14,18 @@
 //! read (`Answer`, `wire/answer.rs`). The caller's wait ([`Pool::wait`], through the pool's
 //! one wait loop in `waiting.rs`) polls the workers' answer ports (`intake.rs`:
 //! `Supervisor::poll_all`, which decodes and checks every answer of every kind in one place),
-//! folds each answer into the call's (`slot_answers.rs`), and returns a [`crate::SlotAnswer`]:
-//! the slot, and whether to read final observations, restarts or extra info. The Python front
+//! turns each answer into a ready run of the pool's one lane (`async_api.rs`: a whole-batch
+//! call is a send of every env, each worker block one run, and a receive of all of them in env
+//! order, `async_envs.rs`, `ready_set.rs`), and returns a [`crate::Received`]: a view of the
+//! slot, and whether to read final observations, restarts or extra info. The Python front
 //! reads the slot's rows as numpy views (`python/src/pool/sync_api.rs`,
 //! `python/rogue_gym/front/core.py`). Every file a step runs code in, with its functions, is
 //! measured by `benchmarks/walk.py` (`benchmarks/results/walk/walk-step.md`).
 //!
-//! The async API (`async_api.rs`: `send`/`recv`, env by env) sends the same commands, a
-//! subset of a block's envs at a time, each env's rows into a slot of its own, and turns
-//! answers into ready envs (`async_envs.rs`), handed over in the order they were sent
-//! (`ready_set.rs`); every answer's rows are in the slots. Each worker's link and its states
+//! The async API (`async_api.rs`: `send`/`recv`, env by env) goes the same lane: the same
+//! commands, a subset of a block's envs at a time, each env a run of its own with its rows in
+//! a slot of its own, handed over in the order they were sent; every answer's rows are in the
+//! slots. Each worker's link and its states
 //! are `link.rs`, its processes `processes.rs`, its failures `failures.rs`; env calls go
 //! through files (`calls.rs`); planned replacements of workers are `recycling.rs`; the
 //! supervisor's state is grouped by concern in `state.rs`; how its sides wait beside other
@@ -32,7 +34,7 @@
 //! finishes (`worker/concurrent.rs`).
 //!
 //! Modules: `actions`, `async_api`, `async_envs`, `calls`, `commands`, `failures`, `intake`,
-//! `link`, `machine`, `processes`, `ready_set`, `recycling`, `slot_answers`, `state`,
+//! `link`, `machine`, `processes`, `ready_set`, `recycling`, `state`,
 //! `stepping`, `waiting`.
 
 mod actions;
@@ -47,7 +49,6 @@ mod machine;
 mod processes;
 mod ready_set;
 mod recycling;
-mod slot_answers;
 mod state;
 mod stepping;
 mod waiting;
@@ -73,7 +74,6 @@ use crate::wire::{
 
 pub use actions::{Actions, validate_actions};
 pub use async_api::RecvWant;
-pub use async_envs::Received;
 use link::WorkerLink;
 pub use machine::MachineView;
 use state::{AsyncState, CallInFlight, Failures, Recycling};
@@ -477,8 +477,7 @@ impl Pool {
     /// slots).
     fn all_idle(&mut self, slots: bool) -> Result<(), PoolError> {
         let pending = "async requests are outstanding: recv() them before a sync reset/step";
-        let received =
-            |c: &Supervisor| !slots || !c.async_api.on || c.async_api.envs.outstanding() == 0;
+        let received = |c: &Supervisor| !slots || c.async_api.envs.outstanding() == 0;
         if received(&self.sup) && self.sup.workers.iter().all(|s| s.state.is_idle()) {
             return Ok(());
         }

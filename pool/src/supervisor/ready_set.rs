@@ -1,32 +1,70 @@
-//! The async API's ready set, and the rule of fair service.
+//! The ready set of the pool's one lane, and the rule of fair service.
 //!
-//! Each env sent takes the next ticket of one counter (the envs of one `send` in the order
-//! given). The envs whose results are ready are kept by ticket, so `recv` hands over the env
-//! sent first, whatever its worker and whenever its answer arrived: a worker that runs late
-//! (a busy machine) loses no turns, its envs once answered going before envs sent after
-//! them. And where the env sent first is not ready yet but only a little late (within the
-//! usual answer time and as much again, at most [`PATIENCE`] more: [`ReadySet::patience`]),
+//! Every send is of runs of envs: an async `send` sends each env as a run of its own (in the
+//! order given), a whole-batch call each worker block as one run (in block order, so its
+//! envs come back in env order: `order = i`). Each run takes the next ticket of one counter.
+//! The runs whose answers are in are kept by ticket, so a receive hands over the env sent
+//! first, whatever its worker and whenever its answer arrived: a worker that runs late (a
+//! busy machine) loses no turns, its envs once answered going before envs sent after them.
+//! And where the run sent first is not ready yet but only a little late (within the usual
+//! answer time and as much again, at most [`PATIENCE`] more: [`ReadySet::patience`]), a
 //! `recv` waits that long for it rather than hand over envs sent after it, so that a worker
 //! that wakes a little later than its mates (on a core shared with the caller) is not passed
 //! over again and again; an env much later than usual (a slow reset) is not waited for.
 
 use std::collections::BTreeMap;
+use std::ops::Range;
 use std::time::{Duration, Instant};
+
+use super::intake::Apart;
+use crate::wire::answer::AnswerExtras;
 
 /// The most a `recv` waits past the usual answer time for the env sent first
 /// ([`ReadySet::patience`]): about what a wake-up across cores costs on a busy VM, twice.
 pub(super) const PATIENCE: Duration = Duration::from_micros(200);
 
-/// The envs sent and not yet handed over, by ticket: those whose result is ready, and those
-/// still on their way.
+/// A run of envs sent together whose answer is in: their rows in batch slot `slot`.
+#[derive(Debug)]
+pub(super) struct Run {
+    /// The envs, consecutive and of one worker.
+    pub(super) envs: Range<usize>,
+    pub(super) slot: usize,
+    /// It answers a restart of its worker (its rows say so, and carry no extra info), by plan
+    /// (`recycled`) or after a failure.
+    pub(super) restart: bool,
+    pub(super) recycled: bool,
+    /// What the worker's answer said of its envs' extra info and final observations.
+    pub(super) extras: AnswerExtras,
+    pub(super) final_obs: bool,
+    /// The extra info of its envs that travelled beside the answer.
+    pub(super) apart: Apart,
+}
+
+impl Run {
+    /// The run of `envs` in `slot` answering a restart of their worker.
+    pub(super) fn restart(envs: Range<usize>, slot: usize, recycled: bool) -> Self {
+        Run {
+            envs,
+            slot,
+            restart: true,
+            recycled,
+            extras: AnswerExtras::None,
+            final_obs: false,
+            apart: Vec::new(),
+        }
+    }
+}
+
+/// The runs sent and not yet handed over, by ticket: those whose answer is in, and those still
+/// on their way.
 pub(super) struct ReadySet {
-    /// The ready envs by ticket: the first is the one sent first.
-    ready: BTreeMap<u64, usize>,
-    /// The envs sent and not ready yet, by ticket.
-    pending: BTreeMap<u64, usize>,
-    /// Each env's ticket (from its last send) and when it was sent; the next ticket.
+    /// The ready runs by ticket (the first is the one sent first), and their envs.
+    ready: BTreeMap<u64, Run>,
+    ready_envs: usize,
+    /// The runs sent and not ready yet: when each was sent, by ticket.
+    pending: BTreeMap<u64, Instant>,
+    /// Each env's ticket (of its run's last send); the next ticket.
     ticket: Vec<u64>,
-    sent_at: Vec<Instant>,
     next_ticket: u64,
     /// The usual time from a send to its answer (a moving average), ns; 0 before the first.
     usual_ns: u64,
@@ -37,81 +75,100 @@ impl ReadySet {
     pub(super) fn new(num_envs: usize) -> Self {
         ReadySet {
             ready: BTreeMap::new(),
+            ready_envs: 0,
             pending: BTreeMap::new(),
             ticket: vec![0; num_envs],
-            sent_at: vec![Instant::now(); num_envs],
             next_ticket: 0,
             usual_ns: 0,
         }
     }
 
-    /// Forget every env (a reset starts them all afresh).
+    /// Forget every run (a reset starts every env afresh).
     pub(super) fn clear(&mut self) {
         self.ready.clear();
+        self.ready_envs = 0;
         self.pending.clear();
     }
 
-    /// Env `e` was sent just now: it takes the next ticket.
-    pub(super) fn sent(&mut self, e: usize) {
-        self.ticket[e] = self.next_ticket;
+    /// The run `envs` was sent just now: it takes the next ticket.
+    pub(super) fn sent(&mut self, envs: Range<usize>) {
+        let t = self.next_ticket;
         self.next_ticket += 1;
-        self.sent_at[e] = Instant::now();
-        self.pending.insert(self.ticket[e], e);
+        self.ticket[envs].fill(t);
+        self.pending.insert(t, Instant::now());
     }
 
-    /// Env `e`'s result is ready: in the set at its ticket; its time from send to answer feeds
-    /// the usual one.
-    pub(super) fn ready(&mut self, e: usize) {
-        self.ready.insert(self.ticket[e], e);
-        if self.pending.remove(&self.ticket[e]).is_some() {
-            let took = self.sent_at[e]
-                .elapsed()
-                .as_nanos()
-                .min(u128::from(u32::MAX)) as u64;
+    /// Whether envs `a` and `b` went in one run (the same send).
+    pub(super) fn same_run(&self, a: usize, b: usize) -> bool {
+        self.ticket[a] == self.ticket[b]
+    }
+
+    /// The answer of a run is in (`run.envs`: all of its envs, or the rest of them when some
+    /// failed): in the set at its ticket; its time from send to answer feeds the usual one.
+    pub(super) fn ready(&mut self, run: Run) {
+        let t = self.ticket[run.envs.start];
+        if let Some(sent_at) = self.pending.remove(&t) {
+            let took = sent_at.elapsed().as_nanos().min(u128::from(u32::MAX)) as u64;
             // A rare long one (a slow reset) moves the usual by a few times it at most.
             self.usual_ns = match self.usual_ns {
                 0 => took,
                 u => (u * 7 + took.min(4 * u)) / 8,
             };
         }
+        self.ready_envs += run.envs.len();
+        self.ready.insert(t, run);
     }
 
-    /// Env `e` will not answer (it failed): no longer on its way.
+    /// The ready run env `e` is in.
+    pub(super) fn ready_run(&mut self, e: usize) -> Option<&mut Run> {
+        self.ready.get_mut(&self.ticket[e])
+    }
+
+    /// Env `e`'s run will not answer (it failed): no longer on its way.
     pub(super) fn dropped(&mut self, e: usize) {
         self.pending.remove(&self.ticket[e]);
     }
 
-    /// Envs whose result is ready.
+    /// Envs whose answer is in.
     pub(super) fn len(&self) -> usize {
-        self.ready.len()
+        self.ready_envs
     }
 
-    /// The ready env sent first, if any.
-    pub(super) fn first(&self) -> Option<usize> {
-        self.ready.first_key_value().map(|(_, &e)| e)
+    /// Take the ready run sent first, at most `max` envs of it (the rest stays, first in
+    /// turn).
+    pub(super) fn pop(&mut self, max: usize) -> Option<Run> {
+        let (t, mut run) = self.ready.pop_first()?;
+        if run.envs.len() > max {
+            let rest = run.envs.start + max..run.envs.end;
+            let apart = run
+                .apart
+                .extract_if(.., |(e, _)| rest.contains(e))
+                .collect();
+            self.ready.insert(
+                t,
+                Run {
+                    envs: rest,
+                    apart,
+                    ..run
+                },
+            );
+            run.envs.end = run.envs.start + max;
+        }
+        self.ready_envs -= run.envs.len();
+        Some(run)
     }
 
-    /// The first `n` ready envs, in the order they will be handed over.
-    pub(super) fn peek(&self, n: usize) -> impl Iterator<Item = usize> + '_ {
-        self.ready.values().take(n).copied()
-    }
-
-    /// Take the ready env sent first.
-    pub(super) fn pop(&mut self) -> Option<usize> {
-        self.ready.pop_first().map(|(_, e)| e)
-    }
-
-    /// Until when a `recv` that has enough envs ready waits for the env sent first, when that
-    /// one is not ready yet but only a little late: sent before every ready env, within the
+    /// Until when a `recv` that has enough envs ready waits for the run sent first, when that
+    /// one is not ready yet but only a little late: sent before every ready run, within the
     /// usual answer time and as much again, at most [`PATIENCE`] more (`None`: hand over what
     /// is ready now).
     pub(super) fn patience(&self, now: Instant) -> Option<Instant> {
-        let (&t, &e) = self.pending.first_key_value()?;
+        let (&t, &sent_at) = self.pending.first_key_value()?;
         if self.ready.first_key_value().is_some_and(|(&r, _)| r < t) || self.usual_ns == 0 {
             return None;
         }
         let usual = Duration::from_nanos(self.usual_ns);
-        let until = self.sent_at[e] + usual + usual.min(PATIENCE);
+        let until = sent_at + usual + usual.min(PATIENCE);
         (now < until).then_some(until)
     }
 }
@@ -120,56 +177,90 @@ impl ReadySet {
 mod tests {
     use super::*;
 
-    #[test]
-    fn the_env_sent_first_is_handed_over_first_whenever_it_became_ready() {
-        let mut s = ReadySet::new(4);
-        for e in [2, 0, 3, 1] {
-            s.sent(e);
+    fn run(envs: Range<usize>) -> Run {
+        Run {
+            restart: false,
+            ..Run::restart(envs, 0, false)
         }
-        // Answers arrive in another order than the sends.
-        for e in [1, 3, 0] {
-            s.ready(e);
-        }
-        assert_eq!(s.peek(3).collect::<Vec<_>>(), vec![0, 3, 1]);
-        assert_eq!((s.pop(), s.len()), (Some(0), 2));
-        s.ready(2);
-        assert_eq!(
-            s.first(),
-            Some(2),
-            "sent first, answered last, served first"
-        );
+    }
+
+    fn firsts(s: &mut ReadySet, n: usize) -> Vec<Range<usize>> {
+        (0..n)
+            .filter_map(|_| s.pop(usize::MAX))
+            .map(|r| r.envs)
+            .collect()
     }
 
     #[test]
-    fn a_little_late_first_env_is_waited_for_a_much_later_one_is_not() {
+    fn the_run_sent_first_is_handed_over_first_whenever_it_became_ready() {
+        let mut s = ReadySet::new(4);
+        for e in [2, 0, 3, 1] {
+            s.sent(e..e + 1);
+        }
+        // Answers arrive in another order than the sends.
+        for e in [1, 3, 0] {
+            s.ready(run(e..e + 1));
+        }
+        assert_eq!(s.len(), 3);
+        assert_eq!(s.pop(1).map(|r| r.envs), Some(0..1));
+        s.ready(run(2..3));
+        assert_eq!(
+            firsts(&mut s, 3),
+            vec![2..3, 3..4, 1..2],
+            "sent first, served first"
+        );
+        assert_eq!(s.len(), 0);
+    }
+
+    #[test]
+    fn a_whole_batch_call_comes_back_in_env_order_and_splits_as_asked() {
+        // Two worker blocks sent as runs; the second answers first.
+        let mut s = ReadySet::new(6);
+        s.sent(0..4);
+        s.sent(4..6);
+        assert!(s.same_run(0, 3) && !s.same_run(3, 4));
+        s.ready(run(4..6));
+        let mut first = run(0..4);
+        first.apart = vec![(1, vec![1]), (3, vec![3])];
+        s.ready(first);
+        assert_eq!(s.len(), 6);
+        let head = s.pop(3).expect("a run is ready");
+        assert_eq!((head.envs, head.apart), (0..3, vec![(1, vec![1])]));
+        let rest = s.pop(usize::MAX).expect("the rest stays first in turn");
+        assert_eq!((rest.envs, rest.apart), (3..4, vec![(3, vec![3])]));
+        assert_eq!(firsts(&mut s, 2), vec![4..6]);
+    }
+
+    #[test]
+    fn a_little_late_first_run_is_waited_for_a_much_later_one_is_not() {
         let mut s = ReadySet::new(3);
         let t0 = Instant::now();
-        s.sent(0);
-        s.sent(1);
+        s.sent(0..1);
+        s.sent(1..2);
+        let sent_at = |s: &ReadySet, e: usize| s.pending[&s.ticket[e]];
+        let (at0, at1) = (sent_at(&s, 0), sent_at(&s, 1));
         assert_eq!(
             s.patience(t0),
             None,
             "no usual answer time yet: nothing to wait by"
         );
-        s.ready(1);
+        s.ready(run(1..2));
         // Env 0 was sent before the ready env 1: worth a wait, but only a short one.
         // Asked at the moment env 1 was sent (a loaded machine may run this test long after).
-        let until = s
-            .patience(s.sent_at[1])
-            .expect("env 0 is only a little late");
-        assert!(until <= s.sent_at[0] + 2 * Duration::from_nanos(s.usual_ns) + PATIENCE);
+        let until = s.patience(at1).expect("env 0 is only a little late");
+        assert!(until <= at0 + 2 * Duration::from_nanos(s.usual_ns) + PATIENCE);
         assert_eq!(
             s.patience(until),
             None,
             "past its patience: hand over what is ready"
         );
-        s.ready(0);
+        s.ready(run(0..1));
         assert_eq!(
             s.patience(Instant::now()),
             None,
             "the env sent first is ready"
         );
-        s.sent(2);
+        s.sent(2..3);
         s.dropped(2);
         assert_eq!(
             s.patience(Instant::now()),

@@ -22,6 +22,9 @@ pub(super) struct CallInFlight {
     /// The whole-batch call sent and not yet collected ([`crate::Pool::send_step`],
     /// [`crate::Pool::wait`]).
     pub(super) sent: Option<SentCall>,
+    /// When the latest answer of the whole-batch call in flight was published (the workers'
+    /// stamp, `CLOCK_MONOTONIC`, ns).
+    pub(super) ready_ns: u64,
     /// How long the workers took to answer the last whole-batch call they were waited for:
     /// the next wait sleeps through most of it and polls for the rest.
     pub(super) expected_answer: Option<Duration>,
@@ -38,6 +41,7 @@ impl CallInFlight {
             faults: Vec::new(),
             discard_faults: false,
             sent: None,
+            ready_ns: 0,
             expected_answer: None,
             wait_now: None,
         }

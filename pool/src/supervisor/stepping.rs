@@ -3,37 +3,33 @@
 //!
 //! Each call is a send ([`Pool::send_step`], [`Pool::send_reset`], whole or partial) and a
 //! wait ([`Pool::wait`]); [`Pool::step`] and [`Pool::reset`] are the two at once.
-//! [`Pool::read_slot`] copies an answer's rows out, for callers that want copies.
+//! [`Pool::read_rows`] copies an answer's rows out, for callers that want copies.
 
 use std::time::{Duration, Instant};
 
 use super::Pool;
 use super::actions::Actions;
+use super::async_api::RecvWant;
 use super::commands::StepActions;
 use super::link::Target;
-use super::slot_answers::SlotCollect;
-use crate::batch::{BatchOutput, SlotAnswer, SlotExtras};
+use crate::batch::{BatchOutput, Received, SlotExtras};
 use crate::error::PoolError;
 use crate::wire::slot_layout::{SlotLayout, SlotRows};
 
-/// A whole-batch call (step, reset, partial reset) sent to every worker and not yet collected
-/// (the supervisor's `call.sent`): its slot, when it was sent, and its answers taken so far.
+/// A whole-batch call (step, reset, partial reset) sent to every worker and not yet received
+/// (the supervisor's `call.sent`): when it was sent, and the same on the clock the workers
+/// stamp their answers with (`CLOCK_MONOTONIC`, ns).
 pub(super) struct SentCall {
-    /// When it was sent, and the same on the clock the workers stamp their answers with
-    /// (`CLOCK_MONOTONIC`, ns).
     at: Instant,
     at_ns: u64,
-    /// Its answers so far (the slot they are written in, among them).
-    answers: SlotCollect,
 }
 
 impl SentCall {
-    /// A whole-batch call into slot `slot`, sent to every worker just now.
-    fn now(slot: usize) -> Self {
+    /// A whole-batch call, sent to every worker just now.
+    fn now() -> Self {
         SentCall {
             at: Instant::now(),
             at_ns: rogue_gym_ipc::monotonic_ns(),
-            answers: SlotCollect::new(slot),
         }
     }
 }
@@ -43,7 +39,7 @@ impl Pool {
     /// wait for the answers, written into the next batch slot (see [`Pool::send_step`] for how
     /// long a slot stays unchanged). See [`crate::AutoresetMode`] for what a step after or at
     /// an episode end returns.
-    pub fn step<'a>(&mut self, actions: impl Into<Actions<'a>>) -> Result<SlotAnswer, PoolError> {
+    pub fn step<'a>(&mut self, actions: impl Into<Actions<'a>>) -> Result<Received, PoolError> {
         self.send_step(actions)?;
         self.collect(None)?
             .ok_or_else(|| PoolError::State("a step without a timeout timed out".into()))
@@ -51,7 +47,7 @@ impl Pool {
 
     /// Reset every env, or with `mask` the envs whose entry is true (see
     /// [`Pool::send_reset`]), and wait for the answers, written into the next batch slot.
-    pub fn reset(&mut self, mask: Option<&[bool]>) -> Result<SlotAnswer, PoolError> {
+    pub fn reset(&mut self, mask: Option<&[bool]>) -> Result<Received, PoolError> {
         self.send_reset(mask)?;
         self.collect(None)?
             .ok_or_else(|| PoolError::State("a reset without a timeout timed out".into()))
@@ -85,14 +81,14 @@ impl Pool {
         if replaced {
             self.all_idle(true)?;
         }
-        let slot = self.sup.next_slot;
+        let slot = self.sup.send_whole();
         let ab = self.sup.spec.action_bytes;
         for k in 0..self.sup.workers.len() {
             let rows = self.sup.blocks[k].clone();
             let actions = StepActions::Rows(actions.rows(rows, ab));
             self.send_or_fail(|c| c.send_step(k, actions, Target::Slot(slot), false).map(drop))?;
         }
-        self.sup.call.sent = Some(SentCall::now(slot));
+        self.sup.call.sent = Some(SentCall::now());
         Ok(slot)
     }
 
@@ -133,64 +129,54 @@ impl Pool {
                 self.all_idle(true)?;
             }
         }
-        let slot = self.sup.next_slot;
+        let slot = self.sup.send_whole();
         for k in 0..self.sup.workers.len() {
             self.send_or_fail(|c| c.send_reset(k, Target::Slot(slot), mask))?;
         }
         if mask.is_none() {
             self.sup.failures.must_reset = false;
         }
-        self.sup.call.sent = Some(SentCall::now(slot));
+        self.sup.call.sent = Some(SentCall::now());
         Ok(slot)
     }
 
     /// The second half of a whole-batch call ([`Pool::send_step`], [`Pool::send_reset`]):
     /// wait at most `timeout` (and always within the call's bound, [`Pool::call_bound`]) for
-    /// every worker's answer. `Some` answer when all answered; `None` when `timeout` passed
-    /// first: the call stays pending, so wait again. An error abandons it: the pool then needs
-    /// a reset.
-    pub fn wait(&mut self, timeout: Option<Duration>) -> Result<Option<SlotAnswer>, PoolError> {
+    /// every worker's answer. `Some` answer when all answered: every env's rows in env order,
+    /// a view of the call's slot; `None` when `timeout` passed first: the call stays pending,
+    /// so wait again. An error abandons it: the pool then needs a reset.
+    pub fn wait(&mut self, timeout: Option<Duration>) -> Result<Option<Received>, PoolError> {
         self.begin_call()?;
         self.collect(timeout)
     }
 
     /// [`Pool::wait`] within the bound of the call in progress (the send and the wait of
-    /// [`Pool::step`] are one call).
-    fn collect(&mut self, timeout: Option<Duration>) -> Result<Option<SlotAnswer>, PoolError> {
-        let Some(mut sent) = self.sup.call.sent.take() else {
+    /// [`Pool::step`] are one call): the receive of every env, in env order.
+    fn collect(&mut self, timeout: Option<Duration>) -> Result<Option<Received>, PoolError> {
+        let Some(sent) = self.sup.call.sent.take() else {
             return Err(PoolError::State(
                 "no step or reset is pending: send_step() or send_reset() first".into(),
             ));
         };
         let until = timeout.map(|t| Instant::now() + t);
-        let workers = self.sup.workers.len();
         self.sup.call.wait_now = self.sup.expected_wait(sent.at);
-        let mut polls = 0;
-        let done = self.wait_for(
-            |c| {
-                polls += 1;
-                c.take_slot_answers(&mut sent.answers)?;
-                Ok(sent.answers.answered == workers)
-            },
-            until,
-        );
+        let every = RecvWant::exactly(self.sup.cfg.num_envs);
+        let got = self.receive(every, until, true);
         self.sup.call.wait_now = None;
-        match done {
-            Ok(false) => {
+        match got {
+            Ok(None) => {
                 self.sup.call.sent = Some(sent);
                 Ok(None)
             }
-            Ok(true) => {
-                if polls > 1 {
-                    // Waited for: how long the workers took (by their own stamps, not by when
-                    // this side saw the answers: a late look must not lengthen the next wait).
-                    let took = sent.answers.ready_ns.saturating_sub(sent.at_ns);
-                    self.sup.call.expected_answer = Some(Duration::from_nanos(took));
-                }
-                let answer = sent.answers.answer;
-                self.sup.next_slot = (answer.slot + 1) % self.sup.cfg.batch_slots;
-                self.sup.async_api.envs.whole_call(answer.slot);
-                Ok(Some(answer))
+            Ok(Some(got)) => {
+                // How long the workers took (by their own stamps, not by when this side saw
+                // the answers: a late look must not lengthen the next wait).
+                let took = self.sup.call.ready_ns.saturating_sub(sent.at_ns);
+                self.sup.call.expected_answer = Some(Duration::from_nanos(took));
+                let slot = got.slot().unwrap_or(self.sup.next_slot);
+                self.sup.next_slot = (slot + 1) % self.sup.cfg.batch_slots;
+                self.sup.recycling.replaced_envs.clone_from(&got.recycled);
+                Ok(Some(got))
             }
             Err(e) => {
                 // The workers that answered are idle, the others are drained by the reset.
@@ -209,16 +195,17 @@ impl Pool {
         send(&mut self.sup).inspect_err(|_| self.sup.failures.must_reset = true)
     }
 
-    /// Copy an answer's rows out: every env's record into `out` (cleared first) and, with
-    /// `obs_out` (`num_envs x obs_bytes`, env-major), the observations. The Rust API's copying
-    /// form of the rows a binding reads in place.
-    pub fn read_slot(
+    /// Copy a result's rows out: every row's record into `out` (cleared first) and, with
+    /// `obs_out` (`rows x obs_bytes`, row-major), the observations; a view's from its slot
+    /// (final observations too), gathered rows from their copies. The Rust API's copying form
+    /// of the rows a binding reads in place.
+    pub fn read_rows(
         &self,
-        a: &SlotAnswer,
+        a: &Received,
         obs_out: Option<&mut [u8]>,
         out: &mut BatchOutput,
     ) -> Result<(), PoolError> {
-        let n = self.sup.cfg.num_envs;
+        let n = a.env_ids.len();
         let ob = self.sup.spec.obs_bytes();
         if let Some(o) = &obs_out
             && o.len() != n * ob
@@ -229,27 +216,40 @@ impl Pool {
                 got: o.len(),
             });
         }
-        let rows = self.sup.rows_of(a.slot)?;
         out.clear();
         let n_info = self.sup.spec.info_names.len();
+        let Some((slot, first)) = a.view else {
+            for (&e, r) in a.env_ids.iter().zip(&a.records) {
+                out.push(e, r, n_info, None);
+            }
+            if let Some(o) = obs_out {
+                o.copy_from_slice(&a.obs);
+            }
+            if let SlotExtras::Rows(x) = &a.extras {
+                out.extras = x.iter().map(|(r, b)| (a.env_ids[*r], b.clone())).collect();
+            }
+            return Ok(());
+        };
+        let rows = self.sup.rows_of(slot)?;
+        let envs = first..first + n;
         // SAFETY: no call runs (`&self`), so no worker writes the slot; only read here.
-        let (obs, fin) = unsafe { (rows.obs_rows(0..n), rows.final_rows(0..n)) };
+        let (obs, fin) = unsafe { (rows.obs_rows(envs.clone()), rows.final_rows(envs.clone())) };
         if let Some(o) = obs_out {
             o.copy_from_slice(obs);
         }
-        for i in 0..n {
-            let f = (!fin.is_empty()).then(|| &fin[i * ob..(i + 1) * ob]);
-            out.push(i, &rows.read(i), n_info, f);
+        for (r, e) in envs.clone().enumerate() {
+            let f = (!fin.is_empty()).then(|| &fin[r * ob..(r + 1) * ob]);
+            out.push(e, &rows.read(e), n_info, f);
         }
         out.extras = match &a.extras {
             SlotExtras::None => Vec::new(),
-            SlotExtras::Rows(rows) => rows.clone(),
+            SlotExtras::Rows(x) => x.iter().map(|(r, b)| (first + r, b.clone())).collect(),
             &SlotExtras::Uniform(size) => {
                 let xb = self.sup.spec.extra_bytes;
                 // SAFETY: as above.
-                let x = unsafe { rows.extra_rows(0..n) };
-                (0..n)
-                    .map(|i| (i, x[i * xb..i * xb + size.min(xb)].to_vec()))
+                let x = unsafe { rows.extra_rows(envs.clone()) };
+                (envs.enumerate())
+                    .map(|(r, e)| (e, x[r * xb..r * xb + size.min(xb)].to_vec()))
                     .collect()
             }
         };
@@ -306,6 +306,15 @@ impl Pool {
 }
 
 impl super::Supervisor {
+    /// Note a whole-batch call sent to every env, into the next slot, which it returns: each
+    /// worker block one run of the lane, in block order ([`super::async_envs`]).
+    pub(super) fn send_whole(&mut self) -> usize {
+        let slot = self.next_slot;
+        self.call.ready_ns = 0;
+        self.async_api.envs.send_whole(slot, &self.blocks);
+        slot
+    }
+
     /// The rows of slot `slot` (from `slots`, made once: a slot's rows are the same for the
     /// pool's life).
     pub(super) fn rows_of(&self, slot: usize) -> Result<SlotRows, PoolError> {

@@ -40,7 +40,7 @@ use std::sync::{Arc, Condvar, Mutex, PoisonError, RwLock};
 use rogue_gym_ipc::CmdWaker;
 
 use super::env_threads::{Area, Ctx, Done, Job, Shared, batch_scheduling, env_thread, guard};
-use super::envs::{WorkerEnvs, lock, take_action_extras};
+use super::envs::{WorkerEnvs, lock};
 use super::executor::Incoming;
 use super::{Worker, WorkerError};
 use crate::stats::Counter;
@@ -163,6 +163,7 @@ impl Worker<'_> {
         shared: &Shared,
         inc: Incoming,
         targets: Vec<u64>,
+        extras: Result<(), EnvFault>,
     ) -> Result<Running, WorkerError> {
         let envs: Vec<usize> = (0..self.block_envs).filter(|&j| targets[j] != 0).collect();
         let Incoming {
@@ -171,11 +172,6 @@ impl Worker<'_> {
             payload,
         } = inc;
         let kind = command.serve().unwrap_or(Serve::Reset);
-        if command.reload_seeds {
-            self.seeds = super::setup::read_config(&self.args.config)
-                .map_err(WorkerError::Msg)?
-                .seeds;
-        }
         self.stats.add(self.args.index, Counter::Commands, 1);
         let mut areas: Vec<[Area; 3]> = Vec::with_capacity(envs.len());
         for &j in &envs {
@@ -198,15 +194,8 @@ impl Worker<'_> {
             remaining: envs.len(),
             answer: AnswerBuilder::default(),
             apart: Vec::new(),
-            fault: None,
+            fault: extras.err(),
         };
-        if kind == Serve::Step && command.action_extras {
-            let me = (self.args.index, self.args.generation);
-            if let Err(f) = take_action_extras(&self.id, me, &mut self.envs, self.first_env as u64)
-            {
-                r.fault = Some(f);
-            }
-        }
         if r.fault.is_some() {
             r.remaining = 0;
             return Ok(r);

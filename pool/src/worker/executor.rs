@@ -24,11 +24,12 @@ use rogue_gym_ipc::{BlockHeader, WaitCall, WaitPolicy, hybrid_wait};
 
 use super::concurrent::{Finished, Running};
 use super::env_threads::{Shared, guard};
+use super::envs::take_action_extras;
 use super::{Worker, WorkerError};
 use crate::stats::{Counter, ns_since, stamp};
 use crate::wire::answer::{ANSWER_WORDS, Answer, BlockKind, sample_words};
 use crate::wire::slot_layout::SlotRows;
-use crate::wire::{Command, EnvFault, Op, Pace, calls, extra_apart_path};
+use crate::wire::{Command, EnvFault, Op, Pace, Serve, calls, extra_apart_path};
 
 /// The longest a worker polls for a command it expects soon ([`expected_poll`]).
 const MAX_EXPECTED_POLL: Duration = Duration::from_millis(2);
@@ -135,6 +136,31 @@ impl Worker<'_> {
         }
     }
 
+    /// Before a reset or step is served, inline or on threads: the seed schedule re-read
+    /// where the command says, and a step's action extras handed to its envs (their failure is
+    /// the command's, answered as its env fault).
+    fn prepare(
+        &mut self,
+        command: &Command,
+        kind: Serve,
+    ) -> Result<Result<(), EnvFault>, WorkerError> {
+        if command.reload_seeds {
+            self.seeds = super::setup::read_config(&self.args.config)
+                .map_err(WorkerError::Msg)?
+                .seeds;
+        }
+        if kind != Serve::Step || !command.action_extras {
+            return Ok(Ok(()));
+        }
+        let me = (self.args.index, self.args.generation);
+        Ok(take_action_extras(
+            &self.id,
+            me,
+            &mut self.envs,
+            self.first_env as u64,
+        ))
+    }
+
     /// Start what the queue holds, in order, while the envs it names are idle; `true` when
     /// the supervisor closed the worker.
     fn start_waiting(
@@ -155,7 +181,8 @@ impl Worker<'_> {
                 Some(kind) => {
                     let named = self.check_command(next.seq, &next.command, &next.payload)?;
                     let Some(shared) = threads else {
-                        self.serve_inline(next.seq, &next.command, kind, &named)?;
+                        let ready = self.prepare(&next.command, kind)?;
+                        self.serve_inline(next.seq, kind, &named, ready)?;
                         let done = q.waiting.pop_front();
                         q.spare.extend(done.map(|inc| inc.payload));
                         continue;
@@ -167,7 +194,9 @@ impl Worker<'_> {
                     let Some(inc) = q.waiting.pop_front() else {
                         break;
                     };
-                    let r = self.start_command(shared, inc, targets)?;
+                    // Once, as it starts (its action extras are read once).
+                    let ready = self.prepare(&inc.command, kind)?;
+                    let r = self.start_command(shared, inc, targets, ready)?;
                     if r.remaining == 0 {
                         // Failed before any env started (its action extras): answered now.
                         self.answer_whole(r)?;

@@ -4,31 +4,24 @@
 
 use super::block_out::BlockOut;
 use super::env_state::ServeCtx;
-use super::envs::take_action_extras;
 use super::executor::{Named, Slots};
-use super::setup::read_config;
 use super::{Worker, WorkerError, streaming};
 use crate::stats::{Counter, ns_since, stamp};
 use crate::wire::answer::{AnswerBuilder, BlockKind};
-use crate::wire::{Command, Serve};
+use crate::wire::{EnvFault, Serve};
 
 impl Worker<'_> {
     /// A checked reset or step ([`Serve`]) served on the worker's own thread: every env it
     /// names (or the block's vector env) writes its rows in the batch slot the command names
     /// for it, slot by slot; their books written, the extra info apart beside the answer, one
-    /// answer for them all (or the env fault's).
+    /// answer for them all (or the env fault's: `extras`, the failure of its action extras).
     pub(super) fn serve_inline(
         &mut self,
         seq: u64,
-        command: &Command,
         kind: Serve,
         named: &Named<'_>,
+        extras: Result<(), EnvFault>,
     ) -> Result<(), WorkerError> {
-        if command.reload_seeds {
-            self.seeds = read_config(&self.args.config)
-                .map_err(WorkerError::Msg)?
-                .seeds;
-        }
         let (me, epw) = (self.args.index, self.block_envs);
         self.served += 1;
         let misdeed = self.misdeed(self.served);
@@ -39,13 +32,6 @@ impl Worker<'_> {
             autoreset: self.cfg.autoreset,
             action_bytes: self.action_bytes,
             n_info: self.n_info,
-        };
-        let first = self.first_env as u64;
-        let extras = if kind == Serve::Step && command.action_extras {
-            let me = (self.args.index, self.args.generation);
-            take_action_extras(&self.id, me, &mut self.envs, first)
-        } else {
-            Ok(())
         };
         // One pass per slot the command writes (a whole command writes one).
         let mut built = AnswerBuilder::default();

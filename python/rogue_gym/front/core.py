@@ -254,6 +254,10 @@ class Core:
         if view is not None:
             # Written in place as one run of envs: views of the slot (a copy with ``copy``).
             cols, obs = self._view(view[0], view[1], rows)
+            if extras is not None and extras[1] is None:
+                room = self.extra_rooms[view[0]]
+                assert room is not None
+                extras = (None, room[view[1] : view[1] + rows], extras[2], [])
             self.last = Result(cols, summary, extras, None, ids, obs.copy() if self.copy else obs)
         else:
             cols = {k: v[..., :rows] for k, v in self.cols[-1].items()}

@@ -9,7 +9,7 @@ use pyo3::types::PyTuple;
 use rogue_gym_pool::{Received, RecvWant};
 
 use super::PyPool;
-use super::results::join_extras;
+use super::results::{joined, summary};
 use crate::settings;
 
 #[pymethods]
@@ -93,14 +93,12 @@ impl PyPool {
         let want = RecvWant::resolve(min_batch, max_batch, timeout, self.batch_size);
         let got: Received = self.with_pool(py, move |p| p.recv_want(want))?;
         let rows = got.env_ids.len();
-        // A view's rows are in its slot, columns included: nothing to write (and no row of a
-        // view is a restart's).
-        let summary = if got.view.is_some() {
-            0
-        } else {
-            self.write_recv_columns(&got)?
-        };
-        let extras = join_extras(py, &got.extras, rows)?;
+        // A view's rows are in its slot, columns included: nothing to write.
+        if got.view.is_none() {
+            self.write_recv_columns(&got)?;
+        }
+        let summary = summary(&got, false);
+        let extras = joined(py, &got.extras, rows)?;
         let ids: Vec<i64> = got.env_ids.iter().map(|&e| e as i64).collect();
         let obs = match got.view {
             Some(_) => py.None().into_bound(py),

@@ -7,10 +7,10 @@ use numpy::PyUntypedArray;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
-use rogue_gym_pool::{EXTRA_HEAD, Received};
+use rogue_gym_pool::{EXTRA_HEAD, Received, SlotExtras};
 
 use super::PyPool;
-use crate::columns::{SUMMARY_RESTARTED, raw_bytes, recv_layout};
+use crate::columns::{SUMMARY_FINAL, SUMMARY_RESTARTED, raw_bytes, recv_layout};
 
 /// The joined extra info of a call: `(rows, data, size, ends)`. `rows`: the rows (env ids
 /// for whole-batch calls) of the envs that wrote some, or `None` when every row did; `data`:
@@ -25,9 +25,35 @@ pub(super) type Joined<'py> = (
     Vec<usize>,
 );
 
+/// The `SUMMARY_*` bits of a call's result (`finals`: its final observations are read, as a
+/// whole-batch call's are; a `recv` hands over none).
+pub(super) fn summary(got: &Received, finals: bool) -> usize {
+    let mut bits = 0;
+    if got.restarted {
+        bits |= SUMMARY_RESTARTED;
+    }
+    if finals && got.final_obs {
+        bits |= SUMMARY_FINAL;
+    }
+    bits
+}
+
+/// A result's extra info of `rows` rows, joined (see [`Joined`]); `None` when there is none.
+pub(super) fn joined<'py>(
+    py: Python<'py>,
+    extras: &SlotExtras,
+    rows: usize,
+) -> PyResult<Option<Joined<'py>>> {
+    match extras {
+        SlotExtras::None => Ok(None),
+        &SlotExtras::Uniform(size) => Ok(Some((None, None, size, Vec::new()))),
+        SlotExtras::Rows(x) => join_extras(py, x, rows),
+    }
+}
+
 /// Join `(row, bytes)` extras of a call with `rows` rows (see [`Joined`]); `None` when there
 /// are none.
-pub(super) fn join_extras<'py>(
+fn join_extras<'py>(
     py: Python<'py>,
     extras: &[(usize, Vec<u8>)],
     rows: usize,
@@ -72,8 +98,8 @@ pub(super) fn join_extras<'py>(
 }
 
 impl PyPool {
-    /// Write a `recv`'s records into the bound `recv` column buffer; the `SUMMARY_*` bits.
-    pub(super) fn write_recv_columns(&self, got: &Received) -> PyResult<usize> {
+    /// Write a `recv`'s gathered records into the bound `recv` column buffer.
+    pub(super) fn write_recv_columns(&self, got: &Received) -> PyResult<()> {
         let cols = crate::gil::lock_any(&self.columns);
         let &(_, ptr) = cols.as_ref().ok_or_else(|| {
             PyRuntimeError::new_err("recv needs bind_recv_columns() with its column buffer")
@@ -82,11 +108,8 @@ impl PyPool {
         // writeable) by `bind_recv_columns`; we hold the GIL, so Python cannot touch it
         // meanwhile.
         let columns = unsafe { recv_layout(self.num_envs, self.n_info).rows(ptr as *mut u8) };
-        Ok(if got.write_columns(&columns) {
-            SUMMARY_RESTARTED
-        } else {
-            0
-        })
+        got.write_columns(&columns);
+        Ok(())
     }
 }
 

@@ -7,11 +7,10 @@ use numpy::{PyArray1, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray, PyUnt
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyList;
-use rogue_gym_pool::{SeedSchedule, SlotAnswer, SlotExtras};
+use rogue_gym_pool::{Received, SeedSchedule};
 
 use super::PyPool;
-use super::results::{Joined, join_extras};
-use crate::columns::{SUMMARY_FINAL, SUMMARY_RESTARTED};
+use super::results::{Joined, joined, summary};
 use crate::gil::lock_gil_free;
 use crate::holders::SharedBatchHolder;
 use crate::settings;
@@ -156,22 +155,15 @@ impl PyPool {
     }
 
     /// The result of a whole-batch call: the slot the workers wrote every row of in place,
-    /// the `SUMMARY_*` bits, and the extra info (`None`; `(None, None, size, [])` when every
-    /// env wrote `size` bytes of one layout into its room of the slot's extra area; or the
-    /// joined extras of the envs that wrote some, when they are not of one layout).
-    fn sync_result<'py>(&self, py: Python<'py>, answer: SlotAnswer) -> PyResult<SyncResult<'py>> {
-        let mut summary = 0;
-        if answer.restarted {
-            summary |= SUMMARY_RESTARTED;
-        }
-        if answer.final_obs {
-            summary |= SUMMARY_FINAL;
-        }
-        let extras = match answer.extras {
-            SlotExtras::None => None,
-            SlotExtras::Uniform(size) => Some((None, None, size, Vec::new())),
-            SlotExtras::Rows(rows) => join_extras(py, &rows, self.num_envs)?,
-        };
-        Ok((answer.slot, summary, extras))
+    /// the `SUMMARY_*` bits, and the extra info (see `Joined`).
+    fn sync_result<'py>(&self, py: Python<'py>, got: Received) -> PyResult<SyncResult<'py>> {
+        let slot = got
+            .slot()
+            .ok_or_else(|| PyRuntimeError::new_err("a whole-batch call's rows are a view"))?;
+        Ok((
+            slot,
+            summary(&got, true),
+            joined(py, &got.extras, self.num_envs)?,
+        ))
     }
 }

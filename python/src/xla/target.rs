@@ -26,11 +26,8 @@ struct State {
     staged: Option<Staged>,
     /// (Async) the envs of the last `recv`: a `send` without env ids answers them.
     last_ids: Vec<usize>,
-    /// (Sync) every env's id and record of the last step.
-    all_ids: Vec<usize>,
+    /// The records of the last `recv`'s rows.
     records: Vec<EnvRecord>,
-    /// Whole pool rows, when an observation is shorter than its padded row.
-    scratch: Vec<u8>,
 }
 
 enum Staged {
@@ -191,54 +188,40 @@ impl XlaTarget {
                 obs.len()
             ));
         }
-        if self.sync() {
-            let staged = state
-                .staged
-                .take()
-                .ok_or("recv() of a sync pool follows a send() of every env's action")?;
-            let (records, scratch) = (&mut state.records, &mut state.scratch);
-            self.with_pool(|p| {
-                let a = p.step(staged.as_actions())?;
-                let Some(slot) = p.slot_rows(a.slot) else {
-                    return Err(PoolError::Closed);
-                };
-                // SAFETY: no call runs while the pool is borrowed here, so no worker writes
-                // the slot.
-                let src = unsafe { slot.obs_rows(0..rows) };
-                if own == ob {
-                    obs.copy_from_slice(src);
-                } else {
-                    scratch.clear();
-                    scratch.extend_from_slice(src);
-                }
-                records.clear();
-                records.extend((0..rows).map(|i| slot.read(i)));
-                Ok(())
-            })?;
-            if own != ob {
-                copy_rows(scratch, ob, obs, own);
-            }
-            if state.all_ids.len() != rows {
-                state.all_ids = (0..rows).collect();
-            }
-            outs.write(&state.all_ids, &state.records, self.n_info)?;
-            return Ok(());
-        }
+        // A sync pool's step is the receive of every env in env order (a view of its slot).
+        let staged = match self.sync() {
+            true => Some(
+                state
+                    .staged
+                    .take()
+                    .ok_or("recv() of a sync pool follows a send() of every env's action")?,
+            ),
+            false => None,
+        };
         let (got, writer) = self.with_pool(|p| {
-            let got = p.recv_want(RecvWant::exactly(rows))?;
+            let got = match &staged {
+                Some(staged) => p.step(staged.as_actions())?,
+                None => p.recv_want(RecvWant::exactly(rows))?,
+            };
             let writer = got.view.and_then(|(slot, _)| p.slot_rows(slot));
             Ok((got, writer))
         })?;
+        let records = &mut state.records;
+        records.clear();
         match (got.view, &writer) {
             (Some((_, first)), Some(w)) => {
                 // SAFETY: the view's rows, which no worker writes before the next send.
                 let rows = unsafe { w.obs_rows(first..first + rows) };
                 copy_rows(rows, ob, obs, own);
+                records.extend((first..first + got.env_ids.len()).map(|e| w.read(e)));
             }
-            _ => copy_rows(&got.obs, ob, obs, own),
+            _ => {
+                copy_rows(&got.obs, ob, obs, own);
+                records.extend_from_slice(&got.records);
+            }
         }
-        outs.write(&got.env_ids, &got.records, self.n_info)?;
-        state.last_ids.clone_from(&got.env_ids);
+        outs.write(&got.env_ids, records, self.n_info)?;
+        state.last_ids = got.env_ids;
         Ok(())
     }
 }
