@@ -200,8 +200,12 @@ impl Pool {
         let mut done;
         loop {
             // Enough ready, and the env sent first ready too, unless it is late beyond the
-            // usual (fair service: `ready_set.rs`); a wait for it ends at its patience.
-            let patience = self.sup.async_api.envs.patience(Instant::now());
+            // usual (fair service: `ready_set.rs`); a wait for it ends at its patience. (A
+            // whole-batch call waits for every env anyway.)
+            let patience = match whole {
+                true => None,
+                false => self.sup.async_api.envs.patience(Instant::now()),
+            };
             let stop = match (until, patience) {
                 (Some(u), Some(p)) => Some(u.min(p)),
                 (u, p) => u.or(p),
@@ -210,7 +214,8 @@ impl Pool {
                 |c| {
                     c.absorb()?;
                     let envs = &c.async_api.envs;
-                    Ok(envs.num_ready() >= enough && envs.patience(Instant::now()).is_none())
+                    let first_in = || whole || envs.patience(Instant::now()).is_none();
+                    Ok(envs.num_ready() >= enough && first_in())
                 },
                 stop,
             )?;
@@ -311,8 +316,8 @@ impl Supervisor {
             let envs = &c.async_api.envs;
             let slot_of = |e| envs.last_slot(e);
             match restart {
-                true => runs_into(block.clone(), slot_of, out),
-                false => runs_into(envs.sent_to(k).iter().copied(), slot_of, out),
+                true => runs_into(block.clone().map(|e| e..e + 1), slot_of, out),
+                false => runs_into(envs.sent_to(k).iter().cloned(), slot_of, out),
             }
         };
         let Some(t) = self.take_checked(k, served)? else {

@@ -53,8 +53,8 @@ pub(super) struct AsyncEnvs {
     aw: usize,
     /// Staged envs, all workers together (nothing to dispatch when 0).
     pub(super) num_staged: usize,
-    /// The envs of each worker's outstanding commands, in the order sent.
-    sent: Vec<Vec<usize>>,
+    /// The runs of each worker's outstanding commands, in the order sent.
+    sent: Vec<Vec<Range<usize>>>,
     /// The runs sent and not yet handed over, in the order they were sent.
     ready: ReadySet,
     /// The runs a receive took, reused receive after receive.
@@ -138,7 +138,7 @@ impl AsyncEnvs {
         for (sent, b) in self.sent.iter_mut().zip(blocks) {
             self.ready.sent(b.clone());
             sent.clear();
-            sent.extend(b.clone());
+            sent.push(b.clone());
         }
         self.turn.fill(Turn::InFlight);
         self.outstanding = self.turn.len();
@@ -180,11 +180,12 @@ impl AsyncEnvs {
         }
     }
 
-    /// The answer of run `run` is in: its envs are ready.
+    /// The answer of run `run` is in: its envs are ready (a whole-range operation: a whole
+    /// batch call's worker block is one).
     fn push_ready(&mut self, run: Run) {
-        for e in run.envs.clone() {
-            self.set_turn(e, Turn::Ready);
-        }
+        let turns = &mut self.turn[run.envs.clone()];
+        self.outstanding += turns.iter().filter(|&&t| t == Turn::Caller).count();
+        turns.fill(Turn::Ready);
         self.ready.ready(run);
     }
 
@@ -203,8 +204,8 @@ impl AsyncEnvs {
         self.outstanding
     }
 
-    /// The envs of worker `k`'s outstanding commands.
-    pub(super) fn sent_to(&self, k: usize) -> &[usize] {
+    /// The runs of worker `k`'s outstanding commands.
+    pub(super) fn sent_to(&self, k: usize) -> &[Range<usize>] {
         &self.sent[k]
     }
 
@@ -212,15 +213,15 @@ impl AsyncEnvs {
     pub(super) fn sent_partial(&mut self, k: usize, count: usize, seq: u64) {
         let now = Instant::now();
         let sent = &self.sent[k];
-        for &e in &sent[sent.len().saturating_sub(count)..] {
-            self.partial[e] = Some((seq, now));
+        for r in &sent[sent.len().saturating_sub(count)..] {
+            self.partial[r.clone()].fill(Some((seq, now)));
         }
     }
 
     /// When the oldest env in flight with worker `k` under a partial command was sent.
     pub(super) fn oldest_partial(&self, k: usize) -> Option<Instant> {
-        (self.sent[k].iter())
-            .filter_map(|&e| self.partial[e].map(|(_, t)| t))
+        (self.sent[k].iter().flat_map(|r| r.clone()))
+            .filter_map(|e| self.partial[e].map(|(_, t)| t))
             .min()
     }
 
@@ -237,7 +238,7 @@ impl AsyncEnvs {
     ) -> Result<(), String> {
         if let Some(&e) = envs
             .iter()
-            .find(|&&e| self.partial[e].is_none() || !self.sent[k].contains(&e))
+            .find(|&&e| self.partial[e].is_none() || !self.sent[k].contains(&(e..e + 1)))
         {
             return Err(format!(
                 "an answer for env {e}, which is not in flight with it"
@@ -247,7 +248,7 @@ impl AsyncEnvs {
             if self.partial[e].take().is_none() {
                 continue;
             }
-            self.sent[k].retain(|&x| x != e);
+            self.sent[k].retain(|r| *r != (e..e + 1));
             let run = self.answered(e..e + 1, answer, &mut apart);
             self.push_ready(run);
         }
@@ -275,7 +276,7 @@ impl AsyncEnvs {
     /// failure is raised, and a reset starts it afresh).
     pub(super) fn fail_row(&mut self, k: usize, e: usize) {
         if self.partial[e].take().is_some() {
-            self.sent[k].retain(|&x| x != e);
+            self.sent[k].retain(|r| *r != (e..e + 1));
             self.set_turn(e, Turn::Caller);
             self.ready.dropped(e);
         }
@@ -339,7 +340,7 @@ impl AsyncEnvs {
                 words[j * aw..(j + 1) * aw].copy_from_slice(&self.staged[e * aw..(e + 1) * aw]);
                 targets[j] = self.slot_for(e) as u64 + 1;
                 self.set_turn(e, Turn::InFlight);
-                self.sent[k].push(e);
+                self.sent[k].push(e..e + 1);
                 self.num_staged -= 1;
             }
         }
@@ -361,21 +362,14 @@ impl AsyncEnvs {
         restart: Option<bool>,
     ) {
         let mut sent = std::mem::take(&mut self.sent[k]);
-        for &e in &sent {
-            self.partial[e] = None; // a restart's answer covers its partial envs too
+        for r in &sent {
+            self.partial[r.clone()].fill(None); // a restart's answer covers its partial envs too
         }
         let Some(recycled) = restart else {
-            let mut i = 0;
-            while i < sent.len() {
-                let (start, mut end) = (sent[i], sent[i] + 1);
-                i += 1;
-                while i < sent.len() && sent[i] == end && self.ready.same_run(start, end) {
-                    (end, i) = (end + 1, i + 1);
-                }
-                let run = self.answered(start..end, answer, &mut apart);
+            for r in sent.drain(..) {
+                let run = self.answered(r, answer, &mut apart);
                 self.push_ready(run);
             }
-            sent.clear();
             self.sent[k] = sent;
             return;
         };
@@ -438,9 +432,9 @@ impl AsyncEnvs {
             ..Default::default()
         };
         for run in &runs {
-            for e in run.envs.clone() {
-                self.set_turn(e, Turn::Caller);
-            }
+            // Ready envs all, with the caller from now.
+            self.turn[run.envs.clone()].fill(Turn::Caller);
+            self.outstanding -= run.envs.len();
             if run.recycled {
                 out.recycled.extend(run.envs.clone());
             }

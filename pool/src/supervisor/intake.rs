@@ -39,17 +39,18 @@ pub(super) struct Taken {
 /// ([`Supervisor::checked`]), one pass per run.
 pub(super) type Runs = Vec<(Range<usize>, usize)>;
 
-/// Append `envs` to `out` as runs of consecutive envs in one slot (`slot_of`).
+/// Append runs of envs `runs` to `out`, each in the slot of its first env (`slot_of`),
+/// joined where consecutive in one slot.
 pub(super) fn runs_into(
-    envs: impl IntoIterator<Item = usize>,
+    runs: impl IntoIterator<Item = Range<usize>>,
     slot_of: impl Fn(usize) -> usize,
     out: &mut Runs,
 ) {
-    for e in envs {
-        let slot = slot_of(e);
+    for run in runs {
+        let slot = slot_of(run.start);
         match out.last_mut() {
-            Some((r, s)) if r.end == e && *s == slot => r.end += 1,
-            _ => out.push((e..e + 1, slot)),
+            Some((r, s)) if r.end == run.start && *s == slot => r.end = run.end,
+            _ => out.push((run, slot)),
         }
     }
 }
@@ -168,7 +169,7 @@ impl Supervisor {
         let envs: Vec<usize> = rows.iter().map(|&j| block.start + j).collect();
         let mut at = Runs::new();
         runs_into(
-            envs.iter().copied(),
+            envs.iter().map(|&e| e..e + 1),
             |e| self.async_api.envs.last_slot(e),
             &mut at,
         );
