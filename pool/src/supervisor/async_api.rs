@@ -123,9 +123,21 @@ impl Pool {
         self.sup.async_api.on = true;
         let (ab, aw) = (self.sup.spec.action_bytes, self.sup.spec.action_words());
         let mut words = vec![0u64; aw];
-        for (r, &e) in env_ids.iter().enumerate() {
-            StepActions::Rows(actions.rows(r..r + 1, ab)).write(&mut words, aw, ab);
-            self.sup.async_api.envs.stage(e, &words);
+        let (envs, mut r) = (&mut self.sup.async_api.envs, 0);
+        while r < env_ids.len() {
+            // Consecutive envs of one worker that answers whole commands go as one run.
+            let mut end = r + 1;
+            while end < env_ids.len()
+                && envs.joins(env_ids[end - 1], env_ids[end], self.sup.concurrent)
+            {
+                end += 1;
+            }
+            envs.sent_run(env_ids[r]..env_ids[end - 1] + 1);
+            for (i, &e) in env_ids.iter().enumerate().take(end).skip(r) {
+                StepActions::Rows(actions.rows(i..i + 1, ab)).write(&mut words, aw, ab);
+                envs.stage(e, &words);
+            }
+            r = end;
         }
         // Answers that came meanwhile free their workers for what was just staged.
         self.sup.poll_all()?;

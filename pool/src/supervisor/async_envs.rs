@@ -299,11 +299,32 @@ impl AsyncEnvs {
         targets
     }
 
-    /// Stage env `e`'s action words (it takes the next ticket); or, if its worker was restarted
-    /// while the caller held it, make its restart's first rows ready at once (the action is
-    /// dropped, as a restarted env drops it in a sync step). Returns whether it was staged.
+    /// Whether env `b`, sent right after env `a`, goes in `a`'s run: the next env of the same
+    /// worker, its latest answer in the same slot (so its next goes to the same slot too),
+    /// neither with a restart's rows waiting, and a worker that answers whole commands (not
+    /// `concurrent`: its envs on threads, each answered as it finishes).
+    pub(super) fn joins(&self, a: usize, b: usize, concurrent: bool) -> bool {
+        let plain = |e: usize| self.restarted[e].is_none();
+        let same_slot = self.last_slot(a) == self.last_slot(b);
+        !concurrent
+            && b == a + 1
+            && self.owner[a] == self.owner[b]
+            && same_slot
+            && plain(a)
+            && plain(b)
+    }
+
+    /// The envs `envs` are sent together, just now: one run, which takes the next ticket
+    /// ([`ReadySet::sent`]). Stage each next.
+    pub(super) fn sent_run(&mut self, envs: Range<usize>) {
+        self.ready.sent(envs);
+    }
+
+    /// Stage env `e`'s action words (its run sent: [`AsyncEnvs::sent_run`]); or, if its worker
+    /// was restarted while the caller held it, make its restart's first rows ready at once
+    /// (the action is dropped, as a restarted env drops it in a sync step). Returns whether it
+    /// was staged.
     pub(super) fn stage(&mut self, e: usize, words: &[u64]) -> bool {
-        self.ready.sent(e..e + 1);
         if let Some(run) = self.restarted[e].take() {
             self.push_ready(run);
             return false;
@@ -340,7 +361,11 @@ impl AsyncEnvs {
                 words[j * aw..(j + 1) * aw].copy_from_slice(&self.staged[e * aw..(e + 1) * aw]);
                 targets[j] = self.slot_for(e) as u64 + 1;
                 self.set_turn(e, Turn::InFlight);
-                self.sent[k].push(e..e + 1);
+                match self.sent[k].last_mut() {
+                    // The next env of its run.
+                    Some(r) if r.end == e && self.ready.same_run(r.start, e) => r.end += 1,
+                    _ => self.sent[k].push(e..e + 1),
+                }
                 self.num_staged -= 1;
             }
         }
@@ -586,6 +611,7 @@ mod tests {
         assert!(got.records.is_empty() && got.obs.is_empty() && !got.restarted);
         assert_eq!(envs.outstanding(), 0);
         // The next async answer of an env goes to the slot after the call's.
+        envs.sent_run(3..4);
         assert!(envs.stage(3, &[1]));
         assert_eq!(envs.dispatch(1, 2..4), Some((vec![0, 1], vec![0, 1])));
     }
@@ -596,6 +622,8 @@ mod tests {
         let slots = slots(&mut buf);
         let mut envs = AsyncEnvs::new(&[0..2, 2..4], 1, 2);
         assert_eq!(envs.outstanding(), 0);
+        envs.sent_run(1..2);
+        envs.sent_run(2..3);
         assert!(envs.stage(1, &[3]) && envs.stage(2, &[4]));
         assert_eq!(envs.outstanding(), 2, "staged envs are outstanding");
         let (words, targets) = envs.dispatch(0, 0..2).expect("env 1 is staged");
@@ -612,6 +640,7 @@ mod tests {
         // the caller holds, keeps them for its next send.
         envs.arrive(1, 2..4, &PLAIN, Vec::new(), Some(false));
         assert_eq!((envs.outstanding(), envs.num_ready()), (1, 1));
+        envs.sent_run(3..4);
         assert!(!envs.stage(3, &[0]), "its restart's rows are ready at once");
         assert_eq!((envs.outstanding(), envs.num_ready()), (2, 2));
         let got = envs.take(2, false, 8, &slots);
