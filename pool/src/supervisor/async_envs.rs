@@ -24,10 +24,10 @@
 use std::ops::Range;
 use std::time::Instant;
 
-use super::intake::{Apart, slot_extra};
-use super::ready_set::{ReadySet, Run};
-use crate::batch::{Received, SlotExtras};
-use crate::wire::answer::{Answer, AnswerExtras};
+use super::intake::Apart;
+use super::ready_set::{ReadySet, Run, gather, view_extras};
+use crate::batch::Received;
+use crate::wire::answer::Answer;
 use crate::wire::slot_layout::SlotRows;
 
 /// Where an env stands in the lane.
@@ -489,87 +489,10 @@ impl AsyncEnvs {
     }
 }
 
-/// The extra info of a view's runs (its first env `first`): read in place when every run's
-/// envs wrote one layout, else joined row by row.
-fn view_extras(runs: &[Run], slots: &[SlotRows], first: usize) -> SlotExtras {
-    let mut uniform = None;
-    let (mut any, mut not_uniform) = (false, false);
-    for r in runs {
-        any |= !r.apart.is_empty();
-        not_uniform |= r.restart || !r.apart.is_empty();
-        match r.extras {
-            _ if r.restart => {}
-            AnswerExtras::None => not_uniform = true,
-            AnswerExtras::Mixed => (any, not_uniform) = (true, true),
-            AnswerExtras::Uniform { size, head } => {
-                any = true;
-                not_uniform |= uniform.is_some_and(|u| u != (size, head));
-                uniform = Some((size, head));
-            }
-        }
-    }
-    match (any, not_uniform, uniform) {
-        (false, _, _) => SlotExtras::None,
-        (true, false, Some((size, _))) => SlotExtras::Uniform(size),
-        _ => {
-            let mut out = Vec::new();
-            for r in runs {
-                let w = &slots[r.slot];
-                for e in r.envs.clone() {
-                    out.extend(run_extra(r, w, e, &w.read(e)).map(|x| (e - first, x)));
-                }
-            }
-            SlotExtras::Rows(out)
-        }
-    }
-}
-
-/// Env `e`'s extra info in run `r` (`rec`: its record in the run's slot `w`).
-fn run_extra(
-    r: &Run,
-    w: &SlotRows,
-    e: usize,
-    rec: &crate::wire::record::EnvRecord,
-) -> Option<Vec<u8>> {
-    if r.restart {
-        return None;
-    }
-    match r.apart.iter().find(|(a, _)| *a == e) {
-        Some((_, b)) => Some(b.clone()),
-        None if r.extras == AnswerExtras::None => None,
-        None => slot_extra(w, e, rec, None),
-    }
-}
-
-/// Copy the runs' rows out into `out`: records (restart flags applied), observations, extra
-/// info by row.
-fn gather(runs: &[Run], obs_bytes: usize, slots: &[SlotRows], out: &mut Received) {
-    let n: usize = runs.iter().map(|r| r.envs.len()).sum();
-    out.records.reserve(n);
-    out.obs.reserve(n * obs_bytes);
-    let mut extras = Vec::new();
-    for r in runs {
-        let w = &slots[r.slot];
-        for e in r.envs.clone() {
-            if !r.restart {
-                w.clear_restarted(e); // a worker cannot know it: the supervisor's to say
-            }
-            let rec = w.read(e);
-            // SAFETY: env `e`'s rows of the slot: its worker answered, and no command writes
-            // them again until the caller sends to `e`.
-            out.obs.extend_from_slice(unsafe { w.obs_rows(e..e + 1) });
-            extras.extend(run_extra(r, w, e, &rec).map(|x| (out.records.len(), x)));
-            out.records.push(rec);
-        }
-    }
-    if !extras.is_empty() {
-        out.extras = SlotExtras::Rows(extras);
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::wire::answer::AnswerExtras;
     use crate::wire::slot_layout::SlotLayout;
 
     const PLAIN: Answer = Answer {

@@ -1,6 +1,6 @@
-//! Layout of one slot of the shared batch buffer: every per-env output of a whole-batch call
-//! (step, reset, partial reset), written in place by the worker that served the env, at the
-//! env's row, where the caller reads it. The caller gathers nothing.
+//! Layout of one slot of the shared batch buffer: every per-env output of an answer (a
+//! whole-batch call's, an async env's), written in place by the worker that served the env,
+//! at the env's row, where the caller reads it.
 //!
 //! A slot is `[obs: num_envs x obs_bytes][columns][final obs (SAME_STEP)][extra room]`, each
 //! area 64-byte aligned. The columns are one array per value, `num_envs` entries each, 8-byte
