@@ -542,6 +542,33 @@ fn action_extras_reach_their_envs_with_the_step_even_by_send() {
 }
 
 #[test]
+fn a_refused_action_extra_leaves_no_env_busy_in_a_worker_whose_envs_run_on_threads() {
+    // The step fails before any env thread starts; the envs it named must be free for the
+    // reset after it, which a worker that kept them busy would hold until `step_timeout`
+    // (and the pool would then kill it as hung).
+    let mut c = config(EXE, test_env(), 4, 2);
+    c.env_threads = 2;
+    c.step_timeout = Some(Duration::from_secs(3));
+    let mut p = pool(c);
+    let mut out = BatchOutput::default();
+    p.reset_read(&mut out).unwrap();
+    p.stage_action_extras(&[(1, b"bad".to_vec())]).unwrap();
+    let e = p.step_read(&[0; 4], &mut out).unwrap_err();
+    assert!(
+        matches!(&e, PoolError::EnvFailed { fault, .. } if fault.env == 1),
+        "{e}"
+    );
+    p.reset_read(&mut out).unwrap();
+    p.step_read(&[0; 4], &mut out).unwrap();
+    assert_eq!(
+        (p.restarts(), p.worker_deaths()),
+        (0, 0),
+        "no worker was hung"
+    );
+    assert!(out.episode_length.iter().all(|&l| l == 1));
+}
+
+#[test]
 fn env_calls_reach_the_chosen_envs_in_order_and_errors_name_the_env() {
     // 5 envs on 2 workers: blocks 0..3 and 3..5.
     let mut p = pool(config(EXE, test_env(), 5, 2));

@@ -101,8 +101,8 @@ impl Supervisor {
                 }
                 if s.partial && matches!(s.state, LinkState::Pending { .. }) {
                     match BlockKind::from_word(h.kind) {
-                        Some(BlockKind::Rows) => self.take_rows(k, &sample)?,
-                        Some(BlockKind::Error) => self.take_row_fault(k, &sample)?,
+                        Some(BlockKind::Rows) => self.take_partial(k, &sample)?,
+                        Some(BlockKind::Error) => self.take_partial_fault(k, &sample)?,
                         _ => {} // stale: nothing else answers a partial command
                     }
                     continue;
@@ -157,7 +157,7 @@ impl Supervisor {
     /// Worker `k`'s answer for envs of its partial commands, done one by one (its envs run on
     /// threads): they are ready, their rows in their slots, checked as any answer is; a bad
     /// answer is the worker's failure.
-    fn take_rows(&mut self, k: usize, sample: &BlockSample) -> Result<(), PoolError> {
+    fn take_partial(&mut self, k: usize, sample: &BlockSample) -> Result<(), PoolError> {
         let answer = Arrived::of(sample);
         let block = self.blocks[k].clone();
         let rows = match rows_of(sample.payload(), ANSWER_WORDS, block.len()) {
@@ -186,7 +186,7 @@ impl Supervisor {
 
     /// Worker `k`'s report of an env of a partial command that failed: raised with the call's
     /// other failures (the caller resets), the env no longer in flight.
-    fn take_row_fault(&mut self, k: usize, sample: &BlockSample) -> Result<(), PoolError> {
+    fn take_partial_fault(&mut self, k: usize, sample: &BlockSample) -> Result<(), PoolError> {
         let n = sample.user_header().seq;
         let block = self.blocks[k].clone();
         let rows = match rows_of(sample.payload(), 0, block.len()) {
