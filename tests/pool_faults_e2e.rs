@@ -315,6 +315,51 @@ fn async_mode_reports_restarted_envs() {
     assert_eq!(p.restarts(), 2);
 }
 
+#[test]
+fn a_sync_call_hands_over_the_restart_of_an_env_the_caller_held() {
+    let mut c = config(EXE, test_env(), 4, 2);
+    c.batch_size = Some(2);
+    let mut p = pool(c);
+    let _guard = PidGuard(p.worker_pids());
+    let mut out = BatchOutput::default();
+    p.async_reset().unwrap();
+    p.recv_want(RecvWant::exactly(4)).unwrap();
+    // Worker 0 (envs 0 and 1) dies while env 0 is stepped alone and env 1 is with the caller:
+    // env 0's next step restarts both; env 1's restart waits for the caller.
+    let kill_worker_0 = |p: &mut Pool, old: u32| {
+        p.send(&[1], &[0]).unwrap();
+        assert_eq!(p.recv_want(RecvWant::exactly(1)).unwrap().env_ids, vec![0]);
+        signal(old, Signal::SIGKILL);
+        p.send(&[1], &[0]).unwrap();
+        let r = p.recv_want(RecvWant::exactly(1)).unwrap();
+        assert!(r.env_ids == [0] && r.records[0].restarted());
+        replacement(p, 0, old)
+    };
+    let first = p.worker_pids()[0];
+    let pid = kill_worker_0(&mut p, first);
+    // A sync step hands env 1's restart over as its row (the new episode's first, its action
+    // dropped), and steps the others.
+    p.step_read(&[1; 4], &mut out).unwrap();
+    assert_eq!(out.restarted, [false, true, false, false]);
+    assert!(out.truncated[1] && !out.terminated[1] && out.reward[1] == 0.0);
+    assert_eq!(out.episode_length, [1, 0, 1, 1]);
+    // Nothing of it is left for env 1's next send: it steps its new episode.
+    p.send(&[1], &[1]).unwrap();
+    let r = p.recv_want(RecvWant::exactly(1)).unwrap();
+    assert!(!r.records[0].restarted());
+    assert_eq!(r.records[0].episode_length, 1);
+    // The same for a partial reset that keeps env 1's episode; env 3, reset, starts afresh.
+    kill_worker_0(&mut p, pid);
+    p.partial_reset_read(&[false, false, false, true], &mut out)
+        .unwrap();
+    assert_eq!(out.restarted, [false, true, false, false]);
+    assert_eq!(out.episode_length, [0, 0, 1, 0]);
+    p.step_read(&[1; 4], &mut out).unwrap();
+    assert_eq!(out.restarted, [false; 4]);
+    assert_eq!(out.episode_length, [1, 1, 2, 1]);
+    assert_eq!(p.restarts(), 2);
+}
+
 /// Wait until worker `k` has a pid other than `old` (its replacement was spawned).
 fn replacement(p: &rogue_gym_pool::Pool, k: usize, old: u32) -> u32 {
     let t0 = Instant::now();

@@ -96,7 +96,7 @@ impl Pool {
             .map(|i| (c.next_slot + i) % slots)
             .find(|s| lent & (1 << s) == 0)
             .unwrap_or(c.next_slot);
-        let slot = c.send_whole();
+        let slot = c.send_whole(None);
         c.next_slot = (slot + 1) % slots;
         for k in 0..c.workers.len() {
             c.send_reset(k, Target::Slot(slot), None)?;

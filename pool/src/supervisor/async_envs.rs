@@ -62,6 +62,9 @@ pub(super) struct AsyncEnvs {
     /// The first rows of an env the caller held when its worker was restarted: handed out at
     /// its next send (whose action is dropped).
     restarted: Vec<Option<Run>>,
+    /// Envs with such rows; of them, those the last whole-batch call answered so.
+    held_restarts: usize,
+    handed_over: usize,
     /// The worker of each env.
     owner: Vec<usize>,
     /// Staged envs of each worker.
@@ -104,6 +107,8 @@ impl AsyncEnvs {
             ready: ReadySet::new(num_envs),
             taken: Vec::with_capacity(num_workers),
             restarted: (0..num_envs).map(|_| None).collect(),
+            held_restarts: 0,
+            handed_over: 0,
             // Epoch 0 is no epoch: before any answer, every env's latest is `whole_slot`.
             last: vec![(0, 0); num_envs],
             epoch: 1,
@@ -125,23 +130,74 @@ impl AsyncEnvs {
         self.sent.iter_mut().for_each(Vec::clear);
         self.ready.clear();
         self.restarted.iter_mut().for_each(|r| *r = None);
+        self.held_restarts = 0;
         self.staged_of.fill(0);
         self.partial.fill(None);
     }
 
-    /// A whole-batch call was sent to every env (each worker's block of `blocks` one run, in
-    /// block order), every answer into slot `slot`, their latest. Every env is with the
-    /// caller before (`outstanding() == 0`).
-    pub(super) fn send_whole(&mut self, slot: usize, blocks: &[Range<usize>]) {
+    /// A whole-batch call is sent to every env (each worker's block of `blocks` one run, in
+    /// block order), every answer into slot `slot` (of `rows`), their latest. Every env is
+    /// with the caller before (`outstanding() == 0`). An env whose worker was restarted while
+    /// the caller held it is answered by its restart's rows, copied into `slot` and ready at
+    /// once (a run of its own, in its place), unless the call resets it (`resets`, a partial
+    /// reset's mask): the call leaves it alone ([`AsyncEnvs::whole_targets`]).
+    pub(super) fn send_whole(
+        &mut self,
+        slot: usize,
+        blocks: &[Range<usize>],
+        rows: &[SlotRows],
+        resets: Option<&[bool]>,
+    ) {
         self.epoch += 1;
         self.whole_slot = slot;
-        for (sent, b) in self.sent.iter_mut().zip(blocks) {
-            self.ready.sent(b.clone());
-            sent.clear();
-            sent.push(b.clone());
-        }
         self.turn.fill(Turn::InFlight);
         self.outstanding = self.turn.len();
+        self.handed_over = 0;
+        for (k, b) in blocks.iter().enumerate() {
+            self.sent[k].clear();
+            let mut start = b.start;
+            for e in b.clone() {
+                if self.held_restarts == 0 {
+                    break;
+                }
+                let Some(run) = self.restarted[e].take() else {
+                    continue;
+                };
+                self.held_restarts -= 1;
+                if resets.is_some_and(|m| m[e]) {
+                    continue;
+                }
+                if start < e {
+                    self.ready.sent(start..e);
+                    self.sent[k].push(start..e);
+                }
+                if run.slot != slot {
+                    // SAFETY: no worker writes row `e` of either slot: the restart's answer is
+                    // in, and this call leaves the env alone.
+                    unsafe { rows[slot].copy_row(&rows[run.slot], e) };
+                }
+                self.ready.sent(e..e + 1);
+                self.push_ready(Run { slot, ..run });
+                self.handed_over += 1;
+                start = e + 1;
+            }
+            if start < b.end {
+                self.ready.sent(start..b.end);
+                self.sent[k].push(start..b.end);
+            }
+        }
+    }
+
+    /// The slot words of a whole-batch call's command to the envs `block` (one worker's) into
+    /// slot `slot`: `None` when it goes to all of them (each into `slot`), else each env's
+    /// (`slot + 1`, or 0 for an env answered already, [`AsyncEnvs::send_whole`]), all 0 when
+    /// none needs the command.
+    pub(super) fn whole_targets(&self, block: Range<usize>, slot: usize) -> Option<Vec<u64>> {
+        if self.handed_over == 0 || !block.clone().any(|e| self.turn[e] == Turn::Ready) {
+            return None;
+        }
+        let word = |e: usize| u64::from(self.turn[e] != Turn::Ready) * (slot as u64 + 1);
+        Some(block.map(word).collect())
     }
 
     /// The slot env `e`'s latest answer is in (or goes to, while it is in flight).
@@ -326,6 +382,7 @@ impl AsyncEnvs {
     /// was staged.
     pub(super) fn stage(&mut self, e: usize, words: &[u64]) -> bool {
         if let Some(run) = self.restarted[e].take() {
+            self.held_restarts -= 1;
             self.push_ready(run);
             return false;
         }
@@ -425,7 +482,8 @@ impl AsyncEnvs {
                     }
                 }
                 Turn::Caller => {
-                    self.restarted[e] = Some(Run::restart(e..e + 1, self.last_slot(e), recycled))
+                    let run = Run::restart(e..e + 1, self.last_slot(e), recycled);
+                    self.held_restarts += usize::from(self.restarted[e].replace(run).is_none());
                 }
             }
             e = end;
@@ -523,7 +581,7 @@ mod tests {
         let mut buf = Vec::new();
         let slots = slots(&mut buf);
         let mut envs = AsyncEnvs::new(&[0..2, 2..4], 1, 2);
-        envs.send_whole(1, &[0..2, 2..4]);
+        envs.send_whole(1, &[0..2, 2..4], &slots, None);
         assert_eq!(envs.outstanding(), 4);
         envs.arrive(1, 2..4, &PLAIN, Vec::new(), None);
         envs.arrive(0, 0..2, &PLAIN, Vec::new(), None);

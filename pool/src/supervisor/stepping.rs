@@ -81,12 +81,12 @@ impl Pool {
         if replaced {
             self.all_idle(true)?;
         }
-        let slot = self.sup.send_whole();
+        let slot = self.sup.send_whole(None);
         let ab = self.sup.spec.action_bytes;
         for k in 0..self.sup.workers.len() {
-            let rows = self.sup.blocks[k].clone();
-            let actions = StepActions::Rows(actions.rows(rows, ab));
-            self.send_or_fail(|c| c.send_step(k, actions, Target::Slot(slot), false).map(drop))?;
+            let actions = StepActions::Rows(actions.rows(self.sup.blocks[k].clone(), ab));
+            self.sup
+                .send_share(k, slot, |c, t| c.send_step(k, actions, t, false).map(drop))?;
         }
         self.sup.call.sent = Some(SentCall::now());
         Ok(slot)
@@ -129,9 +129,10 @@ impl Pool {
                 self.all_idle(true)?;
             }
         }
-        let slot = self.sup.send_whole();
+        let slot = self.sup.send_whole(mask);
         for k in 0..self.sup.workers.len() {
-            self.send_or_fail(|c| c.send_reset(k, Target::Slot(slot), mask))?;
+            self.sup
+                .send_share(k, slot, |c, t| c.send_reset(k, t, mask))?;
         }
         if mask.is_none() {
             self.sup.failures.must_reset = false;
@@ -184,15 +185,6 @@ impl Pool {
                 Err(e)
             }
         }
-    }
-
-    /// Send with `send`; a failure leaves the pool needing a reset (some workers may have
-    /// the command, some not).
-    fn send_or_fail(
-        &mut self,
-        send: impl FnOnce(&mut super::Supervisor) -> Result<(), PoolError>,
-    ) -> Result<(), PoolError> {
-        send(&mut self.sup).inspect_err(|_| self.sup.failures.must_reset = true)
     }
 
     /// Copy a result's rows out: every row's record into `out` (cleared first) and, with
@@ -307,12 +299,34 @@ impl Pool {
 
 impl super::Supervisor {
     /// Note a whole-batch call sent to every env, into the next slot, which it returns: each
-    /// worker block one run of the lane, in block order ([`super::async_envs`]).
-    pub(super) fn send_whole(&mut self) -> usize {
+    /// worker block one run of the lane, in block order ([`super::async_envs`]); `resets`, a
+    /// partial reset's mask.
+    pub(super) fn send_whole(&mut self, resets: Option<&[bool]>) -> usize {
         let slot = self.next_slot;
         self.call.ready_ns = 0;
-        self.async_api.envs.send_whole(slot, &self.blocks);
+        (self.async_api.envs).send_whole(slot, &self.blocks, &self.slots, resets);
         slot
+    }
+
+    /// Send worker `k` its share of the whole-batch call into `slot` with `send` (given where
+    /// its envs go; none where the call's answers of all its envs are in already). A failure
+    /// leaves the pool needing a reset (some workers may have the command, some not).
+    fn send_share(
+        &mut self,
+        k: usize,
+        slot: usize,
+        send: impl FnOnce(&mut Self, Target<'_>) -> Result<(), PoolError>,
+    ) -> Result<(), PoolError> {
+        let r = match self
+            .async_api
+            .envs
+            .whole_targets(self.blocks[k].clone(), slot)
+        {
+            None => send(self, Target::Slot(slot)),
+            Some(t) if t.iter().all(|&w| w == 0) => Ok(()),
+            Some(t) => send(self, Target::Each(&t)),
+        };
+        r.inspect_err(|_| self.failures.must_reset = true)
     }
 
     /// The rows of slot `slot` (from `slots`, made once: a slot's rows are the same for the

@@ -398,6 +398,21 @@ impl SlotRows {
         }
         unsafe { self.area(self.layout.final_offset(), self.layout.obs_bytes, rows) }
     }
+    /// Copy env `row`'s observation, final observation and record from slot `from` (of the
+    /// same layout) into this slot.
+    ///
+    /// # Safety
+    /// No one else may access row `row` of either slot meanwhile, and the slots differ.
+    pub unsafe fn copy_row(&self, from: &SlotRows, row: usize) {
+        let r = row..row + 1;
+        unsafe {
+            self.obs_rows(r.clone())
+                .copy_from_slice(from.obs_rows(r.clone()));
+            self.final_rows(r.clone())
+                .copy_from_slice(from.final_rows(r));
+        }
+        self.record(row, &from.read(row));
+    }
     /// The extra-info room of rows `rows` (`rows.len() x extra_bytes`).
     ///
     /// # Safety
