@@ -86,22 +86,16 @@ impl Pool {
     /// the results with [`Pool::recv`]. It is [`Pool::send_reset`] into a slot the caller has
     /// not lent out, its receive left to `recv`.
     pub fn async_reset(&mut self) -> Result<(), PoolError> {
-        self.begin_call()?;
-        self.drain()?;
-        self.sup.async_api.on = true;
         let slots = self.sup.cfg.batch_slots;
-        let c = &mut self.sup;
-        let lent = c.async_api.envs.lent;
-        c.next_slot = (0..slots)
-            .map(|i| (c.next_slot + i) % slots)
+        let (next, lent) = (self.sup.next_slot, self.sup.async_api.envs.lent);
+        self.sup.next_slot = (0..slots)
+            .map(|i| (next + i) % slots)
             .find(|s| lent & (1 << s) == 0)
-            .unwrap_or(c.next_slot);
-        let slot = c.send_whole(None);
-        c.next_slot = (slot + 1) % slots;
-        for k in 0..c.workers.len() {
-            c.send_reset(k, Target::Slot(slot), None)?;
-        }
-        c.failures.must_reset = false;
+            .unwrap_or(next);
+        let slot = self.send_reset(None)?;
+        self.sup.call.sent = None;
+        self.sup.next_slot = (slot + 1) % slots;
+        self.sup.async_api.on = true;
         Ok(())
     }
 
