@@ -31,7 +31,9 @@ use crate::stats::StatsBuffer;
 use crate::wire::answer::{BlockKind, sample_words};
 use crate::wire::books::Books;
 use crate::wire::slot_layout::SlotLayout;
-use crate::wire::{BATCH_BUFFER, EnvFault, WorkerConfig, env_fault_path, successor_marker};
+use crate::wire::{
+    BATCH_BUFFER, Command, EnvFault, WorkerConfig, env_fault_path, successor_marker,
+};
 
 mod block;
 mod block_out;
@@ -114,6 +116,13 @@ pub fn worker_main(args: &[String], registry: &EnvRegistry) -> i32 {
             3
         }
     }
+}
+
+/// A command taken from the port: its sequence number, the command, its payload.
+struct Incoming {
+    seq: u64,
+    command: Command,
+    payload: Vec<u64>,
 }
 
 /// A running worker: its envs, its ports, and the pool's shared memory it writes.

@@ -305,7 +305,7 @@ impl Supervisor {
     }
 
     /// Turn the workers' answers into ready envs (the ready set orders them by when they were
-    /// sent: `async_envs.rs`), and send what is staged to the workers that are free.
+    /// sent: `async_envs/`), and send what is staged to the workers that are free.
     pub(super) fn absorb(&mut self) -> Result<(), PoolError> {
         while let Some(k) = self.arrived.pop_front() {
             self.take_async_answer(k)?;

@@ -4,7 +4,7 @@
 //! words, the flag bytes of the rows it names, the extra info beside it). A worker whose
 //! answer fails a check is handled as a failed worker ([`FailureCause::Corrupt`]). A checked
 //! answer ([`Supervisor::take_checked`]) becomes ready runs of the one lane (`async_api.rs`,
-//! `async_envs.rs`), whichever API sent it.
+//! `async_envs/`), whichever API sent it.
 
 use std::ops::Range;
 

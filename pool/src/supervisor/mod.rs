@@ -16,7 +16,7 @@
 //! `Supervisor::poll_all`, which decodes and checks every answer of every kind in one place),
 //! turns each answer into a ready run of the pool's one lane (`async_api.rs`: a whole-batch
 //! call is a send of every env, each worker block one run, and a receive of all of them in env
-//! order, `async_envs.rs`, `ready_set.rs`), and returns a [`crate::Received`]: a view of the
+//! order, `async_envs/`, `ready_set.rs`), and returns a [`crate::Received`]: a view of the
 //! slot, and whether to read final observations, restarts or extra info. The Python front
 //! reads the slot's rows as numpy views (`python/src/pool/sync_api.rs`,
 //! `python/rogue_gym/front/core.py`). Every file a step runs code in, with its functions, is

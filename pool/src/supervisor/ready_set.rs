@@ -58,6 +58,51 @@ impl Run {
     }
 }
 
+/// The first rows of the envs the caller held when their worker was restarted, each kept for
+/// the env's next send or whole-batch call, which hands them over.
+pub(super) struct HeldRestarts {
+    runs: Vec<Option<Run>>,
+    held: usize,
+}
+
+impl HeldRestarts {
+    /// None kept, for `num_envs` envs.
+    pub(super) fn new(num_envs: usize) -> Self {
+        HeldRestarts {
+            runs: (0..num_envs).map(|_| None).collect(),
+            held: 0,
+        }
+    }
+
+    /// Keep `run`, env `e`'s restart (in place of one kept before).
+    pub(super) fn keep(&mut self, e: usize, run: Run) {
+        self.held += usize::from(self.runs[e].replace(run).is_none());
+    }
+
+    /// Env `e`'s restart, no longer kept.
+    pub(super) fn take(&mut self, e: usize) -> Option<Run> {
+        let run = self.runs[e].take();
+        self.held -= usize::from(run.is_some());
+        run
+    }
+
+    /// Whether env `e`'s restart is kept.
+    pub(super) fn holds(&self, e: usize) -> bool {
+        self.runs[e].is_some()
+    }
+
+    /// Whether any is kept.
+    pub(super) fn any(&self) -> bool {
+        self.held > 0
+    }
+
+    /// Keep none.
+    pub(super) fn clear(&mut self) {
+        self.runs.iter_mut().for_each(|r| *r = None);
+        self.held = 0;
+    }
+}
+
 /// The runs sent and not yet handed over, by ticket: those whose answer is in, and those still
 /// on their way.
 pub(super) struct ReadySet {

@@ -41,8 +41,7 @@ use rogue_gym_ipc::CmdWaker;
 
 use super::env_threads::{Area, Ctx, Done, Job, Shared, batch_scheduling, env_thread, guard};
 use super::envs::{WorkerEnvs, lock};
-use super::executor::Incoming;
-use super::{Worker, WorkerError};
+use super::{Incoming, Worker, WorkerError};
 use crate::stats::Counter;
 use crate::wire::answer::{AnswerBuilder, BlockKind};
 use crate::wire::{EnvFault, Serve, env_fault_path_of};

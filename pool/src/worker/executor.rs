@@ -25,7 +25,7 @@ use rogue_gym_ipc::{BlockHeader, WaitCall, WaitPolicy, hybrid_wait};
 use super::concurrent::{Finished, Running};
 use super::env_threads::{Shared, guard};
 use super::envs::take_action_extras;
-use super::{Worker, WorkerError};
+use super::{Incoming, Worker, WorkerError};
 use crate::stats::{Counter, ns_since, stamp};
 use crate::wire::answer::{ANSWER_WORDS, Answer, BlockKind, sample_words};
 use crate::wire::slot_layout::SlotRows;
@@ -46,13 +46,6 @@ pub(super) fn expected_poll(budget: Duration, last_gap: Duration) -> Duration {
     } else {
         budget
     }
-}
-
-/// A command taken from the port: its sequence number, the command, its payload.
-pub(super) struct Incoming {
-    pub(super) seq: u64,
-    pub(super) command: Command,
-    pub(super) payload: Vec<u64>,
 }
 
 /// How a worker waits for its next command: as the command before said ([`Pace`]).

@@ -11,7 +11,8 @@
 //! Workers answer one command at a time (a worker whose envs run on threads answers a partial
 //! command env by env); this layer turns their answers into ready runs. An env sent while its
 //! worker is busy is *staged* and goes with the worker's next command, with any other envs of
-//! that worker staged meanwhile ([`crate::wire::Command::subset`] serves only those).
+//! that worker staged meanwhile ([`crate::wire::Command::subset`] serves only those). The
+//! envs of a partial command are followed one by one (`partial.rs`).
 //!
 //! Every answer's rows are in the batch slots. A whole-batch call writes every env into one
 //! slot ([`AsyncEnvs::send_whole`]); an async env's answers take turns over the slots
@@ -21,11 +22,13 @@
 //! are one run of envs in one slot are handed over as a view where the caller asks for views
 //! (a whole-batch call always does); any other are gathered.
 
+mod partial;
+
 use std::ops::Range;
 use std::time::Instant;
 
 use super::intake::Apart;
-use super::ready_set::{ReadySet, Run, gather, view_extras};
+use super::ready_set::{HeldRestarts, ReadySet, Run, gather, view_extras};
 use crate::batch::Received;
 use crate::wire::answer::Answer;
 use crate::wire::slot_layout::SlotRows;
@@ -59,11 +62,10 @@ pub(super) struct AsyncEnvs {
     ready: ReadySet,
     /// The runs a receive took, reused receive after receive.
     taken: Vec<Run>,
-    /// The first rows of an env the caller held when its worker was restarted: handed out at
-    /// its next send (whose action is dropped).
-    restarted: Vec<Option<Run>>,
-    /// Envs with such rows; of them, those the last whole-batch call answered so.
-    held_restarts: usize,
+    /// The first rows of each env the caller held when its worker was restarted: handed out
+    /// at its next send (whose action is dropped) or whole-batch call.
+    restarted: HeldRestarts,
+    /// Envs the last whole-batch call answered so.
     handed_over: usize,
     /// The worker of each env.
     owner: Vec<usize>,
@@ -106,8 +108,7 @@ impl AsyncEnvs {
             sent: blocks.iter().map(|b| Vec::with_capacity(b.len())).collect(),
             ready: ReadySet::new(num_envs),
             taken: Vec::with_capacity(num_workers),
-            restarted: (0..num_envs).map(|_| None).collect(),
-            held_restarts: 0,
+            restarted: HeldRestarts::new(num_envs),
             handed_over: 0,
             // Epoch 0 is no epoch: before any answer, every env's latest is `whole_slot`.
             last: vec![(0, 0); num_envs],
@@ -129,8 +130,7 @@ impl AsyncEnvs {
         self.num_staged = 0;
         self.sent.iter_mut().for_each(Vec::clear);
         self.ready.clear();
-        self.restarted.iter_mut().for_each(|r| *r = None);
-        self.held_restarts = 0;
+        self.restarted.clear();
         self.staged_of.fill(0);
         self.partial.fill(None);
     }
@@ -157,13 +157,12 @@ impl AsyncEnvs {
             self.sent[k].clear();
             let mut start = b.start;
             for e in b.clone() {
-                if self.held_restarts == 0 {
+                if !self.restarted.any() {
                     break;
                 }
-                let Some(run) = self.restarted[e].take() else {
+                let Some(run) = self.restarted.take(e) else {
                     continue;
                 };
-                self.held_restarts -= 1;
                 if resets.is_some_and(|m| m[e]) {
                     continue;
                 }
@@ -265,52 +264,6 @@ impl AsyncEnvs {
         &self.sent[k]
     }
 
-    /// The last `count` envs dispatched to worker `k` went with partial command `seq`.
-    pub(super) fn sent_partial(&mut self, k: usize, count: usize, seq: u64) {
-        let now = Instant::now();
-        let sent = &self.sent[k];
-        for r in &sent[sent.len().saturating_sub(count)..] {
-            self.partial[r.clone()].fill(Some((seq, now)));
-        }
-    }
-
-    /// When the oldest env in flight with worker `k` under a partial command was sent.
-    pub(super) fn oldest_partial(&self, k: usize) -> Option<Instant> {
-        (self.sent[k].iter().flat_map(|r| r.clone()))
-            .filter_map(|e| self.partial[e].map(|(_, t)| t))
-            .min()
-    }
-
-    /// Envs `envs` of worker `k`, in flight under partial commands, are done (`answer`: what
-    /// the worker said of them): their rows are in their slots, and `apart` has the extra
-    /// info that did not fit their rooms. An env not in flight so is the worker's error (the
-    /// string says which), and nothing is taken.
-    pub(super) fn arrive_rows(
-        &mut self,
-        k: usize,
-        envs: &[usize],
-        answer: &Answer,
-        mut apart: Apart,
-    ) -> Result<(), String> {
-        if let Some(&e) = envs
-            .iter()
-            .find(|&&e| self.partial[e].is_none() || !self.sent[k].contains(&(e..e + 1)))
-        {
-            return Err(format!(
-                "an answer for env {e}, which is not in flight with it"
-            ));
-        }
-        for &e in envs {
-            if self.partial[e].take().is_none() {
-                continue;
-            }
-            self.sent[k].retain(|r| *r != (e..e + 1));
-            let run = self.answered(e..e + 1, answer, &mut apart);
-            self.push_ready(run);
-        }
-        Ok(())
-    }
-
     /// The run of `envs` (sent together) as `answer` answers it, with its share of `apart`.
     fn answered(&self, envs: Range<usize>, answer: &Answer, apart: &mut Apart) -> Run {
         let mine = match apart.is_empty() {
@@ -325,16 +278,6 @@ impl AsyncEnvs {
             final_obs: answer.final_obs,
             apart: mine,
             envs,
-        }
-    }
-
-    /// Env `e` of worker `k` failed under a partial command: it is no longer in flight (the
-    /// failure is raised, and a reset starts it afresh).
-    pub(super) fn fail_row(&mut self, k: usize, e: usize) {
-        if self.partial[e].take().is_some() {
-            self.sent[k].retain(|r| *r != (e..e + 1));
-            self.set_turn(e, Turn::Caller);
-            self.ready.dropped(e);
         }
     }
 
@@ -360,7 +303,7 @@ impl AsyncEnvs {
     /// neither with a restart's rows waiting, and a worker that answers whole commands (not
     /// `concurrent`: its envs on threads, each answered as it finishes).
     pub(super) fn joins(&self, a: usize, b: usize, concurrent: bool) -> bool {
-        let plain = |e: usize| self.restarted[e].is_none();
+        let plain = |e: usize| !self.restarted.holds(e);
         let same_slot = self.last_slot(a) == self.last_slot(b);
         !concurrent
             && b == a + 1
@@ -381,8 +324,7 @@ impl AsyncEnvs {
     /// (the action is dropped, as a restarted env drops it in a sync step). Returns whether it
     /// was staged.
     pub(super) fn stage(&mut self, e: usize, words: &[u64]) -> bool {
-        if let Some(run) = self.restarted[e].take() {
-            self.held_restarts -= 1;
+        if let Some(run) = self.restarted.take(e) {
             self.push_ready(run);
             return false;
         }
@@ -483,7 +425,7 @@ impl AsyncEnvs {
                 }
                 Turn::Caller => {
                     let run = Run::restart(e..e + 1, self.last_slot(e), recycled);
-                    self.held_restarts += usize::from(self.restarted[e].replace(run).is_none());
+                    self.restarted.keep(e, run);
                 }
             }
             e = end;
