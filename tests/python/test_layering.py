@@ -1,17 +1,24 @@
-"""The package's layering, read from its source: the import graph (type-only imports included)
+"""The layering, read from the source. The package's import graph (type-only imports included)
 has no circle, and each side imports only what it may (the kinds read a declared view,
 ``kinds/view.py``, and import nothing of the front; the protocol imports neither side; the worker's side
 imports nothing of the caller's, and the caller's side imports one module of the worker's:
-``worker/agent_rows.py``, which both run)."""
+``worker/agent_rows.py``, which both run). In each Rust crate the modules that name each other
+(``use`` and paths in code, a module and its own submodules one unit) form no circle, and no
+source file is over 600 lines."""
 
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import rogue_gym
 
 PACKAGE = Path(rogue_gym.__file__).parent
+ROOT = Path(__file__).resolve().parents[2]
+#: The Rust crates' source folders.
+RUST_SOURCES = ("engine/src", "ipc/src", "pool/src", "pool/cli/src", "python/src")
+MAX_RUST_LINES = 600
 
 
 def _module_name(path: Path) -> str:
@@ -150,3 +157,86 @@ def test_no_benchmark_imports_another() -> None:
             if bad:
                 wrong[path.name] = bad
     assert wrong == {}
+
+
+def _rust_module(src: Path, path: Path) -> tuple[str, ...]:
+    parts = path.relative_to(src).with_suffix("").parts
+    if parts[-1] in ("mod", "lib", "main"):
+        parts = parts[:-1]
+    return tuple(parts)
+
+
+def _expand(tree: str) -> list[str]:
+    """The paths of a ``use`` tree: ``a::{b, c::{d}}`` is ``a::b`` and ``a::c::d``."""
+    tree = re.sub(r"\s+", "", tree)
+    if "{" not in tree:
+        return [tree]
+    head, _, rest = tree.partition("{")
+    inner, depth, parts, cur = rest[: rest.rindex("}")], 0, [], ""
+    for ch in inner:
+        depth += ch == "{"
+        depth -= ch == "}"
+        if ch == "," and depth == 0:
+            parts.append(cur)
+            cur = ""
+        else:
+            cur += ch
+    parts.append(cur)
+    return [p for part in parts if part for p in _expand(head + part)]
+
+
+def rust_module_graph(src: Path) -> dict[tuple[str, ...], set[tuple[str, ...]]]:
+    """Each module of the crate at ``src`` and the modules it names (in a ``use`` or a
+    ``crate::``/``super::``/``self::`` path in code, its unit tests left out), but for its own
+    ancestors and submodules."""
+    files = {_rust_module(src, p): p for p in sorted(src.rglob("*.rs"))}
+    graph: dict[tuple[str, ...], set[tuple[str, ...]]] = {}
+    for module, path in files.items():
+        text = path.read_text().split("#[cfg(test)]\nmod tests")[0]
+        code = "\n".join(line for line in text.splitlines() if not line.lstrip().startswith("//"))
+        paths = [
+            p
+            for tree in re.findall(r"^\s*(?:pub(?:\([^)]*\))?\s+)?use\s+([^;]+);", code, re.M)
+            for p in _expand(tree)
+        ]
+        paths += re.findall(r"\b(?:crate|super|self)(?:::[A-Za-z_]\w*)+", code)
+        edges = set()
+        for p in paths:
+            head, *segments = p.split("::")
+            if head == "crate":
+                at: tuple[str, ...] = ()
+            elif head == "super":
+                at = module[:-1]
+            elif head == "self":
+                at = module
+            elif (*module, head) in files:
+                at = (*module, head)
+            else:
+                continue  # another crate's
+            for seg in segments:
+                if (*at, seg) not in files:
+                    break
+                at += (seg,)
+            near = at[: len(module)] == module or module[: len(at)] == at
+            if not near:
+                edges.add(at)
+        graph[module] = edges
+    return graph
+
+
+def test_no_rust_crate_has_a_circle_of_modules() -> None:
+    for src in RUST_SOURCES:
+        graph = rust_module_graph(ROOT / src)
+        assert len(graph) > 3, src  # the walk found the crate
+        circles = _cycles({"::".join(m): {"::".join(e) for e in es} for m, es in graph.items()})
+        assert circles == [], (src, circles)
+
+
+def test_no_rust_source_file_is_over_600_lines() -> None:
+    long = {
+        str(path.relative_to(ROOT)): n
+        for src in RUST_SOURCES
+        for path in (ROOT / src).rglob("*.rs")
+        if (n := len(path.read_text().splitlines())) > MAX_RUST_LINES
+    }
+    assert long == {}, f"split these by job (at most {MAX_RUST_LINES} lines a file): {long}"
