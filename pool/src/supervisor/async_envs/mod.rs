@@ -155,36 +155,52 @@ impl AsyncEnvs {
         self.handed_over = 0;
         for (k, b) in blocks.iter().enumerate() {
             self.sent[k].clear();
-            let mut start = b.start;
-            for e in b.clone() {
-                if !self.restarted.any() {
-                    break;
-                }
-                let Some(run) = self.restarted.take(e) else {
-                    continue;
-                };
-                if resets.is_some_and(|m| m[e]) {
-                    continue;
-                }
-                if start < e {
-                    self.ready.sent(start..e);
-                    self.sent[k].push(start..e);
-                }
-                if run.slot != slot {
-                    // SAFETY: no worker writes row `e` of either slot: the restart's answer is
-                    // in, and this call leaves the env alone.
-                    unsafe { rows[slot].copy_row(&rows[run.slot], e) };
-                }
-                self.ready.sent(e..e + 1);
-                self.push_ready(Run { slot, ..run });
-                self.handed_over += 1;
-                start = e + 1;
-            }
+            let start = match self.restarted.any() {
+                true => self.hand_over(k, b.clone(), slot, rows, resets),
+                false => b.start,
+            };
             if start < b.end {
                 self.ready.sent(start..b.end);
                 self.sent[k].push(start..b.end);
             }
         }
+    }
+
+    /// [`AsyncEnvs::send_whole`] for the envs of `block` (worker `k`'s) whose restart is kept:
+    /// each answered by it, the envs before it one run. Returns the first env after the last
+    /// so answered (`block.start` when none).
+    #[cold]
+    fn hand_over(
+        &mut self,
+        k: usize,
+        block: Range<usize>,
+        slot: usize,
+        rows: &[SlotRows],
+        resets: Option<&[bool]>,
+    ) -> usize {
+        let mut start = block.start;
+        for e in block {
+            let Some(run) = self.restarted.take(e) else {
+                continue;
+            };
+            if resets.is_some_and(|m| m[e]) {
+                continue;
+            }
+            if start < e {
+                self.ready.sent(start..e);
+                self.sent[k].push(start..e);
+            }
+            if run.slot != slot {
+                // SAFETY: no worker writes row `e` of either slot: the restart's answer is
+                // in, and this call leaves the env alone.
+                unsafe { rows[slot].copy_row(&rows[run.slot], e) };
+            }
+            self.ready.sent(e..e + 1);
+            self.push_ready(Run { slot, ..run });
+            self.handed_over += 1;
+            start = e + 1;
+        }
+        start
     }
 
     /// The slot words of a whole-batch call's command to the envs `block` (one worker's) into
